@@ -1,0 +1,139 @@
+"""The Dynamixel motor catalogue: datasheet figures and actuator-model parameters per motor model."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+import yaml
+
+from toddlerbot.errors import SpecError
+
+DEFAULT_CATALOGUE = resources.files("toddlerbot.actuation") / "motors.yaml"
+
+
+@dataclass(frozen=True)
+class ActuatorParams:
+    """Parameters of the actuator model (appendix Eq. 8-10), in joint units of the motor's output shaft."""
+
+    damping: float
+    """Passive viscous resistance, N*m*s/rad."""
+    armature: float
+    """Reflected rotor inertia, kg*m^2."""
+    frictionloss: float
+    """Coulomb friction, N*m."""
+    tau_max: float
+    """Acceleration torque limit at low speed, N*m."""
+    q_dot_tau_max: float
+    """Speed up to which tau_max is available, rad/s."""
+    q_dot_max: float
+    """Speed at which the acceleration limit has fallen to tau_q_dot_max, rad/s."""
+    tau_q_dot_max: float
+    """Acceleration torque limit at q_dot_max and beyond, N*m."""
+    kd_min: float
+    """Damping added by the powered motor's controller, N*m*s/rad."""
+    tau_brake: float
+    """Braking torque limit, N*m."""
+    kp_scale: float = 150.0
+    """Dynamixel position P gain divided by the physical stiffness in N*m/rad."""
+
+    def __post_init__(self) -> None:
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise ValueError(f"{field.name} must be a finite number >= 0, got {value!r}")
+        if self.q_dot_max <= self.q_dot_tau_max:
+            raise ValueError(f"q_dot_max ({self.q_dot_max}) must exceed q_dot_tau_max ({self.q_dot_tau_max})")
+        if self.kp_scale <= 0:
+            raise ValueError(f"kp_scale must be > 0, got {self.kp_scale}")
+
+    def replace(self, **changes: float) -> ActuatorParams:
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class MotorModel:
+    """One Dynamixel model as the robot uses it."""
+
+    name: str
+    aliases: tuple[str, ...]
+    stall_torque_nm: float
+    """Stall torque at 12 V, N*m (appendix Table 2)."""
+    mass_kg: float
+    """Mass of one unit, kg (a dual-axis unit drives two motor entries)."""
+    dimensions_mm: tuple[float, float, float]
+    axes: int
+    """Output shafts per unit: 2 for 2XL430 and 2XC430."""
+    actuator: ActuatorParams
+
+    @property
+    def mass_per_axis_kg(self) -> float:
+        return self.mass_kg / self.axes
+
+
+class Catalogue:
+    """Motor models by name or alias."""
+
+    def __init__(self, models: dict[str, MotorModel], source: str) -> None:
+        self.models = models
+        self.source = source
+        self._by_alias = {alias: m for m in models.values() for alias in (m.name, *m.aliases)}
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._by_alias
+
+    def __getitem__(self, name: str) -> MotorModel:
+        try:
+            return self._by_alias[name]
+        except KeyError:
+            known = ", ".join(sorted(self._by_alias))
+            raise SpecError(f"{self.source}: unknown motor model {name!r}; expected one of: {known}") from None
+
+    def with_actuator(self, name: str, params: ActuatorParams) -> Catalogue:
+        """A copy in which one model uses new actuator parameters (e.g. the output of a system-ID fit)."""
+        model = dataclasses.replace(self[name], actuator=params)
+        return Catalogue({**self.models, model.name: model}, self.source)
+
+
+def _parse(raw: object, source: str) -> Catalogue:
+    if not isinstance(raw, dict) or not raw:
+        raise SpecError(f"{source}: expected a mapping of motor model name -> figures")
+    models = {}
+    for name, entry in raw.items():
+        where = f"{source}: motor model {name!r}"
+        try:
+            models[name] = MotorModel(
+                name=name,
+                aliases=tuple(entry.get("aliases", ())),
+                stall_torque_nm=float(entry["stall_torque_nm"]),
+                mass_kg=float(entry["mass_kg"]),
+                dimensions_mm=tuple(float(x) for x in entry["dimensions_mm"]),
+                axes=int(entry.get("axes", 1)),
+                actuator=ActuatorParams(**entry["actuator"]),
+            )
+        except KeyError as exc:
+            raise SpecError(f"{where}: missing field {exc.args[0]!r}") from None
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise SpecError(f"{where}: {exc}") from None
+    return Catalogue(models, source)
+
+
+def load_catalogue(path: str | Path | None = None) -> Catalogue:
+    """Load a motor catalogue (the packaged one by default)."""
+    if path is None:
+        return default_catalogue()
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SpecError(f"{path}: cannot read motor catalogue ({exc.strerror})") from None
+    return _parse(yaml.safe_load(text), str(path))
+
+
+@cache
+def default_catalogue() -> Catalogue:
+    return _parse(yaml.safe_load(DEFAULT_CATALOGUE.read_text()), "motors.yaml")

@@ -1,0 +1,1 @@
+"""Robot spec, model builder and transmissions (bottom layer: imports only toddlerbot.actuation)."""

@@ -1,0 +1,274 @@
+"""Build the MuJoCo model of a robot spec with MuJoCo's model-editing API (mujoco.MjSpec).
+
+The result is deterministic: the same spec and options give a byte-identical MJCF.
+
+* Bodies carry the spec's inertials; motor joints take damping, armature and friction loss from the motor
+  catalogue; every motor gets a torque actuator (ctrl = N*m at the motor joint), limited to its braking torque.
+* Transmissions: spur gears and racks are joint equalities, the waist differential is two limited fixed
+  tendons (range = backlash), parallel linkages are closed by weld equalities (relative pose from qpos0).
+* Robot geoms collide with the floor only (contype 1 / conaffinity 0 against a floor with contype 0 /
+  conaffinity 1), plus the spec's explicit self-collision pairs.
+* IMU sensors (orientation, gyro, accelerometer, velocimeter) at the ``imu`` site, when it exists.
+* A ``home`` keyframe: the spec's home pose, the motors and linkage rods derived through the transmissions,
+  and (floating base) the torso raised so the lowest sole point touches z = 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from toddlerbot.actuation.catalogue import Catalogue, default_catalogue
+from toddlerbot.robot.spec import (
+    BevelDifferential,
+    ParallelLinkage,
+    RackAndPinion,
+    RobotSpec,
+    SpurGear,
+    load_spec,
+)
+from toddlerbot.robot.transmission import build_transmission_map
+
+Base = Literal["floating", "fixed"]
+VARIANTS = ("floating", "fixed", "gripper")
+FREEJOINT = "floating_base"
+IMU_SITE = "imu"
+
+_GEOM_TYPES = {
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+}
+_INTEGRATORS = {
+    "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+}
+_SOLVERS = {"Newton": mujoco.mjtSolver.mjSOL_NEWTON, "CG": mujoco.mjtSolver.mjSOL_CG, "PGS": mujoco.mjtSolver.mjSOL_PGS}
+_CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
+_ROBOT_RGBA = (0.85, 0.55, 0.2, 1.0)
+
+# Scene cameras (position, xyaxes), all tracking the robot's centre of mass.
+_SCENE_CAMERAS = {
+    "perspective": ((0.7, -0.7, 0.7), (1, 1, 0, -1, 1, 3)),
+    "side": ((0.0, -1.0, 0.6), (1, 0, 0, 0, 1, 3)),
+    "front": ((1.0, 0.0, 0.6), (0, 1, 0, -1, 0, 3)),
+    "top": ((0.0, 0.0, 1.0), (0, 1, 0, -1, 0, 0)),
+}
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    base: Base = "floating"
+    scene: bool = False
+
+
+def variant_spec(variant: str, spec: RobotSpec | None = None) -> tuple[RobotSpec, Base]:
+    """Resolve a CLI variant name (floating, fixed, gripper) into a spec and a base type."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; expected one of {', '.join(VARIANTS)}")
+    spec = spec or load_spec()
+    if variant == "gripper":
+        return spec.with_variant("gripper"), "floating"
+    return spec, variant  # type: ignore[return-value]
+
+
+def build_mjspec(
+    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
+) -> mujoco.MjSpec:
+    """An MjSpec of the robot (compile it with ``.compile()``, write it with ``.to_xml()``)."""
+    catalogue = catalogue or default_catalogue()
+    mj = mujoco.MjSpec()
+    mj.modelname = spec.name if spec.variant is None else f"{spec.name}_{spec.variant}"
+    mj.compiler.degree = False
+    mj.compiler.autolimits = True
+    _set_options(mj, spec)
+    motor_params = {m.joint: catalogue[m.model].actuator for m in spec.motors}
+
+    bodies = {"world": mj.worldbody}
+    for body in spec.bodies:
+        b = bodies[body.parent].add_body(name=body.name, pos=body.pos, quat=body.quat)
+        b.mass, b.ipos, b.iquat, b.inertia = body.mass, body.com, body.inertia_quat, body.inertia
+        b.explicitinertial = True
+        bodies[body.name] = b
+        if body.parent == "world" and base == "floating":
+            b.add_freejoint(name=FREEJOINT)
+        if body.joint is not None:
+            j = body.joint
+            dyn = motor_params.get(j.name)
+            b.add_joint(
+                name=j.name,
+                type=mujoco.mjtJoint.mjJNT_HINGE if j.type == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE,
+                axis=j.axis,
+                pos=j.pos,
+                range=j.range or (0.0, 0.0),
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE if j.range else mujoco.mjtLimited.mjLIMITED_FALSE,
+                damping=[dyn.damping if dyn else j.damping],
+                armature=dyn.armature if dyn else j.armature,
+                frictionloss=dyn.frictionloss if dyn else j.frictionloss,
+            )
+        for g in body.collision:
+            b.add_geom(
+                name=g.name, type=_GEOM_TYPES[g.type], size=_pad3(g.size), pos=g.pos, quat=g.quat,
+                contype=1, conaffinity=0, rgba=_ROBOT_RGBA,
+            )
+        for s in body.sites:
+            b.add_site(name=s.name, pos=s.pos, quat=s.quat, size=[0.005, 0, 0], rgba=(0.2, 0.6, 1.0, 0.5), group=4)
+        for c in body.cameras:
+            b.add_camera(name=c.name, pos=c.pos, quat=c.quat, fovy=c.fovy)
+
+    _add_transmissions(mj, spec)
+    for g1, g2 in spec.contacts.self_pairs:
+        mj.add_pair(geomname1=g1, geomname2=g2)
+    for motor in spec.motors_by_id:
+        limit = motor_params[motor.joint].tau_brake
+        act = mj.add_actuator(name=motor.joint, target=motor.joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_motor()
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.ctrlrange = (-limit, limit)
+    if any(s.name == IMU_SITE for b in spec.bodies for s in b.sites):
+        _add_imu_sensors(mj)
+    if scene:
+        _add_scene(mj)
+    _add_home_key(mj, spec, base)
+    return mj
+
+
+def build_model(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> mujoco.MjModel:
+    return build_mjspec(spec, base, scene).compile()
+
+
+def build_xml(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> str:
+    return build_mjspec(spec, base, scene).to_xml()
+
+
+def _pad3(size: list[float]) -> list[float]:
+    return list(size) + [0.0] * (3 - len(size))
+
+
+def _set_options(mj: mujoco.MjSpec, spec: RobotSpec) -> None:
+    sim = spec.simulation
+    mj.option.timestep = sim.timestep
+    mj.option.integrator = _INTEGRATORS[sim.integrator]
+    mj.option.solver = _SOLVERS[sim.solver]
+    mj.option.iterations = sim.iterations
+    mj.option.ls_iterations = sim.ls_iterations
+    mj.option.cone = _CONES[sim.cone]
+
+
+def _add_transmissions(mj: mujoco.MjSpec, spec: RobotSpec) -> None:
+    solref, solimp = spec.constraints.solref, spec.constraints.solimp
+
+    def joint_equality(driven: str, drive: str, coef: float) -> None:
+        mj.add_equality(
+            name=f"{driven}_coupling", type=mujoco.mjtEq.mjEQ_JOINT, name1=driven, name2=drive,
+            objtype=mujoco.mjtObj.mjOBJ_JOINT, data=[0.0, coef] + [0.0] * 10, solref=solref, solimp=solimp,
+        )
+
+    for t in spec.transmissions:
+        if isinstance(t, SpurGear):
+            joint_equality(t.driven, t.drive, -t.ratio)
+        elif isinstance(t, RackAndPinion):
+            for finger in t.driven:
+                joint_equality(finger, t.drive, -t.pitch_radius)
+        elif isinstance(t, ParallelLinkage):
+            for pair in t.rods:
+                # zero relative-pose quaternion: MuJoCo takes the relative pose from qpos0
+                mj.add_equality(
+                    name=f"{pair.rod}_loop", type=mujoco.mjtEq.mjEQ_WELD, name1=pair.rod, name2=pair.bearing,
+                    objtype=mujoco.mjtObj.mjOBJ_BODY, data=[0.0] * 10 + [1.0, 0.0], solref=solref, solimp=solimp,
+                )
+        elif isinstance(t, BevelDifferential):
+            m1, m2 = t.drives
+            for output, coefs, backlash in (
+                (t.roll, (t.roll_coef, -t.roll_coef), t.roll_backlash),
+                (t.yaw, (-t.yaw_coef, -t.yaw_coef), t.yaw_backlash),
+            ):
+                tendon = mj.add_tendon(name=f"{output}_coupling", limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                                       range=(-backlash, backlash))
+                tendon.wrap_joint(m1, coefs[0])
+                tendon.wrap_joint(m2, coefs[1])
+                tendon.wrap_joint(output, 1.0)
+
+
+def _add_imu_sensors(mj: mujoco.MjSpec) -> None:
+    site = mujoco.mjtObj.mjOBJ_SITE
+    for name, kind in (
+        ("imu_quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT),
+        ("imu_gyro", mujoco.mjtSensor.mjSENS_GYRO),
+        ("imu_accel", mujoco.mjtSensor.mjSENS_ACCELEROMETER),
+        ("imu_vel", mujoco.mjtSensor.mjSENS_VELOCIMETER),
+        ("imu_pos", mujoco.mjtSensor.mjSENS_FRAMEPOS),
+    ):
+        mj.add_sensor(name=name, type=kind, objtype=site, objname=IMU_SITE)
+
+
+def _add_scene(mj: mujoco.MjSpec) -> None:
+    mj.add_texture(
+        name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        rgb1=(0.2, 0.3, 0.4), rgb2=(0.1, 0.2, 0.3), mark=mujoco.mjtMark.mjMARK_EDGE, markrgb=(0.8, 0.8, 0.8),
+        width=300, height=300,
+    )
+    material = mj.add_material(name="grid", texrepeat=(8, 8), reflectance=0.1)
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "grid"
+    mj.worldbody.add_geom(
+        name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=(0, 0, 0.05), material="grid", contype=0, conaffinity=1,
+    )
+    mj.worldbody.add_light(name="sun", pos=(0, 0, 1.5), dir=(0, 0, -1), type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
+    for name, (pos, xyaxes) in _SCENE_CAMERAS.items():
+        cam = mj.worldbody.add_camera(name=name, pos=pos, mode=mujoco.mjtCamLight.mjCAMLIGHT_TRACKCOM)
+        cam.alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
+        cam.alt.xyaxes = xyaxes
+    mj.stat.center = (0, 0, 0.25)
+    mj.stat.extent = 0.6
+    mj.visual.global_.offwidth = 1280
+    mj.visual.global_.offheight = 720
+
+
+def home_qpos(model: mujoco.MjModel, spec: RobotSpec) -> np.ndarray:
+    """qpos of the home pose with the base at the spec's zero-pose height (before dropping to the floor)."""
+    tmap = build_transmission_map(spec)
+    q_joint = np.array([spec.home.get(j, 0.0) for j in tmap.joint_names])
+    qpos = model.qpos0.copy()
+    for name, value in tmap.motor_to_model(tmap.joint_to_motor(q_joint)).items():
+        qpos[model.joint(name).qposadr[0]] = value
+    return qpos
+
+
+def lowest_point(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Lowest z of any robot collision geom (boxes by their corners, round geoms by their extent)."""
+    return min(geom_z_extent(model, data, g)[0] for g in range(model.ngeom) if model.geom_bodyid[g] != 0)
+
+
+def highest_point(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    return max(geom_z_extent(model, data, g)[1] for g in range(model.ngeom) if model.geom_bodyid[g] != 0)
+
+
+def geom_z_extent(model: mujoco.MjModel, data: mujoco.MjData, geom: int) -> tuple[float, float]:
+    size, z, rot = model.geom_size[geom], data.geom_xpos[geom][2], data.geom_xmat[geom].reshape(3, 3)
+    kind = model.geom_type[geom]
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        half = float(np.abs(rot[2]) @ size)
+    elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        half = float(size[0])
+    elif kind in (mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_CYLINDER):
+        half = float(abs(rot[2, 2]) * size[1] + (size[0] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else
+                                                  size[0] * np.hypot(rot[2, 0], rot[2, 1])))
+    else:
+        raise ValueError(f"geom {geom}: unsupported type {kind}")
+    return z - half, z + half
+
+
+def _add_home_key(mj: mujoco.MjSpec, spec: RobotSpec, base: Base) -> None:
+    model = mj.compile()
+    data = mujoco.MjData(model)
+    data.qpos[:] = home_qpos(model, spec)
+    if base == "floating":
+        mujoco.mj_kinematics(model, data)
+        data.qpos[2] -= lowest_point(model, data)
+    mj.add_key(name="home", qpos=data.qpos.tolist())
