@@ -1,0 +1,1 @@
+"""The `toddlerbot` command line: one sub-command group per area."""

@@ -1,0 +1,33 @@
+"""Entry point: ``toddlerbot <area> <verb>``. Each area lives in its own module and registers a Typer app here."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from toddlerbot.cli import design, model
+from toddlerbot.errors import ToddlerbotError
+
+app = typer.Typer(
+    help="ToddlerBot: robot model, design metrics, simulation, system identification and hardware tools.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(model.app, name="model")
+app.add_typer(design.app, name="design")
+
+
+def main() -> None:
+    """Run the CLI; user-facing errors become one red line and exit code 2, never a traceback."""
+    try:
+        app()
+    except ToddlerbotError as exc:
+        Console(stderr=True).print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

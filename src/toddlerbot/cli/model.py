@@ -1,0 +1,70 @@
+"""`toddlerbot model ...`: build the MuJoCo model from the robot spec and describe it."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from toddlerbot.cli.output import console
+from toddlerbot.robot.builder import VARIANTS, build_mjspec, variant_spec
+from toddlerbot.robot.spec import load_spec
+from toddlerbot.robot.summary import summarize
+
+app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
+
+SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
+VariantOption = Annotated[str, typer.Option("--variant", help=f"One of: {', '.join(VARIANTS)}.")]
+
+
+def _check_variant(variant: str) -> str:
+    if variant not in VARIANTS:
+        raise typer.BadParameter(f"{variant!r} is not one of {', '.join(VARIANTS)}", param_hint="--variant")
+    return variant
+
+
+@app.command()
+def build(
+    output: Annotated[Path, typer.Option("-o", "--output", help="MJCF file to write.")],
+    variant: VariantOption = "floating",
+    scene: Annotated[bool, typer.Option("--scene", help="Add a floor, lights and cameras.")] = False,
+    spec_path: SpecOption = None,
+) -> None:
+    """Write the MJCF of the robot (deterministic: same spec, same bytes)."""
+    spec, base = variant_spec(_check_variant(variant), load_spec(spec_path))
+    mjspec = build_mjspec(spec, base, scene)
+    mjspec.compile()  # refuse to write a model MuJoCo cannot compile
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_text(mjspec.to_xml())
+    console.print(f"wrote {output} ({spec.name}, {variant}{', scene' if scene else ''})")
+
+
+@app.command()
+def info(
+    variant: VariantOption = "floating",
+    spec_path: SpecOption = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False,
+) -> None:
+    """Print counts, total mass, standing height and the motor table."""
+    spec, base = variant_spec(_check_variant(variant), load_spec(spec_path))
+    summary = summarize(spec, build_mjspec(spec, base, scene=False).compile())
+    if as_json:
+        typer.echo(json.dumps(asdict(summary), indent=2))
+        return
+    console.print(f"[bold]{summary.name}[/] ({variant})")
+    console.print(
+        f"bodies {summary.bodies}  joints {summary.joints}  nq {summary.nq}  nv {summary.nv}  "
+        f"actuators {summary.actuators}  equalities {summary.equalities}  tendons {summary.tendons}  "
+        f"geoms {summary.geoms}"
+    )
+    console.print(f"total mass {summary.total_mass_kg:.3f} kg   standing height {summary.standing_height_m:.3f} m   "
+                  f"torso height at home {summary.torso_height_m:.4f} m")
+    table = Table("id", "motor", "model", "joint", "group", "kp", "kd", "range (rad)", "tau_max (N*m)")
+    for m in summary.motors:
+        table.add_row(str(m.id), m.motor, m.model, m.joint, m.group, str(m.kp), str(m.kd),
+                      f"[{m.range[0]:+.3f}, {m.range[1]:+.3f}]", f"{m.tau_max:.2f}")
+    console.print(table)
