@@ -31,7 +31,8 @@ def plot_power_factor(report: DesignReport, path: Path) -> None:
     ax.set_xlabel("active degrees of freedom")
     ax.set_ylabel("power factor  Σ|τmax| / (h·m·g)")
     ax.set_title("Power factor vs active DoF (appendix Eq. 4, Fig. 8)")
-    ax.legend(loc="upper left", fontsize=8)
+    ax.set_ylim(0, 1.15 * max([pf.total] + [h.power_factor for h in report.humanoids]))
+    ax.legend(loc="lower left", fontsize=8)
     ax.grid(alpha=0.3)
     _save(fig, path)
 
