@@ -49,7 +49,7 @@ def actuator_arrays(
     params: Sequence[ActuatorParams], kp_dynamixel: Sequence[float], kd_dynamixel: Sequence[float]
 ) -> ActuatorArrays:
     """Stack per-motor parameters and firmware gains into arrays (numpy; pass through jnp.asarray for JAX)."""
-    gains = np.array([physical_gains(kp, kd, p) for p, kp, kd in zip(params, kp_dynamixel, kd_dynamixel)])
+    gains = np.array([physical_gains(kp, kd, p) for p, kp, kd in zip(params, kp_dynamixel, kd_dynamixel, strict=True)])
     field = lambda name: np.array([getattr(p, name) for p in params], dtype=float)  # noqa: E731
     return ActuatorArrays(
         kp=gains[:, 0], kd=gains[:, 1], kd_min=field("kd_min"), tau_max=field("tau_max"),

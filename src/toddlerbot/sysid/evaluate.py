@@ -44,7 +44,7 @@ def evaluate(manifest: Manifest, params: ActuatorParams, dt: float = DT) -> Eval
     runs = [
         RunError(file=str(run.file.relative_to(manifest.path.parent)) if run.file.is_relative_to(manifest.path.parent)
                  else str(run.file), mae_deg=float(np.mean(np.abs(e))), rmse_deg=float(np.sqrt(np.mean(e**2))))
-        for run, e in zip(manifest.runs, batch.split(err))
+        for run, e in zip(manifest.runs, batch.split(err), strict=True)
     ]
     return Evaluation(mae_deg=float(np.mean(np.abs(err))), rmse_deg=float(np.sqrt(np.mean(err**2))), runs=runs,
                       simulated=batch.split(sim))
@@ -58,14 +58,15 @@ def plot_tracking(manifest: Manifest, evaluation: Evaluation, folder: str | Path
     import matplotlib.pyplot as plt
 
     written = []
-    for run, sim, err in zip(manifest.runs, evaluation.simulated, evaluation.runs):
+    for run, sim, err in zip(manifest.runs, evaluation.simulated, evaluation.runs, strict=True):
         fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 5), sharex=True, height_ratios=(3, 1))
         t = run.time - run.time[0]
         top.plot(t, np.degrees(run.goal_position), color="0.6", lw=1, label="goal")
         top.plot(t, np.degrees(run.position), lw=1.2, label="measured")
         top.plot(t, np.degrees(sim), lw=1.2, ls="--", label="simulated")
         top.set_ylabel("position (deg)")
-        top.set_title(f"{err.file}: kp={run.kp:g} kd={run.kd:g}  MAE {err.mae_deg:.2f} deg  RMSE {err.rmse_deg:.2f} deg")
+        top.set_title(f"{err.file}: kp={run.kp:g} kd={run.kd:g}  "
+                      f"MAE {err.mae_deg:.2f} deg  RMSE {err.rmse_deg:.2f} deg")
         top.legend(loc="upper right", fontsize=8)
         bottom.plot(t, np.degrees(sim - run.position), color="C3", lw=1)
         bottom.set_ylabel("sim - meas (deg)")

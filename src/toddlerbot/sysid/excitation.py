@@ -37,7 +37,8 @@ def steps(t: np.ndarray, duration: float, amplitude: float, hold: float = 0.6) -
     return np.where(index == 0, 0.0, out)
 
 
-def sinusoids(t: np.ndarray, duration: float, amplitude: float, freqs: tuple[float, ...] = (0.5, 1, 2, 4)) -> np.ndarray:
+def sinusoids(t: np.ndarray, duration: float, amplitude: float,
+              freqs: tuple[float, ...] = (0.5, 1, 2, 4)) -> np.ndarray:
     segment = np.clip((t / duration * len(freqs)).astype(int), 0, len(freqs) - 1)
     f = np.asarray(freqs, float)[segment]
     start = segment * duration / len(freqs)
@@ -77,7 +78,7 @@ def excitation(profile: str, duration: float = 6.0, rate: float = 200.0, amplitu
         raise SysIDError(f"unknown excitation profile {profile!r}; expected one of {', '.join(PROFILES)}")
     if duration <= 0 or rate <= 0:
         raise SysIDError(f"duration and rate must be > 0, got {duration} s at {rate} Hz")
-    t = np.arange(int(round(duration * rate)) + 1) / rate
+    t = np.arange(round(duration * rate) + 1) / rate
     return t, center + PROFILES[profile](t, duration, amplitude)
 
 

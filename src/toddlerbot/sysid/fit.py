@@ -19,7 +19,7 @@ import numpy as np
 from toddlerbot.actuation.catalogue import ActuatorParams
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.manifest import Manifest
-from toddlerbot.sysid.params import from_unit, params_at, parameter_names, to_unit
+from toddlerbot.sysid.params import from_unit, parameter_names, params_at, to_unit
 from toddlerbot.sysid.simulate import DT, RunBatch, simulate
 
 

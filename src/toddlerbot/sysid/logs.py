@@ -106,7 +106,7 @@ def format_log(time: np.ndarray, goal_position: np.ndarray, position: np.ndarray
     columns = {"time": time, "goal_position": goal_position, "position": position, "velocity": velocity}
     columns = {k: np.asarray(v, dtype=float) for k, v in columns.items() if v is not None}
     lines = [",".join(columns)]
-    lines += [",".join(f"{x:.9g}" for x in row) for row in zip(*columns.values())]
+    lines += [",".join(f"{x:.9g}" for x in row) for row in zip(*columns.values(), strict=True)]
     return "\n".join(lines) + "\n"
 
 

@@ -56,7 +56,7 @@ class RunBatch:
     @classmethod
     def from_runs(cls, runs: tuple[RunLog, ...] | list[RunLog], dt: float = DT) -> RunBatch:
         runs = tuple(runs)
-        n_steps = int(round(max(r.duration for r in runs) / dt)) + 1
+        n_steps = round(max(r.duration for r in runs) / dt) + 1
         goal = np.empty((n_steps, len(runs)))
         steps, run_ids = [], []
         t = np.arange(n_steps) * dt

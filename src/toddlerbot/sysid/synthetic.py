@@ -26,7 +26,8 @@ def synthesize(excitations: list[Excitation], rig: Rig, params: ActuatorParams, 
     fields = {k: np.array([float(v)]) for k, v in dataclasses.asdict(params).items()}
     clean = batch.split(simulate(batch, rig, fields)[0])
     rng = np.random.default_rng(seed)
-    return [dataclasses.replace(r, position=q + rng.normal(0.0, noise_std, q.shape)) for r, q in zip(runs, clean)]
+    return [dataclasses.replace(r, position=q + rng.normal(0.0, noise_std, q.shape))
+            for r, q in zip(runs, clean, strict=True)]
 
 
 def write_runs(folder: str | Path, motor: str, rig: Rig, runs: list[RunLog], with_position: bool = True) -> Path:
