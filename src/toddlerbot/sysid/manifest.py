@@ -21,7 +21,8 @@ from toddlerbot.errors import SpecError
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.io import atomic_write_text
 from toddlerbot.sysid.logs import RunLog, read_log
-from toddlerbot.sysid.rigs import Rig, parse_rig, rig_to_dict
+from toddlerbot.sysid.rigs import Rig, RobotJointRig, parse_rig, rig_to_dict
+from toddlerbot.sysid.robot_joint import rig_motor
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,9 @@ def load_manifest(path: str | Path, catalogue: Catalogue | None = None) -> Manif
         raise SysIDError(f"{path}: unknown motor model {raw['motor']!r}; expected one of "
                          f"{', '.join(sorted(catalogue.models))} (or an alias)") from None
     rig = parse_rig(raw["rig"], str(path))
+    if isinstance(rig, RobotJointRig) and rig_motor(rig).name != motor.name:
+        raise SysIDError(f"{path}: robot joint {rig.joint!r} is driven by a {rig_motor(rig).name}, "
+                         f"but the manifest's motor is {motor.name}")
     if not isinstance(raw["logs"], list) or not raw["logs"]:
         raise SysIDError(f"{path}: 'logs' must be a non-empty list of {{file, kp, kd}}")
     runs = []
