@@ -55,3 +55,17 @@ def test_unknown_variant_is_a_usage_error():
     result = runner.invoke(app, ["model", "build", "--variant", "wings", "-o", "x.xml"])
     assert result.exit_code == 2
     assert "wings" in result.output
+
+
+def test_model_build_uses_fitted_motor_params(tmp_path):
+    params = tmp_path / "xc330.json"
+    params.write_text('{"motor": "XC330", "actuator": {"armature": 0.0123, "damping": 0.0456}}')
+    out = tmp_path / "robot.xml"
+    result = runner.invoke(app, ["model", "build", "--motor-params", str(params), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    model = mujoco.MjModel.from_xml_path(str(out))
+    neck = model.joint("neck_yaw_drive")
+    assert model.dof_armature[neck.dofadr[0]] == pytest.approx(0.0123)
+    assert model.dof_damping[neck.dofadr[0]] == pytest.approx(0.0456)
+    knee = model.joint("left_knee_drive")  # an XM430: unchanged
+    assert model.dof_armature[knee.dofadr[0]] == pytest.approx(0.0022)
