@@ -14,15 +14,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.builder import build_model, home_qpos
 from toddlerbot.robot.spec import RobotSpec
 
 FOOT_SITES = ("left_foot_center", "right_foot_center")
-
-
-class IKError(ToddlerbotError):
-    """A foot target is out of the leg's reach."""
 
 
 @dataclass(frozen=True)
@@ -110,7 +105,8 @@ class LegIK:
             q = np.clip(q, self._range[..., 0], self._range[..., 1])
             if err < self.tolerance:
                 break
-        if err > 1e-3:
-            raise IKError(f"leg IK did not converge (residual {err:.4f}); foot target out of reach: {foot_pos}")
+        self.residual = err
+        """Largest position (m) / orientation (rad) error of the last solution: > 0 when a target was out of reach
+        (the legs then stop at their joint limits, closest to the target)."""
         self._q = q
         return q

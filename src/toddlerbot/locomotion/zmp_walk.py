@@ -150,8 +150,14 @@ class ZMPWalk:
         return WalkState(tick=0, cart=cart, zmp_error_sum=np.zeros(2), walk_poses=[np.zeros(3)],
                          first_stance=first_stance, leg_q=self.ik.home_q.copy(), start_feet=feet)
 
-    def step(self, state: WalkState, command: np.ndarray) -> tuple[WalkState, WalkReference]:
-        """The reference at ``state.tick`` under ``command`` and the state of the next tick (state is not modified)."""
+    def step(
+        self, state: WalkState, command: np.ndarray, torso_tilt: np.ndarray | None = None
+    ) -> tuple[WalkState, WalkReference]:
+        """The reference at ``state.tick`` under ``command`` and the state of the next tick (state is not modified).
+
+        ``torso_tilt``: optional (2, 3, 3) rotations, per leg, of the torso relative to its planned upright
+        orientation (a feedback input: the measured tilt, scaled); the leg IK then places each foot where the plan
+        wants it in the world although the torso is tilted. None (offline use) means upright."""
         cfg = self.config
         cmd = self.clip_command(command)
         tick = state.tick
@@ -163,7 +169,7 @@ class ZMPWalk:
         zmp_future = np.array([self._zmp_ref(state, footsteps, i) for i in range(tick, tick + cfg.preview_ticks + 1)])
         cart, err_sum, zmp = preview_step(self.gains, state.cart, state.zmp_error_sum, zmp_future)
         foot_floor, lift, contact = self._feet(state, footsteps, tick)
-        ref, leg_q = self._pose(tick, cmd, state, foot_floor, lift, contact, state.cart, zmp, zmp_future[0])
+        ref, leg_q = self._pose(tick, cmd, state, foot_floor, lift, contact, state.cart, zmp, zmp_future[0], torso_tilt)
         next_state = WalkState(tick=tick + 1, cart=cart, zmp_error_sum=err_sum, walk_poses=poses,
                                first_stance=state.first_stance, leg_q=leg_q, start_feet=state.start_feet)
         return next_state, ref
@@ -248,7 +254,9 @@ class ZMPWalk:
             contact[swing] = s >= 1.0
         return feet, lift, contact
 
-    def _pose(self, tick, cmd, state, feet, lift, contact, cart, zmp, zmp_ref) -> tuple[WalkReference, np.ndarray]:
+    def _pose(
+        self, tick, cmd, state, feet, lift, contact, cart, zmp, zmp_ref, torso_tilt
+    ) -> tuple[WalkReference, np.ndarray]:
         cfg = self.config
         yaw_l, yaw_r = feet[LEFT, 2], feet[RIGHT, 2]
         torso_yaw = yaw_r + 0.5 * ((yaw_l - yaw_r + np.pi) % (2 * np.pi) - np.pi)
@@ -263,6 +271,11 @@ class ZMPWalk:
             d = feet[leg, 2] - torso_yaw
             cd, sd = np.cos(d), np.sin(d)
             foot_rot[leg] = np.array([[cd, -sd, 0.0], [sd, cd, 0.0], [0.0, 0.0, 1.0]]) @ self.ik.home_foot_rot[leg]
+        if torso_tilt is not None:
+            # the torso is rotated by tilt (in the yaw-aligned frame) about its origin: express the targets in it
+            for leg in (LEFT, RIGHT):
+                foot_torso[leg] = torso_tilt[leg].T @ foot_torso[leg]
+                foot_rot[leg] = torso_tilt[leg].T @ foot_rot[leg]
         leg_q = self.ik.solve(foot_torso, foot_rot, state.leg_q)
         joint_pos = self.home_joint_pos.copy()
         joint_pos[self._leg_index] = leg_q
