@@ -19,8 +19,9 @@ app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motio
 @app.command()
 def run(
     policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(POLICIES)}.")] = "walk-zmp",
-    command: Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' "
-                                         "(s: m/s, m/s, rad/s), e.g. '0:0.1,0,0; 5:0,0,0.3'.")] = "0:0.1,0,0",
+    command: Annotated[str | None, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' "
+                                         "(s: m/s, m/s, rad/s), e.g. '0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for "
+                                         "walk-zmp, zero otherwise.")] = None,
     command_file: Annotated[Path | None, typer.Option("--command-file", help="Schedule file (one entry per line); "
                                                       "overrides --command.")] = None,
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around "
@@ -51,6 +52,8 @@ def run(
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
     if seconds <= 0 or control_hz <= 0:
         raise ToddlerbotError("--seconds and --control-hz must be > 0")
+    if command is None:
+        command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
     schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)
     robot = MuJoCoRobot(config=SimConfig(control_dt=1.0 / control_hz))
     pol = make_policy(policy, robot, motion)
