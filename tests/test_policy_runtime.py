@@ -72,7 +72,7 @@ def _write(tmp_path, text):
 def test_motion_with_missing_joint_is_rejected(tmp_path):
     path = _write(tmp_path, "joints: [neck_yaw, neck_pitch]\nkeyframes:\n - {t: 0, neck_yaw: 0, neck_pitch: 0}\n"
                             " - {t: 1, neck_yaw: 10}\n")
-    with pytest.raises(MotionError, match="keyframe 1: missing joint.*neck_pitch"):
+    with pytest.raises(MotionError, match=r"keyframe 1: missing joint.*neck_pitch"):
         load_motion(path, load_spec())
 
 

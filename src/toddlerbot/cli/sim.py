@@ -19,11 +19,12 @@ app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motio
 @app.command()
 def run(
     policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(POLICIES)}.")] = "walk-zmp",
-    command: Annotated[str | None, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' "
-                                         "(s: m/s, m/s, rad/s), e.g. '0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for "
-                                         "walk-zmp, zero otherwise.")] = None,
-    command_file: Annotated[Path | None, typer.Option("--command-file", help="Schedule file (one entry per line); "
-                                                      "overrides --command.")] = None,
+    command: Annotated[str | None, typer.Option(
+        "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
+        "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")] = None,
+    command_file: Annotated[
+        Path | None, typer.Option("--command-file", help="Schedule file (one entry per line); overrides --command.")
+    ] = None,
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around "
                                                "or a motion YAML file.")] = None,
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")] = 10.0,
@@ -101,7 +102,7 @@ def run(
         summary_json.parent.mkdir(parents=True, exist_ok=True)
         summary_json.write_text(json.dumps(summary.to_dict(), indent=2))
     t = summary.tracking
-    status = "[red]FELL[/] at {:.2f} s".format(summary.fall_time_s) if summary.fell else "[green]no fall[/]"
+    status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
     console.print(
         f"[bold]{policy}[/] {summary.duration_s:.2f} s: {status}; displacement "
         f"({summary.displacement_m[0]:+.3f}, {summary.displacement_m[1]:+.3f}) m, path {summary.distance_m:.3f} m, "

@@ -17,6 +17,7 @@ range in the spec. Joint names are the output joints of `TransmissionMap.joint_n
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -129,7 +130,7 @@ def parse_motion(raw: object, spec: RobotSpec, source: str) -> Motion:
             pose.append(rad)
         times.append(float(frame["t"]))
         poses.append(pose)
-    if times[0] != 0.0 or any(b <= a for a, b in zip(times, times[1:])):
+    if times[0] != 0.0 or any(b <= a for a, b in itertools.pairwise(times)):
         raise MotionError(f"{source}: keyframe times must start at 0 and increase, got {times}")
     return Motion(name=str(raw.get("name", Path(source).stem)), joints=tuple(joints), times=np.array(times),
                   poses=np.array(poses), interpolation=interpolation)

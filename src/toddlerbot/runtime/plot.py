@@ -39,7 +39,7 @@ def plot_log(log: RunLog, out_dir: str | Path) -> list[Path]:
     plt.close(fig)
 
     fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
-    for ax, key, unit in zip(axes, ("imu_quat", "imu_ang_vel", "imu_lin_acc"), ("", "rad/s", "m/s^2")):
+    for ax, key, unit in zip(axes, ("imu_quat", "imu_ang_vel", "imu_lin_acc"), ("", "rad/s", "m/s^2"), strict=False):
         data = getattr(log, key)
         labels = "wxyz" if key == "imu_quat" else "xyz"
         for j in range(data.shape[1]):

@@ -121,7 +121,9 @@ class MuJoCoRobot(Robot):
             foot_contact=self.foot_contact(),
         )
 
-    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> Observation:
+    def step(
+        self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+    ) -> Observation:
         if kp is not None or kd is not None:
             self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
         self._targets = self.clamp_targets(motor_targets)
