@@ -1,0 +1,85 @@
+"""ZMP walking: the generator is deterministic and consistent; the simulated robot walks the commanded distances."""
+
+import numpy as np
+import pytest
+
+from toddlerbot.locomotion.config import WalkConfig
+from toddlerbot.locomotion.preview import preview_gains, preview_step
+from toddlerbot.locomotion.zmp_walk import ZMPWalk
+from toddlerbot.policies.walk_zmp import WalkZMPPolicy
+from toddlerbot.runtime.runner import run_policy
+from toddlerbot.runtime.summary import summarize
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return ZMPWalk()
+
+
+def test_preview_control_tracks_a_zmp_step():
+    g = preview_gains(0.02, 0.3, 60, 1.0, 1e-6)
+    ref = np.zeros((300, 2))
+    ref[100:, 1] = 0.04
+    x, e = np.zeros((3, 2)), np.zeros(2)
+    for k in range(230):
+        x, e, zmp = preview_step(g, x, e, ref[k : k + 61])
+    assert abs(x[0, 1] - 0.04) < 1e-3  # the CoM settles over the new support point
+    assert abs(zmp[1] - 0.04) < 1e-3
+
+
+def test_reference_is_deterministic_and_matches_online_stepping(walk):
+    cmd = np.array([0.1, 0.0, 0.2])
+    traj = walk.trajectory(cmd, 2.0)
+    again = ZMPWalk().trajectory(cmd, 2.0)
+    np.testing.assert_array_equal(traj.joint_pos, again.joint_pos)
+    ref = walk.reference(cmd, 1.5)
+    np.testing.assert_allclose(ref.joint_pos, traj.joint_pos[75], atol=1e-12)
+    assert ref.time == pytest.approx(1.5)
+
+
+def test_planned_feet_follow_the_command(walk):
+    traj = walk.trajectory(np.array([0.1, 0.0, 0.0]), 10.0)
+    assert traj.foot_pos[-1, :, 0].mean() == pytest.approx(0.1 * (10.0 - walk.config.start_time), abs=0.06)
+    # single support: exactly one foot planned in contact; the planned ZMP stays near its reference
+    assert np.all(traj.contact.sum(axis=1) >= 1)
+    assert np.max(np.abs(traj.zmp - traj.zmp_ref)) < 0.04
+    # the legs' forward kinematics put the feet where the plan says (relative to the torso)
+    i = 300
+    pos, _ = walk.ik.forward(traj.joint_pos[i][walk._leg_index])
+    yaw = traj.torso_yaw[i]
+    c, s = np.cos(yaw), np.sin(yaw)
+    rel = (traj.foot_pos[i] - traj.torso_pos[i]) @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    np.testing.assert_allclose(pos, rel, atol=1e-5)
+
+
+def test_gait_config_is_validated():
+    with pytest.raises(ValueError, match="double_support_ratio"):
+        WalkConfig(double_support_ratio=1.2)
+
+
+def _walk(cmd):
+    robot = MuJoCoRobot()
+    res = run_policy(robot, WalkZMPPolicy(robot), lambda t: np.array(cmd), 10.0)
+    return summarize(res.log, res.fell, res.fall_time)
+
+
+@pytest.mark.slow
+def test_walks_forward_0p1_mps_for_10_s():
+    s = _walk([0.1, 0.0, 0.0])
+    assert not s.fell
+    assert 0.8 <= s.displacement_m[0] <= 1.2
+
+
+@pytest.mark.slow
+def test_turns_in_place_at_0p3_radps():
+    s = _walk([0.0, 0.0, 0.3])
+    assert not s.fell
+    assert 2.4 <= s.yaw_change_rad <= 3.6
+
+
+@pytest.mark.slow
+def test_steps_sideways_at_0p05_mps():
+    s = _walk([0.0, 0.05, 0.0])
+    assert not s.fell
+    assert 0.35 <= s.displacement_m[1] <= 0.65
