@@ -82,7 +82,8 @@ class Calibration:
         """Offsets in motor-id order; raises unless the file is complete and made for this spec."""
         if self.spec != spec_label(spec):
             raise CalibrationError(
-                f"{source}: made for spec {self.spec!r} (robot {self.robot!r}), but this robot uses {spec_label(spec)!r}"
+                f"{source}: made for spec {self.spec!r} (robot {self.robot!r}), "
+                f"but this robot uses {spec_label(spec)!r}"
             )
         missing = [m.joint for m in spec.motors_by_id if m.joint not in self.offsets]
         if missing:
@@ -155,7 +156,7 @@ def measure_offsets(bus: DynamixelBus, samples: int = SAMPLES, interval: float =
     if problems:
         raise CalibrationError("implausible readings, nothing written: " + "; ".join(problems))
     mean = np.rint(readings_arr.mean(axis=0)).astype(np.int64)
-    return {m.name: int(v % PULSES_PER_REV) for m, v in zip(bus.motors, mean)}
+    return {m.name: int(v % PULSES_PER_REV) for m, v in zip(bus.motors, mean, strict=True)}
 
 
 def merge(existing: Calibration | None, robot: str, spec: RobotSpec, group: str, offsets: dict[str, int],

@@ -302,7 +302,7 @@ class DynamixelBus:
         raw_load = [ct.decode(ct.encode(get(i, address, 2), 2), True) for i in self.ids]
         vel = [ct.decode(ct.encode(get(i, address + 2, 4), 4), True) for i in self.ids]
         pos = [ct.decode(ct.encode(get(i, address + 6, 4), 4), True) for i in self.ids]
-        torque = np.array([ct.load_to_torque(r, m.model) for r, m in zip(raw_load, self.motors)])
+        torque = np.array([ct.load_to_torque(r, m.model) for r, m in zip(raw_load, self.motors, strict=True)])
         return MotorState(np.array(pos, dtype=np.int64), ct.velocity_to_rad_s(vel), torque)
 
     def _read_state_once(self) -> tuple[bool, str]:
@@ -346,7 +346,7 @@ class DynamixelBus:
         """After a failed group read: which motors do not answer a ping (names them in the error)."""
         silent = []
         for m in self.motors:
-            number, comm, _ = self.ph.ping(self.port, m.id)
+            _number, comm, _ = self.ph.ping(self.port, m.id)
             if comm != sdk.COMM_SUCCESS:
                 silent.append(m.label)
         return f" (not answering: {', '.join(silent)})" if silent else ""
@@ -356,7 +356,7 @@ class DynamixelBus:
         writer = self._goal_writer
         writer.clearParam()
         limit = ct.EXTENDED_POSITION_RANGE
-        for dxl_id, value in zip(self.ids, np.clip(np.asarray(pulses, dtype=np.int64), -limit, limit)):
+        for dxl_id, value in zip(self.ids, np.clip(np.asarray(pulses, dtype=np.int64), -limit, limit), strict=True):
             writer.addParam(dxl_id, list(ct.encode(int(value), 4)))
         self._send(writer, "goal positions")
         self.bytes_tx += 14 + 5 * len(self.ids)
@@ -365,7 +365,7 @@ class DynamixelBus:
         """One Sync Write of position D, I and P gains (firmware units; I taken from the spec)."""
         writer = self._gain_writer
         writer.clearParam()
-        for m, p_gain, d_gain in zip(self.motors, kp, kd):
+        for m, p_gain, d_gain in zip(self.motors, kp, kd, strict=True):
             data = ct.encode(int(d_gain), 2) + ct.encode(m.ki, 2) + ct.encode(int(p_gain), 2)
             writer.addParam(m.id, list(data))
         self._send(writer, "gains")

@@ -21,6 +21,7 @@ forced off).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import select
@@ -272,7 +273,8 @@ class Commands:
 
 def commands(motors: list[EmulatedMotor], params: list) -> Commands:
     """Targets (rad, motor angle) and gains from the control tables."""
-    goal = np.array([m.get("goal_position") - m.mounting_offset - m.turn_offset - m.get("homing_offset") for m in motors])
+    goal = np.array([m.get("goal_position") - m.mounting_offset - m.turn_offset - m.get("homing_offset")
+                     for m in motors])
     kp = tuple(m.get("position_p_gain") for m in motors)
     kd = tuple(m.get("position_d_gain") for m in motors)
     tau_limit = np.full(len(motors), np.inf)
@@ -334,7 +336,12 @@ class HilPlant:
         return self.sim_time / self.wall_time if self.wall_time > 0 else 1.0
 
     def torso_height(self) -> float:
+        """Height of the torso frame above the floor, m."""
         return float(self.data.xpos[self.torso][2])
+
+    def torso_uprightness(self) -> float:
+        """z component of the torso's up axis in the world (1 = upright, 0 = lying)."""
+        return float(self.data.xmat[self.torso][8])
 
     def _publish(self) -> None:
         publish(self.motors, self.data.qpos[self.qadr], self.data.qvel[self.vadr], self.data.ctrl.copy())
@@ -398,19 +405,18 @@ class EmulatedBus:
         spec: RobotSpec,
         hil: bool = False,
         faults: Faults | None = None,
-        mounting_offsets: dict[int, int] | None = None,
         fast_sync_read: bool = True,
+        offsets_seed: int = 0,
     ) -> None:
         self.spec = spec
         self.faults = faults or Faults()
         self.fast_sync_read = fast_sync_read
         self._rng = random.Random(self.faults.seed)
         catalogue = default_catalogue()
-        offset_rng = random.Random(1234 + self.faults.seed)
+        offset_rng = random.Random(offsets_seed)
         self.motors = []
         for ms in spec.motors_by_id:
-            offset = (mounting_offsets or {}).get(ms.id, offset_rng.randrange(0, PULSES_PER_REV))
-            motor = EmulatedMotor(ms.id, ms.joint, catalogue[ms.model], offset)
+            motor = EmulatedMotor(ms.id, ms.joint, catalogue[ms.model], offset_rng.randrange(0, PULSES_PER_REV))
             motor.overloaded = ms.id in self.faults.overload
             motor.overloaded_refresh()
             self.motors.append(motor)
@@ -622,10 +628,8 @@ class PtyServer:
         if self._thread is not None:
             self._thread.join(timeout=5)
         for fd in (self.master, self.slave):
-            try:
+            with contextlib.suppress(OSError):
                 os.close(fd)
-            except OSError:
-                pass
 
     def __enter__(self) -> PtyServer:
         return self.start()

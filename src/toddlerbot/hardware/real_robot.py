@@ -89,7 +89,7 @@ class RealRobot(Robot):
             self._gains = (self.default_kp.copy(), self.default_kd.copy())
             self._t0 = self._deadline = time.perf_counter()
             start, home = self._angles(state.position), home_motor_angles(self.spec, self)
-            steps = max(1, int(round(self.reset_duration / self.control_dt)))
+            steps = max(1, round(self.reset_duration / self.control_dt))
             obs = None
             for k in range(1, steps + 1):
                 obs = self.step(start + (home - start) * k / steps)
@@ -104,12 +104,15 @@ class RealRobot(Robot):
             raise RuntimeError("call reset() first")
         return self._last
 
-    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> Observation:
+    def step(
+        self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+    ) -> Observation:
         bus = self.bus
         try:
             if kp is not None or kd is not None:
-                new = (self.default_kp if kp is None else np.asarray(kp), self.default_kd if kd is None else np.asarray(kd))
-                if self._gains is None or not all(np.array_equal(a, b) for a, b in zip(new, self._gains)):
+                new = (self.default_kp if kp is None else np.asarray(kp),
+                       self.default_kd if kd is None else np.asarray(kd))
+                if self._gains is None or not all(np.array_equal(a, b) for a, b in zip(new, self._gains, strict=True)):
                     bus.write_gains(*new)
                     self._gains = (new[0].copy(), new[1].copy())
             bus.write_goal_positions(self._pulses(motor_targets))
