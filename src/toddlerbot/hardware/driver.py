@@ -175,7 +175,11 @@ class DynamixelBus:
         """Run `call` (an SDK transaction returning (..., comm_result, error)) up to `retries` times."""
         problem = ""
         for _ in range(self.retries):
-            *values, comm, error = call()
+            try:
+                *values, comm, error = call()
+            except IndexError:  # the SDK indexes past the end of a short (but CRC-valid) status packet
+                problem = "malformed status packet"
+                continue
             problem = self._result(comm, error)
             if problem is None:
                 if error & 0x80 and not allow_alert:
@@ -184,16 +188,31 @@ class DynamixelBus:
         raise BusError(f"{motor.label}: {what} failed after {self.retries} attempts: {problem}")
 
     def _hardware_error(self, motor: BusMotor) -> str:
-        value, comm, _ = self.ph.read1ByteTxRx(self.port, motor.id, ct.ENTRIES["hardware_error_status"].address)
+        try:
+            data, comm, _ = self._read_tx_rx(motor.id, ct.ENTRIES["hardware_error_status"].address, 1)
+        except IndexError:
+            comm = sdk.COMM_RX_CORRUPT
         if comm != sdk.COMM_SUCCESS:
             return "hardware alert (hardware error status unreadable)"
-        return f"hardware error: {ct.describe_hardware_error(value)}"
+        return f"hardware error: {ct.describe_hardware_error(data[0])}"
 
     def read(self, motor: BusMotor, entry: str, allow_alert: bool = False) -> int:
         e = ct.ENTRIES[entry]
-        reader = {1: self.ph.read1ByteTxRx, 2: self.ph.read2ByteTxRx, 4: self.ph.read4ByteTxRx}[e.size]
-        (value,) = self._retry(motor, f"read {entry}", lambda: reader(self.port, motor.id, e.address), allow_alert)
-        return ct.decode(ct.encode(value, e.size), e.signed)
+        (data,) = self._retry(motor, f"read {entry}", lambda: self._read_tx_rx(motor.id, e.address, e.size),
+                              allow_alert)
+        return ct.decode(data, e.signed)
+
+    def _read_tx_rx(self, dxl_id: int, address: int, length: int) -> tuple[bytes, int, int]:
+        """Read instruction through the SDK's packet handler, also checking the status packet's length (the
+        SDK's readTxRx would return CRC bytes as data from a short status packet)."""
+        tx = [0] * 14
+        tx[sdk.PKT_ID], tx[sdk.PKT_LENGTH_L], tx[sdk.PKT_INSTRUCTION] = dxl_id, 7, sdk.INST_READ
+        tx[sdk.PKT_PARAMETER0 : sdk.PKT_PARAMETER0 + 4] = list(ct.encode(address, 2) + ct.encode(length, 2))
+        rx, comm, error = self.ph.txRxPacket(self.port, tx)
+        if comm == sdk.COMM_SUCCESS and sdk.DXL_MAKEWORD(rx[sdk.PKT_LENGTH_L], rx[sdk.PKT_LENGTH_H]) != length + 4:
+            comm = sdk.COMM_RX_CORRUPT
+        data = bytes(rx[sdk.PKT_PARAMETER0 + 1 : sdk.PKT_PARAMETER0 + 1 + length]) if comm == sdk.COMM_SUCCESS else b""
+        return data, comm, error
 
     def write(self, motor: BusMotor, entry: str, value: int, allow_alert: bool = False) -> None:
         e = ct.ENTRIES[entry]
@@ -292,11 +311,17 @@ class DynamixelBus:
         """Present current/velocity/position of every motor in one transaction (retried)."""
         problem = ""
         for _ in range(self.retries):
-            ok, problem = self._read_state_once()
+            try:
+                ok, problem = self._read_state_once()
+            except IndexError:
+                ok, problem = False, "malformed status packet"
             if ok:
                 break
         else:
-            raise BusError(f"bus {self.port_name}: state read failed after {self.retries} attempts: {problem}")
+            raise BusError(
+                f"bus {self.port_name}: state read failed after {self.retries} attempts: {problem}"
+                f"{self._silent_motors()}"
+            )
         address = ct.STATE_BLOCK[0]
         get = self._state_reader.getData
         raw_load = [ct.decode(ct.encode(get(i, address, 2), 2), True) for i in self.ids]
@@ -314,7 +339,9 @@ class DynamixelBus:
             if comm == sdk.COMM_SUCCESS:
                 raw, comm, _ = self.ph.fastSyncReadRx(self.port, sdk.BROADCAST_ID, (length + 4) * n)
             if comm != sdk.COMM_SUCCESS:
-                return False, f"fast sync read: {self.ph.getTxRxResult(comm)}{self._silent_motors()}"
+                return False, f"fast sync read: {self.ph.getTxRxResult(comm)}"
+            if len(raw) != (length + 4) * n:
+                return False, f"fast sync read: answer of {len(raw)} bytes, expected {(length + 4) * n}"
             self.bytes_rx += 8 + len(raw)
             for k in range(n):
                 error, dxl_id = raw[k * (length + 4)], raw[k * (length + 4) + 1]
@@ -332,6 +359,9 @@ class DynamixelBus:
             if comm != sdk.COMM_SUCCESS:
                 reader.last_result = False
                 return False, f"sync read: {self.motors[k].label}: {self.ph.getTxRxResult(comm)}"
+            if len(data) != length:
+                reader.last_result = False
+                return False, f"sync read: {self.motors[k].label}: {len(data)} data bytes, expected {length}"
             self.bytes_rx += 11 + length
             reader.data_dict[dxl_id] = data
             self._check_alert(k, error)
