@@ -37,6 +37,8 @@ def emulate(
     no_fast_sync_read: Annotated[bool, typer.Option("--no-fast-sync-read", help="Emulate firmware "
                                                     "without Fast Sync Read.")] = False,
     offsets_seed: Annotated[int, typer.Option("--offsets-seed", help="Seed of the hidden mounting offsets.")] = 0,
+    write_calibration: Annotated[Path | None, typer.Option("--write-calibration", help="Also write the emulated "
+                                                           "robot's true zero offsets as a calibration file.")] = None,
     spec_path: SpecOption = None,
     gripper: GripperOption = False,
 ) -> None:
@@ -47,6 +49,11 @@ def emulate(
     parsed = Faults.parse(faults or [])
     bus = EmulatedBus(_spec(spec_path, gripper), hil=hil, faults=parsed, fast_sync_read=not no_fast_sync_read,
                       offsets_seed=offsets_seed)
+    if write_calibration is not None:
+        from toddlerbot.hardware.calibration import Calibration, save_calibration, spec_label
+
+        offsets = {m.name: m.mounting_offset for m in bus.motors}
+        save_calibration(Calibration("emulated", spec_label(bus.spec), offsets, {}), write_calibration)
     server = PtyServer(bus)
     signal.signal(signal.SIGTERM, _interrupt)
     print(server.path, flush=True)

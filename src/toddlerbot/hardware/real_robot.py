@@ -55,6 +55,11 @@ class RealRobot(Robot):
         self._last: Observation | None = None
 
     # ---- conversions -----------------------------------------------------------------------------------
+    def resolve_turns(self, pulses: np.ndarray) -> None:
+        """Choose each motor's whole turns so that its angle lies within half a turn of its range's middle."""
+        raw = (pulses - self.offsets) * RAD_PER_PULSE
+        self.turns = np.rint((raw - self.range_mid) / (2 * np.pi)).astype(np.int64)
+
     def _angles(self, pulses: np.ndarray) -> np.ndarray:
         return (pulses - self.offsets - self.turns * PULSES_PER_REV) * RAD_PER_PULSE
 
@@ -83,8 +88,7 @@ class RealRobot(Robot):
             bus.configure()
             bus.check_voltage()
             state = bus.read_state()
-            raw = (state.position - self.offsets) * RAD_PER_PULSE
-            self.turns = np.rint((raw - self.range_mid) / (2 * np.pi)).astype(np.int64)
+            self.resolve_turns(state.position)
             bus.enable_torque(state.position)
             self._gains = (self.default_kp.copy(), self.default_kd.copy())
             self._t0 = self._deadline = time.perf_counter()
