@@ -15,7 +15,9 @@ sdk = pytest.importorskip("dynamixel_sdk")
 
 
 @contextmanager
-def emulated(spec: RobotSpec | None = None, faults: Faults | None = None, **kwargs) -> Iterator[tuple[EmulatedBus, str]]:
+def emulated(
+    spec: RobotSpec | None = None, faults: Faults | None = None, **kwargs
+) -> Iterator[tuple[EmulatedBus, str]]:
     """An emulated bus served from a thread; yields (bus, device path).
 
     The SDK busy-waits for status packets while holding the GIL; a short switch interval lets the emulator

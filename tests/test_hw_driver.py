@@ -6,10 +6,10 @@ import time
 
 import numpy as np
 import pytest
-from hw_support import emulated
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from hw_support import emulated
 from toddlerbot.hardware import protocol as p
 from toddlerbot.hardware.control_table import MODE_CURRENT_BASED_POSITION, MODE_EXTENDED_POSITION, RAD_PER_PULSE
 from toddlerbot.hardware.driver import BusError, DynamixelBus, HardwareError, motors_of
@@ -91,10 +91,9 @@ def test_wrong_model_number_is_named():
     spec = load_spec()
     motors = motors_of(spec)
     motors[7], motors[8] = motors[8].__class__(**{**motors[8].__dict__, "id": 7}), motors[7]
-    with emulated(spec) as (_, path), DynamixelBus(path, motors[:8]) as bus:
-        with pytest.raises(BusError, match=r"motor 7 \(left_ankle_roll, XC430-T240BB\): reports model number 1030 "
-                           r"\(XM430-W210\), expected 1080"):
-            bus.scan()
+    expected = r"motor 7 \(left_ankle_roll, XC430-T240BB\): reports model number 1030 \(XM430-W210\), expected 1080"
+    with emulated(spec) as (_, path), DynamixelBus(path, motors[:8]) as bus, pytest.raises(BusError, match=expected):
+        bus.scan()
 
 
 def test_low_supply_voltage_refuses_torque():
@@ -145,9 +144,9 @@ class _GarbagePeer:
 
         parser = p.PacketParser()
         while not self.stop.is_set():
-            if select.select([self.master], [], [], 0.02)[0]:
-                if parser.feed(os.read(self.master, 4096)) and self.reply:
-                    os.write(self.master, self.reply)
+            ready = select.select([self.master], [], [], 0.02)[0]
+            if ready and parser.feed(os.read(self.master, 4096)) and self.reply:
+                os.write(self.master, self.reply)
 
     def close(self) -> None:
         self.stop.set()

@@ -1,8 +1,8 @@
 """The emulator, with the official dynamixel_sdk client as its peer over a pseudo-terminal."""
 
 import pytest
-from hw_support import emulated, sdk, sdk_port
 
+from hw_support import emulated, sdk, sdk_port
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.hardware import protocol as p
 from toddlerbot.hardware.control_table import ENTRIES
