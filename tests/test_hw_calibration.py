@@ -18,7 +18,7 @@ from toddlerbot.hardware.calibration import (
 )
 from toddlerbot.hardware.control_table import RAD_PER_PULSE
 from toddlerbot.hardware.driver import DynamixelBus, motors_of
-from toddlerbot.hardware.real_robot import RealRobot
+from toddlerbot.hardware.real_robot import RealRobot, home_motor_angles
 from toddlerbot.robot.spec import load_spec
 
 SPEC = load_spec()
@@ -115,3 +115,20 @@ def test_real_robot_applies_offsets_and_recovers_multi_turn_positions():
             assert q[0] == pytest.approx(2.5, abs=2 * RAD_PER_PULSE)
             assert q[4] == pytest.approx(-1.2, abs=2 * RAD_PER_PULSE)
             assert np.abs(q - emu.plant.q).max() < 2 * RAD_PER_PULSE
+
+
+def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
+    with emulated(SPEC, offsets_seed=4) as (emu, path):
+        cal = Calibration("tb", "toddlerbot_v1", {m.name: m.mounting_offset for m in emu.motors})
+        with RealRobot(SPEC, path, cal, control_dt=0.01, reset_duration=0.3) as robot:
+            obs = robot.reset()
+            home = home_motor_angles(SPEC, robot)
+            for _ in range(30):
+                obs = robot.step(home)
+            assert np.abs(obs.motor_pos - home).max() < 0.05
+            assert obs.joint_pos == pytest.approx(robot.transmission.motor_to_joint(obs.motor_pos))
+            kp = robot.default_kp * 0.5
+            robot.step(home, kp=kp, kd=np.full(30, 7))
+            assert [m.get("position_p_gain") for m in emu.motors] == [int(k) for k in kp]
+            assert {m.get("position_d_gain") for m in emu.motors} == {7}
+        assert not any(m.torque_on for m in emu.motors)

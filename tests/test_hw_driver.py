@@ -1,6 +1,7 @@
 """The driver against the emulator: setup, control cycle, retries, bad input, and torque left off."""
 
 import os
+import signal
 import threading
 import time
 
@@ -189,3 +190,15 @@ def test_garbage_answers_never_hang_the_driver(garbage_peer, reply):
         assert time.perf_counter() - start < 5.0
     finally:
         bus.port.closePort()
+
+
+def test_sigterm_disables_torque():
+    with emulated(SPEC) as (emu, path):
+        with pytest.raises(KeyboardInterrupt), DynamixelBus(path, motors_of(SPEC)) as bus:
+            bus.scan()
+            bus.enable_torque()
+            assert all(m.torque_on for m in emu.motors)
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1.0)  # the handler raises KeyboardInterrupt here
+        assert not any(m.torque_on for m in emu.motors)
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
