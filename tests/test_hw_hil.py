@@ -53,7 +53,8 @@ def test_hold_home_through_driver_emulator_and_simulation(tmp_path):
         report = _stop_emulator(proc)
     home_z = build_model(spec, scene=True).key("home").qpos[2]
     assert report["sim_time"] > 2.0 and report["realtime_factor"] > 0.5
-    assert report["torso_upright"] > 0.97  # still upright
-    assert report["torso_height"] > home_z - 0.03  # standing: sagged by less than 3 cm
+    # while powered (torque off at the end lets the robot fall, as the real one would)
+    assert report["powered_min_torso_upright"] > 0.97  # upright
+    assert report["powered_min_torso_height"] > home_z - 0.03  # standing: sagged by less than 3 cm
     assert np.median(errors) < 0.05  # motors track the home pose within 3 degrees
     assert len(errors) > 100  # about 50 Hz

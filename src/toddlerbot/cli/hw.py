@@ -68,7 +68,9 @@ def emulate(
     if isinstance(bus.plant, HilPlant):
         report |= {"sim_time": round(bus.plant.sim_time, 3), "realtime_factor": round(bus.plant.realtime_factor, 3),
                    "torso_height": round(bus.plant.torso_height(), 4),
-                   "torso_upright": round(bus.plant.torso_uprightness(), 4)}
+                   "torso_upright": round(bus.plant.torso_uprightness(), 4),
+                   "powered_min_torso_height": round(bus.plant.powered_min_height, 4),
+                   "powered_min_torso_upright": round(bus.plant.powered_min_upright, 4)}
     print(json.dumps(report), flush=True)
 
 

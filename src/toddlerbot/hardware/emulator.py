@@ -61,6 +61,9 @@ SUPPLY_VOLTAGE = 12.0
 LOAD_INERTIA = 0.002
 """Load inertia added to the armature of each motor in `SimplePlant`, kg*m^2."""
 FIRMWARE_VERSION = 52
+MAX_LAG = 0.05
+"""Largest lag (s) of the hardware-in-the-loop simulation behind wall-clock time; beyond it, time is dropped
+(reported by `HilPlant.realtime_factor`)."""
 
 
 class FaultSpecError(ToddlerbotError):
@@ -326,6 +329,10 @@ class HilPlant:
         self.torso = self.model.body("torso").id
         self.sim_time = 0.0
         self.wall_time = 0.0
+        self.powered_min_height = np.inf
+        """Lowest torso height (m) seen while any motor had torque on."""
+        self.powered_min_upright = np.inf
+        """Lowest torso uprightness seen while any motor had torque on."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._lock: threading.Lock | None = None
@@ -370,9 +377,12 @@ class HilPlant:
                 break
             time.sleep(0.002)
         t0 = time.perf_counter()
+        lost = 0.0  # wall-clock time the simulation gave up on (host too slow)
         while not self._stop.is_set():
             self.wall_time = time.perf_counter() - t0
-            behind = self.wall_time - self.sim_time
+            behind = self.wall_time - lost - self.sim_time
+            if behind > MAX_LAG:  # never run flat out to catch up: the bus must keep answering
+                lost += behind - MAX_LAG
             if behind < dt:
                 time.sleep(min(dt, 0.002))
                 continue
@@ -384,8 +394,12 @@ class HilPlant:
                 d.ctrl[:] = np.clip(tau, -cmd.tau_limit, cmd.tau_limit)
                 mujoco.mj_step(m, d)
                 self.sim_time += dt
+            if cmd.torque_on.any():
+                self.powered_min_height = min(self.powered_min_height, self.torso_height())
+                self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
             with self._lock:
                 self._publish()
+            time.sleep(0)  # let the serving thread answer between batches
 
 
 @dataclass
@@ -613,8 +627,8 @@ class PtyServer:
                 self.bus.stats.bytes_in += len(data)
                 for packet in self.parser.feed(data):
                     reply = self.bus.handle(packet)
-                    if reply:
-                        os.write(self.master, reply)
+                    while reply:
+                        reply = reply[os.write(self.master, reply) :]
         finally:
             self.bus.stop()
 
