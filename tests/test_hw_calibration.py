@@ -131,4 +131,9 @@ def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
             robot.step(home, kp=kp, kd=np.full(30, 7))
             assert [m.get("position_p_gain") for m in emu.motors] == [int(k) for k in kp]
             assert {m.get("position_d_gain") for m in emu.motors} == {7}
+            wild = home.copy()
+            wild[0] = 10.0  # beyond neck yaw's joint range: the goal is clipped to the range
+            robot.step(wild)
+            goal = emu.motor(0).get("goal_position")
+            assert robot._angles(np.array([goal]))[0] == pytest.approx(robot.upper[0], abs=RAD_PER_PULSE)
         assert not any(m.torque_on for m in emu.motors)

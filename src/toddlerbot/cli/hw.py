@@ -69,9 +69,14 @@ def emulate(
         report |= {"sim_time": round(bus.plant.sim_time, 3), "realtime_factor": round(bus.plant.realtime_factor, 3),
                    "torso_height": round(bus.plant.torso_height(), 4),
                    "torso_upright": round(bus.plant.torso_uprightness(), 4),
-                   "powered_min_torso_height": round(bus.plant.powered_min_height, 4),
-                   "powered_min_torso_upright": round(bus.plant.powered_min_upright, 4)}
+                   "powered_min_torso_height": _finite(bus.plant.powered_min_height),
+                   "powered_min_torso_upright": _finite(bus.plant.powered_min_upright)}
     print(json.dumps(report), flush=True)
+
+
+def _finite(value: float) -> float | None:
+    """Rounded value, or None (JSON null) if never measured."""
+    return round(value, 4) if np.isfinite(value) else None
 
 
 def _interrupt(signum: int, frame: object) -> None:

@@ -47,8 +47,10 @@ class RealRobot(Robot):
         self.reset_duration = reset_duration
         self.turns = np.zeros(len(self.offsets), dtype=np.int64)
         joints = spec.joints
-        ranges = [joints[m.joint].range or (0.0, 0.0) for m in spec.motors_by_id]
-        self.range_mid = np.array([(lo + hi) / 2 for lo, hi in ranges])
+        ranges = [joints[m.joint].range or (-np.inf, np.inf) for m in spec.motors_by_id]
+        self.lower, self.upper = np.array(ranges).T
+        """Motor joint limits from the spec, rad: goals are clipped to them (extended position mode has none)."""
+        self.range_mid = np.where(np.isfinite(self.lower + self.upper), (self.lower + self.upper) / 2, 0.0)
         self._gains: tuple[np.ndarray, np.ndarray] | None = None
         self._t0 = 0.0
         self._deadline = 0.0
@@ -119,7 +121,7 @@ class RealRobot(Robot):
                 if self._gains is None or not all(np.array_equal(a, b) for a, b in zip(new, self._gains, strict=True)):
                     bus.write_gains(*new)
                     self._gains = (new[0].copy(), new[1].copy())
-            bus.write_goal_positions(self._pulses(motor_targets))
+            bus.write_goal_positions(self._pulses(np.clip(motor_targets, self.lower, self.upper)))
             self._deadline += self.control_dt
             delay = self._deadline - time.perf_counter()
             if delay > 0:
