@@ -12,6 +12,7 @@ from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
 from toddlerbot.robot.spec import RobotSpec, load_spec
 
 sdk = pytest.importorskip("dynamixel_sdk")
+port_handler = pytest.importorskip("dynamixel_sdk.port_handler")
 
 
 @contextmanager
@@ -21,9 +22,13 @@ def emulated(
     """An emulated bus served from a thread; yields (bus, device path).
 
     The SDK busy-waits for status packets while holding the GIL; a short switch interval lets the emulator
-    thread answer promptly (the CLI emulator runs in its own process and needs no such thing)."""
+    thread answer promptly (the CLI emulator runs in its own process and needs no such thing). The SDK's status
+    timeout (2 x latency timer + 2 ms) is raised from 34 to about 100 ms so that a loaded CI machine does not
+    turn scheduling delays into spurious timeouts."""
     old = sys.getswitchinterval()
+    old_latency = port_handler.LATENCY_TIMER
     sys.setswitchinterval(0.0002)
+    port_handler.LATENCY_TIMER = 50
     bus = EmulatedBus(spec or load_spec(), faults=faults, **kwargs)
     server = PtyServer(bus).start()
     try:
@@ -31,6 +36,7 @@ def emulated(
     finally:
         server.stop()
         sys.setswitchinterval(old)
+        port_handler.LATENCY_TIMER = old_latency
 
 
 @contextmanager

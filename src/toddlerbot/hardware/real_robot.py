@@ -14,7 +14,7 @@ import numpy as np
 
 from toddlerbot.hardware.calibration import Calibration
 from toddlerbot.hardware.control_table import PULSES_PER_REV, RAD_PER_PULSE
-from toddlerbot.hardware.driver import DEFAULT_BAUDRATE, DynamixelBus, MotorState, motors_of
+from toddlerbot.hardware.driver import DEFAULT_BAUDRATE, DEFAULT_RETRIES, DynamixelBus, MotorState, motors_of
 from toddlerbot.hardware.imu import Imu, StaticImu
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.robot.spec import RobotSpec
@@ -39,10 +39,11 @@ class RealRobot(Robot):
         imu: Imu | None = None,
         reset_duration: float = 2.0,
         calibration_source: str = "calibration",
+        retries: int = DEFAULT_RETRIES,
     ) -> None:
         super().__init__(spec, control_dt)
         self.offsets = calibration.offsets_for(spec, calibration_source)
-        self.bus = DynamixelBus(port, motors_of(spec), baudrate=baudrate)
+        self.bus = DynamixelBus(port, motors_of(spec), baudrate=baudrate, retries=retries)
         self.imu = imu or StaticImu()
         self.reset_duration = reset_duration
         self.turns = np.zeros(len(self.offsets), dtype=np.int64)
