@@ -44,12 +44,13 @@ from toddlerbot.hardware.control_table import (
     MODE_EXTENDED_POSITION,
     MODE_POSITION,
     PULSES_PER_REV,
-    RAD_PER_PULSE,
     TABLE_SIZE,
     Entry,
     decode,
     encode,
+    pulses_to_rad,
     rad_s_to_velocity,
+    rad_to_pulses,
     torque_to_load,
     traits,
 )
@@ -286,7 +287,7 @@ def commands(motors: list[EmulatedMotor], params: list) -> Commands:
         if m.get("operating_mode") == MODE_CURRENT_BASED_POSITION:
             tau_limit[i] = abs(m.get("goal_current")) * t.current_unit_a * t.torque_per_amp
     return Commands(
-        torque_on=np.array([m.torque_on for m in motors]), q_target=goal * RAD_PER_PULSE,
+        torque_on=np.array([m.torque_on for m in motors]), q_target=pulses_to_rad(goal),
         arrays=_arrays(tuple(params), kp, kd), tau_limit=tau_limit,
     )
 
@@ -298,7 +299,7 @@ def _arrays(params: tuple, kp: tuple, kd: tuple) -> ActuatorArrays:
 
 def publish(motors: list[EmulatedMotor], q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> None:
     """Write present position/velocity/current into the control tables."""
-    pulses = np.rint(q / RAD_PER_PULSE).astype(np.int64)
+    pulses = rad_to_pulses(q)
     vel = rad_s_to_velocity(qd)
     tick = int(time.perf_counter() * 1000) % 32768
     for i, m in enumerate(motors):

@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from toddlerbot.hardware.calibration import Calibration
-from toddlerbot.hardware.control_table import PULSES_PER_REV, RAD_PER_PULSE
+from toddlerbot.hardware.control_table import PULSES_PER_REV, pulses_to_rad, rad_to_pulses
 from toddlerbot.hardware.driver import DEFAULT_BAUDRATE, DEFAULT_RETRIES, DynamixelBus, MotorState, motors_of
 from toddlerbot.hardware.imu import Imu, StaticImu
 from toddlerbot.robot.interface import Observation, Robot
@@ -60,14 +60,16 @@ class RealRobot(Robot):
     # ---- conversions -----------------------------------------------------------------------------------
     def resolve_turns(self, pulses: np.ndarray) -> None:
         """Choose each motor's whole turns so that its angle lies within half a turn of its range's middle."""
-        raw = (pulses - self.offsets) * RAD_PER_PULSE
+        raw = pulses_to_rad(pulses - self.offsets)
         self.turns = np.rint((raw - self.range_mid) / (2 * np.pi)).astype(np.int64)
 
     def _angles(self, pulses: np.ndarray) -> np.ndarray:
-        return (pulses - self.offsets - self.turns * PULSES_PER_REV) * RAD_PER_PULSE
+        """Calibrated motor angles (rad) from raw readings (pulses)."""
+        return pulses_to_rad(pulses - self.offsets - self.turns * PULSES_PER_REV)
 
     def _pulses(self, angles: np.ndarray) -> np.ndarray:
-        return np.rint(np.asarray(angles) / RAD_PER_PULSE).astype(np.int64) + self.offsets + self.turns * PULSES_PER_REV
+        """Raw goal positions (pulses) from motor angles (rad)."""
+        return rad_to_pulses(angles) + self.offsets + self.turns * PULSES_PER_REV
 
     def _observation(self, state: MotorState) -> Observation:
         q = self._angles(state.position)
