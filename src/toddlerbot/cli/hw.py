@@ -44,7 +44,8 @@ def emulate(
 ) -> None:
     """Serve the spec's motors on a pseudo-terminal: prints the device path as the first line, then serves until
     interrupted (Ctrl-C/SIGTERM), then prints one JSON line of statistics."""
-    from toddlerbot.hardware.emulator import EmulatedBus, Faults, HilPlant, PtyServer
+    from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
+    from toddlerbot.hardware.plant import HilPlant
 
     parsed = Faults.parse(faults or [])
     bus = EmulatedBus(_spec(spec_path, gripper), hil=hil, faults=parsed, fast_sync_read=not no_fast_sync_read,
