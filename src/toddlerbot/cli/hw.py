@@ -57,8 +57,8 @@ def emulate(
         save_calibration(Calibration("emulated", spec_label(bus.spec), offsets, {}), write_calibration)
     server = PtyServer(bus)
     signal.signal(signal.SIGTERM, _interrupt)
-    print(server.path, flush=True)
     try:
+        print(server.path, flush=True)
         server.serve_forever()
     except KeyboardInterrupt:
         pass
