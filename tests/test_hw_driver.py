@@ -202,3 +202,16 @@ def test_sigterm_disables_torque():
             time.sleep(1.0)  # the handler raises KeyboardInterrupt here
         assert not any(m.torque_on for m in emu.motors)
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
+def test_cli_reports_a_missing_port_in_one_line():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[1] / "src"
+    result = subprocess.run([sys.executable, "-m", "toddlerbot.cli.main", "hw", "scan", "--port", "/dev/ttyNOPE"],
+                            capture_output=True, text=True, timeout=60, env={**os.environ, "PYTHONPATH": str(src)})
+    assert result.returncode == 2
+    assert "cannot open serial port /dev/ttyNOPE" in " ".join(result.stderr.split())
+    assert "Traceback" not in result.stderr
