@@ -8,7 +8,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from toddlerbot.cli import actuator, design, model, sim, sysid
+from toddlerbot.cli import actuator, design, hw, model, sim, sysid
 from toddlerbot.errors import ToddlerbotError
 
 app = typer.Typer(
@@ -21,6 +21,7 @@ app.add_typer(design.app, name="design")
 app.add_typer(sim.app, name="sim")
 app.add_typer(actuator.app, name="actuator")
 app.add_typer(sysid.app, name="sysid")
+app.add_typer(hw.app, name="hw")
 
 
 def main() -> None:
