@@ -1,11 +1,10 @@
-"""`toddlerbot hw ...`: the Dynamixel bus emulator, bus scan, zero-point calibration and a hold-home check."""
+"""`toddlerbot hw ...`: Dynamixel bus emulator, bus scan, zero-point calibration, policies on the real robot."""
 
 from __future__ import annotations
 
 import json
 import signal
 import sys
-import time
 from pathlib import Path
 from typing import Annotated
 
@@ -142,28 +141,37 @@ def calibrate(
 
 
 @app.command()
-def hold(
+def run(
     port: PortOption,
     calibration: Annotated[Path, typer.Option("--calibration", help="Per-robot calibration file.")],
-    seconds: Annotated[float, typer.Option("--seconds", help="How long to hold the home pose.")] = 5.0,
+    policy: Annotated[str, typer.Option("--policy", help="stand, replay or walk-zmp (as in `sim run`).")] = "stand",
+    command: Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")] =
+        "0:0,0,0",
+    motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")] = None,
+    seconds: Annotated[float, typer.Option("--seconds", help="Duration, s.")] = 5.0,
     control_dt: Annotated[float, typer.Option("--dt", help="Control period, s.")] = 0.02,
+    log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
     baud: BaudOption = 2_000_000,
     spec_path: SpecOption = None,
     gripper: GripperOption = False,
 ) -> None:
-    """Move to the home pose and hold it (torque off at the end, on Ctrl-C and on any error)."""
+    """Run a policy on the real robot (or the emulator); torque off at the end, on Ctrl-C and on any error."""
     from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.real_robot import RealRobot, home_motor_angles
+    from toddlerbot.hardware.real_robot import RealRobot
+    from toddlerbot.policies import make_policy
+    from toddlerbot.runtime.commands import CommandSchedule
+    from toddlerbot.runtime.runner import run_policy
 
     spec = _spec(spec_path, gripper)
     cal = load_calibration(calibration, spec)
+    schedule = CommandSchedule.parse(command)
     with RealRobot(spec, port, cal, control_dt=control_dt, baudrate=baud, calibration_source=str(calibration)) as robot:
-        robot.reset()
-        home = home_motor_angles(spec, robot)
-        start, worst, steps = time.perf_counter(), 0.0, 0
-        while time.perf_counter() - start < seconds:
-            obs = robot.step(home)
-            worst, steps = max(worst, float(np.max(np.abs(obs.motor_pos - home)))), steps + 1
-    rate = steps / (time.perf_counter() - start)
-    console.print(f"held home for {seconds:.1f} s at {rate:.0f} Hz; largest tracking error {np.rad2deg(worst):.2f} deg")
+        result = run_policy(robot, make_policy(policy, robot, motion), schedule, seconds)
+    steps = result.log.time.size
+    error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)
+    console.print(f"{policy}: {steps} steps at {steps / max(result.log.step_period.sum(), 1e-9):.0f} Hz; "
+                  f"median largest tracking error {np.rad2deg(np.median(error)):.2f} deg")
+    if log:
+        result.log.save(log)
+        console.print(f"wrote {log}")
     sys.stdout.flush()
