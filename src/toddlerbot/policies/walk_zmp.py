@@ -51,7 +51,7 @@ class AttitudeFeedback:
 @dataclass(frozen=True)
 class StrideCalibration:
     """Systematic stride errors of the walking robot (foot slip, stance-leg compliance), compensated by adjusting
-    the command given to the generator: planned (vx, vy) = (vx * vx_gain + vy * vx_per_vy, vy * vy_gain).
+    the command given to the generator: planned (vx, vy) = (vx * vx_gain + |vy| * vx_per_vy, vy * vy_gain).
     The defaults are measured on the simulated robot with the default gains (docs/simulation.md); a real robot
     needs its own values."""
 
@@ -60,11 +60,12 @@ class StrideCalibration:
     vy_gain: float = 1.1
     """Planned sideways speed per commanded sideways speed."""
     vx_per_vy: float = 0.45
-    """Planned forward speed per commanded sideways speed (sideways steps that slip backwards need > 0)."""
+    """Planned forward speed per commanded sideways speed, either way (sideways steps to both sides slip
+    backwards: > 0 compensates)."""
 
     def apply(self, command: np.ndarray) -> np.ndarray:
         vx, vy, wz = command
-        return np.array([vx * self.vx_gain + vy * self.vx_per_vy, vy * self.vy_gain, wz])
+        return np.array([vx * self.vx_gain + abs(vy) * self.vx_per_vy, vy * self.vy_gain, wz])
 
 
 def tilt(quat: np.ndarray) -> tuple[float, float]:
