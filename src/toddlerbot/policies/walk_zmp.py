@@ -57,7 +57,7 @@ class StrideCalibration:
 
     vx_gain: float = 1.0
     """Planned forward speed per commanded forward speed."""
-    vy_gain: float = 1.1
+    vy_gain: float = 1.15
     """Planned sideways speed per commanded sideways speed."""
     vx_per_vy: float = 0.45
     """Planned forward speed per commanded sideways speed, either way (sideways steps to both sides slip
