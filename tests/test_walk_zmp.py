@@ -6,7 +6,7 @@ import pytest
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.locomotion.preview import preview_gains, preview_step
 from toddlerbot.locomotion.zmp_walk import ZMPWalk
-from toddlerbot.policies.walk_zmp import WalkZMPPolicy
+from toddlerbot.policies.walk_zmp import StrideCalibration, WalkZMPPolicy
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.runtime.summary import summarize
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -64,22 +64,47 @@ def _walk(cmd):
     return summarize(res.log, res.fell, res.fall_time)
 
 
+# Windows: the issue's outcome windows, narrowed to the goals the policy meets with margin (measured figures in
+# docs/simulation.md); drift bounds sit about twice above the measured drift.
 @pytest.mark.slow
 def test_walks_forward_0p1_mps_for_10_s():
     s = _walk([0.1, 0.0, 0.0])
     assert not s.fell
-    assert 0.8 <= s.displacement_m[0] <= 1.2
+    assert 0.9 <= s.displacement_m[0] <= 1.1  # issue window 0.8-1.2 m; 0.96 m planned after the 0.4 s start
+    assert abs(s.displacement_m[1]) < 0.08  # heading hold: no sideways drift
+    assert abs(s.yaw_change_rad) < 0.1
+    assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03 and s.tracking.ang_vel_radps < 0.05
 
 
 @pytest.mark.slow
 def test_turns_in_place_at_0p3_radps():
     s = _walk([0.0, 0.0, 0.3])
     assert not s.fell
-    assert 2.4 <= s.yaw_change_rad <= 3.6
+    assert 2.7 <= s.yaw_change_rad <= 3.3  # issue window 2.4-3.6 rad; 2.88 rad commanded after the start
+    assert np.hypot(*s.displacement_m) < 0.3
+    assert s.tracking.ang_vel_radps < 0.06
 
 
 @pytest.mark.slow
 def test_steps_sideways_at_0p05_mps():
     s = _walk([0.0, 0.05, 0.0])
     assert not s.fell
-    assert 0.35 <= s.displacement_m[1] <= 0.65
+    assert 0.45 <= s.displacement_m[1] <= 0.55  # issue window 0.35-0.65 m; 0.48 m planned after the start
+    assert abs(s.displacement_m[0]) < 0.12  # the stride calibration cancels the backward slip
+    assert abs(s.yaw_change_rad) < 0.1
+    assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03
+
+
+def test_feedback_signs_come_from_the_model():
+    robot = MuJoCoRobot()
+    policy = WalkZMPPolicy(robot)
+    # mirrored joints (hip roll, ankle pitch) get opposite signs on the two legs; ankle roll is not mirrored
+    np.testing.assert_array_equal(policy._ankle_pitch_sign, [1.0, -1.0])
+    np.testing.assert_array_equal(policy._hip_roll_sign, [-1.0, 1.0])
+    np.testing.assert_array_equal(policy._ankle_roll_sign, [1.0, 1.0])
+
+
+def test_stride_calibration_compensates_sideways_back_slip_both_ways():
+    cal = StrideCalibration(vx_gain=1.0, vy_gain=1.2, vx_per_vy=0.5)
+    np.testing.assert_allclose(cal.apply(np.array([0.0, 0.05, 0.1])), [0.025, 0.06, 0.1])
+    np.testing.assert_allclose(cal.apply(np.array([0.1, -0.05, 0.0])), [0.125, -0.06, 0.0])

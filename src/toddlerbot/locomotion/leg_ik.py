@@ -68,6 +68,19 @@ class LegIK:
         """Whole-robot CoM in the torso frame at the home pose, m."""
         self._q = self.home_q.copy()
 
+    def joint_axes(self, q: np.ndarray | None = None) -> np.ndarray:
+        """(2, 6, 3) rotation axis of each leg joint in the torso frame at leg angles q (default: home); mirrored
+        joints of the two legs have opposite axes."""
+        m, d = self.model, self.data
+        d.qpos[self._qadr] = self.home_q if q is None else q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        axes = np.empty((2, 6, 3))
+        for leg in range(2):
+            mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._sites[leg])
+            axes[leg] = self._jacr[:, self._dadr[leg]].T
+        return axes
+
     def _foot_poses(self) -> tuple[np.ndarray, np.ndarray]:
         d = self.data
         torso_pos = d.xpos[self._torso]

@@ -166,7 +166,7 @@ class ZMPWalk:
         if k >= 0 and (tick - cfg.start_ticks) % cfg.step_ticks == 0 and len(poses) < k + 2:
             poses.append(advance(poses[-1], cmd, cfg.step_ticks * cfg.dt))  # fix S_{k+1}
         footsteps = self._footsteps(state, poses, cmd, k + 2 + cfg.preview_ticks // cfg.step_ticks + 2)
-        zmp_future = np.array([self._zmp_ref(state, footsteps, i) for i in range(tick, tick + cfg.preview_ticks + 1)])
+        zmp_future = self._zmp_refs(state, footsteps, np.arange(tick, tick + cfg.preview_ticks + 1))
         cart, err_sum, zmp = preview_step(self.gains, state.cart, state.zmp_error_sum, zmp_future)
         foot_floor, lift, contact = self._feet(state, footsteps, tick)
         ref, leg_q = self._pose(tick, cmd, state, foot_floor, lift, contact, state.cart, zmp, zmp_future[0], torso_tilt)
@@ -218,18 +218,19 @@ class ZMPWalk:
             steps[j] = foot_pose(poses[j], stance_side(j, first), self.stance_width)
         return steps
 
-    def _zmp_ref(self, state: WalkState, steps: dict[int, np.ndarray], tick: int) -> np.ndarray:
+    def _zmp_refs(self, state: WalkState, steps: dict[int, np.ndarray], ticks: np.ndarray) -> np.ndarray:
+        """(len(ticks), 2) ZMP reference: the start midpoint while standing, then on footstep S_k, moving linearly
+        from S_{k-1} (the start midpoint for k = 0) during step k's double support."""
         cfg = self.config
-        k = self._step_index(tick)
         start = state.start_feet[:, :2].mean(axis=0)
-        if k < 0:
-            return start
-        tau = tick - cfg.start_ticks - k * cfg.step_ticks
-        target = steps[k][:2]
-        if tau >= cfg.double_support_ticks:
-            return target
-        prev = start if k == 0 else steps[k - 1][:2]
-        return prev + (tau + 1) / cfg.double_support_ticks * (target - prev)
+        n = max(steps) + 1
+        targets = np.array([start] + [steps[j][:2] for j in range(n)])  # row 0: start midpoint; row j + 1: S_j
+        k = np.where(ticks < cfg.start_ticks, -1, (ticks - cfg.start_ticks) // cfg.step_ticks)
+        tau = ticks - cfg.start_ticks - k * cfg.step_ticks
+        prev = np.where((k <= 0)[:, None], start, targets[np.maximum(k, 0)])
+        target = targets[k + 1]
+        blend = np.where(k < 0, 1.0, np.minimum((tau + 1) / cfg.double_support_ticks, 1.0))[:, None]
+        return prev + blend * (target - prev)
 
     def _feet(self, state: WalkState, steps: dict[int, np.ndarray], tick: int):
         """Foot floor poses (2, 3: x, y, yaw), lifts (2,) and contact flags (2,) at a tick."""
