@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimulationError
+from toddlerbot.sysid.params import catalogue_with_params
 
 
 @pytest.fixture(scope="module")
@@ -45,3 +46,13 @@ def test_fall_detector_fires_when_the_robot_goes_limp(robot):
             break
     assert robot.fallen
     robot.set_gains(robot.default_kp, robot.default_kd)
+
+
+def test_fitted_motor_params_reach_the_simulated_joints_and_actuator_model(tmp_path):
+    params = tmp_path / "xm430.json"
+    params.write_text('{"motor": "XM430", "actuator": {"armature": 0.0031, "tau_max": 1.23}}')
+    fitted = MuJoCoRobot(catalogue=catalogue_with_params([params]))
+    knee = fitted.model.joint("left_knee_drive")
+    assert fitted.model.dof_armature[knee.dofadr[0]] == pytest.approx(0.0031)
+    knee_motor = fitted.motor_names.index("left_knee_drive")
+    assert fitted.actuator_params[knee_motor].tau_max == pytest.approx(1.23)

@@ -38,6 +38,8 @@ def run(
                                          "implies --realtime).")] = False,
     log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
     summary_json: Annotated[Path | None, typer.Option("--summary-json", help="Write the summary as JSON.")] = None,
+    motor_params: Annotated[list[Path] | None, typer.Option(
+        "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")] = None,
 ) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from rich.progress import Progress
@@ -48,6 +50,7 @@ def run(
     from toddlerbot.runtime.summary import summarize
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
     from toddlerbot.sim.render import Recorder, has_display
+    from toddlerbot.sysid.params import catalogue_with_params
 
     if policy not in POLICIES:
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
@@ -56,7 +59,8 @@ def run(
     if command is None:
         command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
     schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)
-    robot = MuJoCoRobot(config=SimConfig(control_dt=1.0 / control_hz))
+    catalogue = catalogue_with_params(motor_params or [])
+    robot = MuJoCoRobot(config=SimConfig(control_dt=1.0 / control_hz), catalogue=catalogue)
     pol = make_policy(policy, robot, motion)
     recorder = None
     if video or snapshot:

@@ -142,8 +142,10 @@ def build_mjspec(
     return mj
 
 
-def build_model(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> mujoco.MjModel:
-    return build_mjspec(spec, base, scene).compile()
+def build_model(
+    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
+) -> mujoco.MjModel:
+    return build_mjspec(spec, base, scene, catalogue).compile()
 
 
 def build_xml(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> str:
