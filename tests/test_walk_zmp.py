@@ -7,6 +7,7 @@ from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.locomotion.preview import preview_gains, preview_step
 from toddlerbot.locomotion.zmp_walk import ZMPWalk
 from toddlerbot.policies.walk_zmp import StrideCalibration, WalkZMPPolicy
+from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.runtime.summary import summarize
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -58,10 +59,65 @@ def test_gait_config_is_validated():
         WalkConfig(double_support_ratio=1.2)
 
 
-def _walk(cmd):
+def test_leg_mass_correction_puts_the_whole_robot_com_on_the_plan():
+    walk = ZMPWalk(WalkConfig(leg_mass_correction=True))
+    traj = walk.trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
+    for i in (30, 40, 47):  # standing, double support, single support (swing leg moving)
+        com = traj.torso_pos[i] + walk.ik.com(traj.joint_pos[i][walk._leg_index])  # torso upright, yaw ~0
+        np.testing.assert_allclose(com[:2], traj.com_pos[i, :2], atol=2e-3)
+    # without it the home-pose CoM offset is kept and the swing leg moves the real CoM off the plan
+    home = ZMPWalk().trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
+    i = 47
+    com = home.torso_pos[i] + walk.ik.com(home.joint_pos[i][walk._leg_index])
+    assert np.linalg.norm(com[:2] - home.com_pos[i, :2]) > 2e-3
+
+
+def _walk(cmd, seconds=10.0):
     robot = MuJoCoRobot()
-    res = run_policy(robot, WalkZMPPolicy(robot), lambda t: np.array(cmd), 10.0)
+    commands = cmd if callable(cmd) else (lambda t: np.array(cmd))
+    res = run_policy(robot, WalkZMPPolicy(robot), commands, seconds)
     return summarize(res.log, res.fell, res.fall_time)
+
+
+def _commanded(commands, seconds, dt=0.02):
+    """(dx, dy, dyaw) the commands integrate to over ``seconds``, in the start heading frame."""
+    cmd = np.array([commands(i * dt) for i in range(round(seconds / dt))])
+    yaw = np.concatenate([[0.0], np.cumsum(cmd[:-1, 2] * dt)])
+    return (np.sum(np.cos(yaw) * cmd[:, 0] - np.sin(yaw) * cmd[:, 1]) * dt,
+            np.sum(np.sin(yaw) * cmd[:, 0] + np.cos(yaw) * cmd[:, 1]) * dt, np.sum(cmd[:, 2]) * dt)
+
+
+SCHEDULE = "0:0.1,0,0; 3:0,0.05,0; 5.5:-0.05,0,0.2"
+# (command, achieved/commanded ratio window per axis that is asserted; axes with a small command get an
+# absolute drift bound instead). Ratios measured on 6 s walks (docs/simulation.md): within 25 % except three
+# known gaps whose windows are regression bounds around the measured value, not goals: backwards over-strides
+# (x1.39), slow forward (x0.71) and fast sideways (x0.71) under-stride.
+GRID = [
+    ((-0.1, 0.0, 0.0), {0: (1.25, 1.55)}),
+    ((0.05, 0.0, 0.0), {0: (0.6, 0.85)}),
+    ((0.15, 0.0, 0.0), {0: (0.9, 1.25)}),
+    ((0.0, -0.05, 0.0), {1: (0.75, 1.25)}),
+    ((0.0, 0.08, 0.0), {1: (0.6, 0.85)}),
+    ((0.0, 0.0, -0.3), {2: (0.85, 1.15)}),
+    ((0.08, 0.03, 0.2), {0: (0.75, 1.25), 1: (0.75, 1.25), 2: (0.85, 1.15)}),
+    (SCHEDULE, {0: (0.75, 1.25), 1: (0.75, 1.25)}),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cmd,windows", GRID, ids=lambda v: str(v) if not isinstance(v, dict) else "")
+def test_command_grid_6_s(cmd, windows):
+    commands = CommandSchedule.parse(cmd) if isinstance(cmd, str) else (lambda t: np.array(cmd))
+    s = _walk(commands, 6.0)
+    assert not s.fell
+    achieved = (*s.displacement_m, s.yaw_change_rad)
+    commanded = _commanded(commands, 6.0)
+    for axis, (lo, hi) in windows.items():
+        assert lo <= achieved[axis] / commanded[axis] <= hi, (axis, achieved, commanded)
+    for axis in set(range(2)) - set(windows):
+        assert abs(achieved[axis]) < 0.15, (axis, achieved)  # drift on an axis with no command
+    if 2 not in windows:
+        assert abs(achieved[2] - commanded[2]) < 0.15
 
 
 # Windows: the issue's outcome windows, narrowed to the goals the policy meets with margin (measured figures in

@@ -81,6 +81,14 @@ class LegIK:
             axes[leg] = self._jacr[:, self._dadr[leg]].T
         return axes
 
+    def com(self, q: np.ndarray) -> np.ndarray:
+        """Whole-robot CoM (m) in the torso frame with the legs at angles q (2, 6) and every other joint at home."""
+        m, d = self.model, self.data
+        d.qpos[self._qadr] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        return d.subtree_com[self._torso] - d.xpos[self._torso]
+
     def _foot_poses(self) -> tuple[np.ndarray, np.ndarray]:
         d = self.data
         torso_pos = d.xpos[self._torso]

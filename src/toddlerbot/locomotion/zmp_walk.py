@@ -264,20 +264,28 @@ class ZMPWalk:
         c, s = np.cos(torso_yaw), np.sin(torso_yaw)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         com = np.array([cart[0, 0], cart[0, 1], self.com_height])
-        torso = com - rot @ self.com_offset
         foot_world = np.column_stack([feet[:, :2], lift])
-        foot_torso = (foot_world - torso) @ rot  # rot.T @ (p - torso) for each row
         foot_rot = np.empty((2, 3, 3))
         for leg in (LEFT, RIGHT):
             d = feet[leg, 2] - torso_yaw
             cd, sd = np.cos(d), np.sin(d)
             foot_rot[leg] = np.array([[cd, -sd, 0.0], [sd, cd, 0.0], [0.0, 0.0, 1.0]]) @ self.ik.home_foot_rot[leg]
-        if torso_tilt is not None:
-            # the torso is rotated by tilt (in the yaw-aligned frame) about its origin: express the targets in it
-            for leg in (LEFT, RIGHT):
-                foot_torso[leg] = torso_tilt[leg].T @ foot_torso[leg]
-                foot_rot[leg] = torso_tilt[leg].T @ foot_rot[leg]
-        leg_q = self.ik.solve(foot_torso, foot_rot, state.leg_q)
+        # the torso sits where the CoM offset puts it below the cart; with leg_mass_correction the offset is the
+        # whole robot's CoM at the legs' angles (moving swing leg included), so torso placement and IK alternate
+        leg_q = state.leg_q
+        com_offset = self.ik.com(leg_q) if cfg.leg_mass_correction else self.com_offset
+        for _ in range(cfg.com_iterations if cfg.leg_mass_correction else 1):
+            torso = com - rot @ com_offset
+            foot_torso = (foot_world - torso) @ rot  # rot.T @ (p - torso) for each row
+            leg_rot = foot_rot.copy()
+            if torso_tilt is not None:
+                # the torso is rotated by tilt (in the yaw-aligned frame) about its origin: express targets in it
+                for leg in (LEFT, RIGHT):
+                    foot_torso[leg] = torso_tilt[leg].T @ foot_torso[leg]
+                    leg_rot[leg] = torso_tilt[leg].T @ foot_rot[leg]
+            leg_q = self.ik.solve(foot_torso, leg_rot, leg_q)
+            if cfg.leg_mass_correction:
+                com_offset = self.ik.com(leg_q)
         joint_pos = self.home_joint_pos.copy()
         joint_pos[self._leg_index] = leg_q
         k_tick = tick - cfg.start_ticks
