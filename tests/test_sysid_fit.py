@@ -85,3 +85,18 @@ def test_fast_steps_identify_the_speed_curve() -> None:
     speeds = np.array([3.0, 5.0, 6.5, 10.0])
     fitted = acceleration_limit(speeds, actuator_arrays([result.params], [0], [0]))
     assert fitted == pytest.approx(acceleration_limit(speeds, actuator_arrays([TRUTH], [0], [0])), rel=0.1)
+
+
+def test_stagnating_runs_restart_with_larger_populations() -> None:
+    # a motor at rest on its goal: every candidate replays it exactly, so the loss is flat, each CMA-ES run stops
+    # after one generation (cma's flat-fitness criterion) and IPOP restarts with populations 8, 16, 32, 64, then
+    # 97 (capped so the last restart could still run 8 generations of the remaining 780 evaluations)
+    from toddlerbot.sysid.rigs import TestBedRig
+
+    t = np.arange(0, 0.05, 0.005)
+    runs = synthesize([Excitation("rest", 900, t, np.zeros_like(t))], TestBedRig(0.01), TRUTH)
+    manifest = Manifest(Path("rest.json"), default_catalogue()["XC330"], TestBedRig(0.01), tuple(runs))
+    result = fit(manifest, evals=900, popsize=8, seed=2)
+    assert (result.restarts, result.generations, result.evals) == (4, 5, 8 + 16 + 32 + 64 + 97)
+    assert result.rmse_deg < 1e-9
+    assert fit(manifest, evals=900, popsize=8, seed=2, restarts=0).evals == 8

@@ -8,8 +8,9 @@ fits started from other motor models' values converge more reliably). CMA-ES (th
 unit cube mapped onto `toddlerbot.sysid.params.BOUNDS` (log-scaled for the positive, multi-decade parameters), the first
 run starting from the catalogue's values for the motor. Each generation is evaluated as one vectorised simulation
 of all candidates x all runs. A run that stagnates (its best loss improves by less than ``STAGNATION_TOL`` over
-``patience`` generations) is restarted with twice the population (IPOP), from the middle of the search cube, until the
-evaluation budget is spent; the best candidate of all runs is returned. Same manifest, seed and options give the
+``patience`` generations) or that meets one of cma's own stopping criteria (e.g. flat fitness) is restarted with twice
+the population (IPOP), from the middle of the search cube, until the evaluation budget or the allowed restarts are
+spent; the best candidate of all runs is returned. Same manifest, seed and options give the
 same result.
 """
 
