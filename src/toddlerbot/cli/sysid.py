@@ -16,6 +16,7 @@ from toddlerbot.cli.output import console
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
 from toddlerbot.sysid.excitation import DEFAULT_KP, PROFILES, excitation_set
+from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.logs import read_columns
 from toddlerbot.sysid.manifest import load_manifest
@@ -40,8 +41,11 @@ def fit_command(
     fit_kp_scale: Annotated[bool, typer.Option("--fit-kp-scale", help="Also fit the firmware-to-physical kp factor.")]
     = False,
     seed: Annotated[int, typer.Option("--seed", min=1, help="CMA-ES seed (>= 1); same seed, same result.")] = 1,
-    evals: Annotated[int, typer.Option("--evals", min=4, help="Candidate evaluations.")] = 2000,
-    popsize: Annotated[int, typer.Option("--popsize", min=4, help="Candidates per CMA-ES generation.")] = 32,
+    evals: Annotated[int, typer.Option("--evals", min=4, help="Candidate evaluations (all restarts).")]
+    = DEFAULT_EVALS,
+    popsize: Annotated[int, typer.Option("--popsize", min=4, help="Candidates per generation of the first CMA-ES "
+                                                                  "run (doubled at each IPOP restart).")] = 32,
+    restarts: Annotated[int, typer.Option("--restarts", min=0, help="Most IPOP restarts on stagnation.")] = 4,
     start: Annotated[Path | None, typer.Option("--start", help="params.json to start from (default: catalogue).")]
     = None,
 ) -> None:
@@ -55,11 +59,13 @@ def fit_command(
     with Progress(TextColumn("fitting"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"),
                   TimeElapsedColumn(), console=console, transient=True) as bar:
         task = bar.add_task("", total=evals)
-        result = run_fit(m, fit_kp_scale=fit_kp_scale, seed=seed, evals=evals, popsize=popsize, start=start_params,
+        result = run_fit(m, fit_kp_scale=fit_kp_scale, seed=seed, evals=evals, popsize=popsize, restarts=restarts,
+                         start=start_params,
                          progress=lambda n, rmse: bar.update(task, completed=n, description=f"RMSE {rmse:.3f} deg"))
     provenance = {
         "manifest": str(manifest), "runs": len(m.runs), "rig": m.rig.type, "seed": seed, "evals": result.evals,
-        "generations": result.generations, "rmse_deg": result.rmse_deg, "wall_s": round(result.wall_s, 2),
+        "generations": result.generations,
+        "restarts": result.restarts, "rmse_deg": result.rmse_deg, "wall_s": round(result.wall_s, 2),
     }
     save_params(output, m.motor.name, result.params, result.fitted, provenance)
     console.print(f"wrote {output}: {m.motor.name}, RMSE {result.rmse_deg:.3f} deg over {len(m.runs)} runs "

@@ -7,6 +7,9 @@ is run with (one run per kp value).
 * ``sinusoids``: constant-frequency segments at 0.5, 1, 2 and 4 Hz.
 * ``lift_and_drop``: a slow ramp up (lifting a load against gravity on a pendulum), a hold, then the goal jumps
   back (drop) and holds; repeated twice.
+* ``fast_steps``: full-swing steps between -2 and +2 x amplitude, 0.4 s each: the torque saturates and the shaft
+  runs well past ``q_dot_tau_max`` (on the XC330 pendulum of the docs to 9-13 rad/s, beyond ``q_dot_max``), which
+  is what pins the speed curve (``q_dot_tau_max``, ``q_dot_max``, ``tau_q_dot_max``) and passive damping.
 """
 
 from __future__ import annotations
@@ -52,8 +55,14 @@ def lift_and_drop(t: np.ndarray, duration: float, amplitude: float) -> np.ndarra
     return amplitude * np.where(phase < 0.7, lift, 0.0)
 
 
+def fast_steps(t: np.ndarray, duration: float, amplitude: float, hold: float = 0.4) -> np.ndarray:
+    index = np.floor(t / hold).astype(int)
+    return np.where(index == 0, 0.0, np.where(index % 2 == 1, 2.0 * amplitude, -2.0 * amplitude))
+
+
 PROFILES: dict[str, Callable[[np.ndarray, float, float], np.ndarray]] = {
     "chirp": chirp, "steps": steps, "sinusoids": sinusoids, "lift_and_drop": lift_and_drop,
+    "fast_steps": fast_steps,
 }
 
 

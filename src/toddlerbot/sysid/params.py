@@ -28,22 +28,36 @@ MODEL_PARAMETERS = (
 """The 9 parameters of the appendix (section 8.9), always fitted."""
 
 BOUNDS: dict[str, tuple[float, float]] = {
-    "damping": (0.0, 0.05),  # N*m*s/rad
-    "frictionloss": (0.0, 0.3),  # N*m
+    "damping": (1e-4, 0.05),  # N*m*s/rad
+    "frictionloss": (1e-3, 0.3),  # N*m
     "armature": (2e-4, 0.03),  # kg*m^2
     "tau_max": (0.05, 6.0),  # N*m
     "q_dot_tau_max": (0.0, 8.0),  # rad/s
-    "tau_q_dot_max": (0.0, 6.0),  # N*m
+    "tau_q_dot_max": (0.0, 1.0),  # FRACTION of tau_max (the limit falls with speed)
     "q_dot_max": (0.2, 20.0),  # rad/s ABOVE q_dot_tau_max (searched as the span, so q_dot_max > q_dot_tau_max)
-    "kd_min": (0.0, 2.0),  # N*m*s/rad
+    "kd_min": (0.01, 2.0),  # N*m*s/rad
     "tau_brake": (0.05, 10.0),  # N*m
     "kp_scale": (50.0, 400.0),  # firmware P gain per N*m/rad
 }
-"""Search bounds of each parameter (q_dot_max: bounds of q_dot_max - q_dot_tau_max)."""
+"""Search bounds of each parameter (q_dot_max: bounds of q_dot_max - q_dot_tau_max; tau_q_dot_max: bounds of
+tau_q_dot_max / tau_max)."""
+
+LOG_SCALED = frozenset({"damping", "frictionloss", "armature", "tau_max", "kd_min", "tau_brake", "kp_scale"})
+"""Parameters searched on a log scale (positive, spanning one to three decades); the speeds and the torque
+fraction are searched linearly."""
 
 
 def parameter_names(fit_kp_scale: bool) -> tuple[str, ...]:
     return (*MODEL_PARAMETERS, "kp_scale") if fit_kp_scale else MODEL_PARAMETERS
+
+
+def _searched(name: str, params: ActuatorParams) -> float:
+    """The value the optimiser sees for ``name`` (span for q_dot_max, fraction of tau_max for tau_q_dot_max)."""
+    if name == "q_dot_max":
+        return params.q_dot_max - params.q_dot_tau_max
+    if name == "tau_q_dot_max":
+        return params.tau_q_dot_max / params.tau_max
+    return getattr(params, name)
 
 
 def to_unit(params: ActuatorParams, names: Sequence[str]) -> np.ndarray:
@@ -51,8 +65,8 @@ def to_unit(params: ActuatorParams, names: Sequence[str]) -> np.ndarray:
     u = []
     for name in names:
         lo, hi = BOUNDS[name]
-        value = getattr(params, name) - (params.q_dot_tau_max if name == "q_dot_max" else 0.0)
-        u.append((value - lo) / (hi - lo))
+        value = min(max(_searched(name, params), lo), hi)
+        u.append(np.log(value / lo) / np.log(hi / lo) if name in LOG_SCALED else (value - lo) / (hi - lo))
     return np.clip(np.array(u), 0.0, 1.0)
 
 
@@ -63,9 +77,11 @@ def from_unit(u: np.ndarray, names: Sequence[str], base: ActuatorParams) -> dict
     out = {f.name: np.full(len(u), float(getattr(base, f.name))) for f in dataclasses.fields(ActuatorParams)}
     for i, name in enumerate(names):
         lo, hi = BOUNDS[name]
-        out[name] = lo + u[:, i] * (hi - lo)
+        out[name] = lo * (hi / lo) ** u[:, i] if name in LOG_SCALED else lo + u[:, i] * (hi - lo)
     if "q_dot_max" in names:
         out["q_dot_max"] = out["q_dot_max"] + out["q_dot_tau_max"]
+    if "tau_q_dot_max" in names:
+        out["tau_q_dot_max"] = out["tau_q_dot_max"] * out["tau_max"]
     return out
 
 
