@@ -24,7 +24,7 @@ def _random_export(tmp_path, hidden=(64, 32), history=2):
     from toddlerbot.rl.export import policy_arrays, write_policy
     from toddlerbot.rl.train import make_networks
 
-    env_cfg = EnvConfig(obs=ObsConfig(history=history))
+    env_cfg = EnvConfig(obs=ObsConfig(history=history, gait_period=0.72))
     n_obs = history * env_cfg.obs.frame_size(30)
     cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=hidden, value_hidden=hidden)
     networks = make_networks({"state": (n_obs,), "privileged_state": (7,)}, len(LEG_MOTORS), cfg)
@@ -57,7 +57,7 @@ def test_numpy_actions_match_jax_to_1e5(tmp_path):
 
 def test_obs_frame_is_identical_in_numpy_and_jax():
     jnp = pytest.importorskip("jax.numpy")
-    cfg = ObsConfig()
+    cfg = ObsConfig(gait_period=0.72)
     rng = np.random.default_rng(1)
     args = (0.37, rng.normal(size=3), rng.normal(size=30), rng.normal(size=30), rng.normal(size=30),
             rng.normal(size=12), rng.normal(size=3))

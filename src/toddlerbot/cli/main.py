@@ -8,7 +8,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from toddlerbot.cli import design, model
+from toddlerbot.cli import design, model, rl
 from toddlerbot.errors import ToddlerbotError
 
 app = typer.Typer(
@@ -18,6 +18,7 @@ app = typer.Typer(
 )
 app.add_typer(model.app, name="model")
 app.add_typer(design.app, name="design")
+app.add_typer(rl.app, name="rl")
 
 
 def main() -> None:

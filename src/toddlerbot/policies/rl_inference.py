@@ -44,8 +44,9 @@ class ObsConfig:
     """Motor speeds (rad/s) are multiplied by this."""
     gyro_scale: float = 0.25
     """IMU angular velocity (rad/s) is multiplied by this."""
-    gait_period: float = 0.8
-    """s per gait cycle; the phase features are sin and cos of 2*pi*t/period."""
+    gait_period: float | None = None
+    """s per gait cycle; the phase features are sin and cos of 2*pi*t/period. None (in a training config) means
+    the walking reference's period; exported files always hold the number."""
     noise_motor_pos: float = 0.02
     """Training noise half-widths at noise level 1: motor angle rad, motor speed rad/s, gyro rad/s, gravity
     (unit vector). Not used at inference."""
@@ -119,7 +120,7 @@ class RLPolicyFile:
     def action(self, obs: np.ndarray) -> np.ndarray:
         """Deterministic action in [-1, 1]^12 for one normalised-on-the-fly observation vector."""
         x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
-        for i, (k, b) in enumerate(zip(self.kernels, self.biases)):
+        for i, (k, b) in enumerate(zip(self.kernels, self.biases, strict=True)):
             x = x @ k + b
             if i < len(self.kernels) - 1:
                 x = _swish(x)

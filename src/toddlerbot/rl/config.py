@@ -156,7 +156,8 @@ SMOKE = PPOConfig(
 
 def smoke_env_config() -> EnvConfig:
     """The environment of the smoke run: short episodes and a 3-frame history (smaller graphs compile faster)."""
-    return EnvConfig(episode_length=SMOKE.episode_length, obs=replace(ObsConfig(), history=3))
+    return EnvConfig(episode_length=SMOKE.episode_length, obs=replace(ObsConfig(), history=3),
+                     command=replace(CommandConfig(), grid=(3, 3, 3)))
 
 
 def to_dict(cfg: object) -> dict:

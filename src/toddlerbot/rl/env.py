@@ -13,6 +13,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -58,17 +60,21 @@ class WalkEnv(Env):
 
     def __init__(self, cfg: EnvConfig | None = None, spec: RobotSpec | None = None,
                  reference: ReferenceTable | None = None) -> None:
-        self.cfg = cfg = cfg or EnvConfig()
+        cfg = cfg or EnvConfig()
         rewards.check_weights(cfg.reward)
         self.spec = spec = spec or load_spec()
-        model = training_model(spec, cfg)
-        self.mj_model = model
-        self.sys = mjx.put_model(model)
         if reference is None:
-            reference, self.reference_source = load_reference(spec, cfg.command, cfg.obs.gait_period)
+            reference, self.reference_source = load_reference(spec, cfg.command)
         else:
             self.reference_source = "given"
         self.reference = reference
+        if cfg.obs.gait_period is None:
+            cfg = replace(cfg, obs=replace(cfg.obs, gait_period=reference.period))
+        self.cfg = cfg
+        """The configuration with the gait period resolved (save this one)."""
+        model = training_model(spec, cfg)
+        self.mj_model = model
+        self.sys = mjx.put_model(model)
         self._ref_leg = jnp.asarray(reference.leg_motor_pos, dtype=jnp.float32)
         self._ref_contact = jnp.asarray(reference.contact, dtype=jnp.float32)
 

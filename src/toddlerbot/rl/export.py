@@ -34,6 +34,8 @@ def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, 
                  spec: RobotSpec | None = None) -> Path:
     """Write the export file (atomically) for a robot spec."""
     spec = spec or load_spec()
+    if env_cfg.obs.gait_period is None:
+        raise ValueError("the observation config to export has no gait period (resolve it with WalkEnv first)")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp.npz")

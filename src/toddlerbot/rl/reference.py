@@ -24,7 +24,9 @@ from toddlerbot.robot.transmission import build_transmission_map
 
 
 class WalkGenerator(Protocol):
-    """What we need from the ZMP walking generator (``toddlerbot.locomotion``)."""
+    """What we need from the ZMP walking generator (``toddlerbot.locomotion.zmp_walk.ZMPWalk``): the reference
+    at time t (s) of a walk started from home at t = 0 under a constant command, with ``joint_pos`` (output
+    joints, rad, transmission-map order) and ``contact`` ((left, right) feet on the floor)."""
 
     def reference(self, command: np.ndarray, t: float) -> Any: ...
 
@@ -108,45 +110,35 @@ def standing_table(spec: RobotSpec, cfg: CommandConfig, period: float, n_phase: 
     return ReferenceTable(grid, period, np.broadcast_to(legs, (*shape, len(legs))).copy(), np.ones((*shape, 2)))
 
 
-def zmp_table(
-    spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, period: float, n_phase: int = 40,
-    warmup_cycles: int = 2,
-) -> ReferenceTable:
-    """Tabulate a walking generator: for each grid command, one gait cycle after ``warmup_cycles`` cycles."""
+def zmp_table(spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, period: float, start_time: float,
+              n_phase: int = 36, warmup_cycles: int = 2) -> ReferenceTable:
+    """Tabulate a walking generator: for each grid command, one steady-state gait cycle, sampled ``warmup_cycles``
+    cycles after the generator's standing start of ``start_time`` s (phase 0 = the start of a cycle)."""
     grid = CommandGrid.from_config(cfg)
     tmap = build_transmission_map(spec)
     legs = leg_motor_indices(spec)
-    home_joint = np.array([spec.home.get(j, 0.0) for j in tmap.joint_names])
     leg_pos = np.zeros((*grid.shape, n_phase, len(legs)))
     contact = np.zeros((*grid.shape, n_phase, 2))
     for index in np.ndindex(*grid.shape):
         command = grid.command(np.array(index))
         for p in range(n_phase):
-            ref = generator.reference(command, (warmup_cycles + p / n_phase) * period)
-            q_joint = home_joint.copy()
-            for name, value in _leg_joint_targets(ref).items():
-                q_joint[tmap.joint_names.index(name)] = value
-            leg_pos[(*index, p)] = tmap.joint_to_motor(q_joint)[legs]
-            contact[(*index, p)] = np.asarray(_contact(ref), dtype=float)
+            ref = generator.reference(command, start_time + (warmup_cycles + p / n_phase) * period)
+            leg_pos[(*index, p)] = tmap.joint_to_motor(np.asarray(ref.joint_pos))[legs]
+            contact[(*index, p)] = np.asarray(ref.contact, dtype=float)
     return ReferenceTable(grid, period, leg_pos, contact)
 
 
-def _leg_joint_targets(ref: Any) -> dict[str, float]:
-    targets = ref["leg_joint_pos"] if isinstance(ref, dict) else ref.leg_joint_pos
-    return dict(targets)
-
-
-def _contact(ref: Any) -> np.ndarray:
-    return np.asarray(ref["contact"] if isinstance(ref, dict) else ref.contact)
-
-
-def load_reference(spec: RobotSpec, cfg: CommandConfig, period: float) -> tuple[ReferenceTable, str]:
-    """The ZMP reference when ``toddlerbot.locomotion`` is available, else the standing reference.
-
-    Returns the table and its source name ("zmp" or "standing").
-    """
+def load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
+    """The ZMP walking reference when ``toddlerbot.locomotion`` is installed, else the standing reference (with the
+    generator's default gait period). Returns the table and its source name ("zmp" or "standing")."""
     try:
-        from toddlerbot.locomotion import ZMPWalk  # type: ignore[attr-defined]
+        from toddlerbot.locomotion.zmp_walk import ZMPWalk
     except ImportError:
-        return standing_table(spec, cfg, period), "standing"
-    return zmp_table(spec, ZMPWalk.from_spec(spec), cfg, period), "zmp"
+        return standing_table(spec, cfg, STANDING_PERIOD), "standing"
+    walk = ZMPWalk(spec=spec)
+    return zmp_table(spec, walk, cfg, walk.config.cycle_time, walk.config.start_time), "zmp"
+
+
+STANDING_PERIOD = 0.72
+"""s; gait period given to the phase observation when no walking generator is available (the generator's default
+cycle time)."""

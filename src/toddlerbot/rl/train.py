@@ -137,10 +137,11 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         env_cfg, ppo_cfg = load_config(run_dir)
     else:
         env_cfg, ppo_cfg = env_cfg or EnvConfig(), ppo_cfg or PPOConfig()
-        run_dir.mkdir(parents=True, exist_ok=True)
-        save_config(run_dir, env_cfg, ppo_cfg)
     cfg = ppo_cfg
     env = env or WalkEnv(env_cfg)
+    if not resume:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        save_config(run_dir, env.cfg, ppo_cfg)
     n_dev = jax.local_device_count()
     if cfg.num_envs % n_dev:
         raise ToddlerbotError(f"num_envs {cfg.num_envs} is not divisible by the {n_dev} JAX devices")
