@@ -1,0 +1,1 @@
+"""Walking pattern generation: ZMP preview control, footstep plans, swing trajectories and leg IK (numpy only)."""

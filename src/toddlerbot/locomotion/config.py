@@ -1,0 +1,67 @@
+"""Gait parameters of the ZMP walking pattern generator (plain data, validated early)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class WalkConfig:
+    dt: float = 0.02
+    """Generator time step, s (the control period: one reference per control tick)."""
+    cycle_time: float = 0.72
+    """Gait cycle (two steps), s."""
+    double_support_ratio: float = 0.25
+    """Fraction of each step spent with both feet on the ground."""
+    step_height: float = 0.025
+    """Peak swing-foot lift, m."""
+    stance_width: float | None = None
+    """Lateral distance between the foot centres, m; None keeps the home pose's stance."""
+    start_time: float = 0.4
+    """Standing time before the first step, s (the CoM starts its shift during it)."""
+    preview_time: float = 1.2
+    """Preview horizon of the ZMP preview controller, s."""
+    zmp_weight: float = 1.0
+    """Weight on the ZMP tracking error in the preview controller's cost."""
+    jerk_weight: float = 1e-6
+    """Weight on the CoM jerk in the preview controller's cost."""
+    max_vx: float = 0.3
+    """Largest forward/backward speed accepted, m/s (commands are clipped to the limits)."""
+    max_vy: float = 0.15
+    """Largest sideways speed accepted, m/s."""
+    max_yaw_rate: float = 1.0
+    """Largest turning rate accepted, rad/s."""
+
+    def __post_init__(self) -> None:
+        positive = ("dt", "cycle_time", "preview_time", "zmp_weight", "jerk_weight", "max_vx", "max_vy", "max_yaw_rate")
+        for name in positive:
+            if getattr(self, name) <= 0:
+                raise ValueError(f"WalkConfig.{name} must be > 0, got {getattr(self, name)}")
+        if not 0.0 < self.double_support_ratio < 1.0:
+            raise ValueError(f"WalkConfig.double_support_ratio must be in (0, 1), got {self.double_support_ratio}")
+        if self.step_height < 0 or self.start_time < 0:
+            raise ValueError("WalkConfig.step_height and start_time must be >= 0")
+        if self.stance_width is not None and self.stance_width <= 0:
+            raise ValueError(f"WalkConfig.stance_width must be > 0 m, got {self.stance_width}")
+        if self.step_ticks < 2 or self.double_support_ticks < 1 or self.double_support_ticks >= self.step_ticks:
+            raise ValueError(
+                f"cycle_time {self.cycle_time} s and double_support_ratio {self.double_support_ratio} leave no "
+                f"single- and double-support ticks at dt {self.dt} s"
+            )
+
+    @property
+    def step_ticks(self) -> int:
+        """Ticks per step (half a cycle)."""
+        return round(self.cycle_time / 2 / self.dt)
+
+    @property
+    def double_support_ticks(self) -> int:
+        return max(1, round(self.double_support_ratio * self.step_ticks))
+
+    @property
+    def start_ticks(self) -> int:
+        return round(self.start_time / self.dt)
+
+    @property
+    def preview_ticks(self) -> int:
+        return round(self.preview_time / self.dt)

@@ -1,0 +1,1 @@
+"""The policy loop: command sources, the fixed-rate runner, run logs, summaries and plots."""

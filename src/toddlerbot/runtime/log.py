@@ -1,0 +1,107 @@
+"""Run logs: one row per control step, saved as a compressed ``.npz``.
+
+Keys (n = control steps, m = motors; arrays follow `toddlerbot.robot.interface.Observation` units and frames):
+
+==================  ==========  ====================================================================
+time                (n,)        s since reset (observation time at the start of the step)
+command             (n, 3)      vx m/s, vy m/s, yaw rate rad/s given to the policy
+motor_pos/vel       (n, m)      observed motor angles rad, speeds rad/s
+motor_torque        (n, m)      motor torque N*m (simulated or estimated)
+joint_pos/vel       (n, m)      observed output-joint positions/speeds
+motor_target        (n, m)      commanded motor targets rad (before the backend's limit clamp)
+joint_target        (n, m)      the same targets in joint space
+imu_quat            (n, 4)      torso orientation w, x, y, z
+imu_ang_vel         (n, 3)      rad/s, IMU frame
+imu_lin_acc         (n, 3)      m/s^2, IMU frame
+foot_contact        (n, 2)      left, right
+base_pos            (n, 3)      torso position in the world, m (simulation ground truth; NaN on hardware)
+base_quat           (n, 4)      torso orientation in the world (simulation ground truth; NaN on hardware)
+compute_time        (n,)        s spent in policy + backend step
+step_period         (n,)        s of wall time from this step's start to the next's
+motor_names         (m,)        str
+joint_names         (m,)        str
+control_dt          ()          s
+policy              ()          str
+==================  ==========  ====================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from toddlerbot.errors import ToddlerbotError
+
+STEP_KEYS = (
+    "time", "command", "motor_pos", "motor_vel", "motor_torque", "joint_pos", "joint_vel", "motor_target",
+    "joint_target", "imu_quat", "imu_ang_vel", "imu_lin_acc", "foot_contact", "base_pos", "base_quat",
+    "compute_time", "step_period",
+)
+
+
+@dataclass(frozen=True)
+class RunLog:
+    time: np.ndarray
+    command: np.ndarray
+    motor_pos: np.ndarray
+    motor_vel: np.ndarray
+    motor_torque: np.ndarray
+    joint_pos: np.ndarray
+    joint_vel: np.ndarray
+    motor_target: np.ndarray
+    joint_target: np.ndarray
+    imu_quat: np.ndarray
+    imu_ang_vel: np.ndarray
+    imu_lin_acc: np.ndarray
+    foot_contact: np.ndarray
+    base_pos: np.ndarray
+    base_quat: np.ndarray
+    compute_time: np.ndarray
+    step_period: np.ndarray
+    motor_names: tuple[str, ...]
+    joint_names: tuple[str, ...]
+    control_dt: float
+    policy: str
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+        tmp = path.with_name(path.name + ".tmp.npz")
+        np.savez_compressed(tmp, **arrays)
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> RunLog:
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                values = {f.name: data[f.name] for f in fields(cls)}
+        except (OSError, KeyError, ValueError) as exc:
+            raise ToddlerbotError(f"{path} is not a run log (.npz with the keys of toddlerbot.runtime.log): {exc}") \
+                from None
+        values["motor_names"] = tuple(str(s) for s in values["motor_names"])
+        values["joint_names"] = tuple(str(s) for s in values["joint_names"])
+        values["control_dt"] = float(values["control_dt"])
+        values["policy"] = str(values["policy"])
+        return cls(**values)
+
+
+class LogRecorder:
+    """Collects one row per step; `finish` stacks them into a `RunLog`."""
+
+    def __init__(self) -> None:
+        self.rows: dict[str, list[np.ndarray]] = {k: [] for k in STEP_KEYS}
+
+    def append(self, **row: np.ndarray | float) -> None:
+        for key in STEP_KEYS:
+            self.rows[key].append(np.asarray(row[key], dtype=float))
+
+    def finish(self, motor_names, joint_names, control_dt: float, policy: str) -> RunLog:
+        return RunLog(
+            **{k: np.array(v) for k, v in self.rows.items()},
+            motor_names=tuple(motor_names), joint_names=tuple(joint_names), control_dt=control_dt, policy=policy,
+        )

@@ -1,0 +1,80 @@
+"""The runner: policy <-> robot at a fixed control rate, every step logged.
+
+``realtime=True`` locks each step to wall-clock time (sleeping off the remainder of the control period; a real
+robot's backend blocks on its bus instead). The run stops early when the policy is done, or when the robot falls
+(backends with a ``fallen`` property, e.g. the simulator) unless ``stop_on_fall`` is False.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from toddlerbot.policies.base import Policy
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.runtime.log import LogRecorder, RunLog
+
+NAN3, NAN4 = np.full(3, np.nan), np.full(4, np.nan)
+
+
+@dataclass(frozen=True)
+class RunResult:
+    log: RunLog
+    fell: bool
+    fall_time: float | None
+    """s since reset when the fall was detected."""
+    completed: bool
+    """True when the policy finished (a motion replay) or the requested duration elapsed without a fall."""
+
+
+def run_policy(
+    robot: Robot,
+    policy: Policy,
+    commands: Callable[[float], np.ndarray],
+    seconds: float,
+    realtime: bool = False,
+    stop_on_fall: bool = True,
+    on_step: Callable[[Observation], None] | None = None,
+) -> RunResult:
+    """Run ``policy`` on ``robot`` for ``seconds`` (or until the policy is done / the robot falls)."""
+    obs = robot.reset()
+    policy.reset(obs)
+    recorder = LogRecorder()
+    n_steps = round(seconds / robot.control_dt)
+    fall_time = None
+    has_ground_truth = hasattr(robot, "base_pos")
+    next_deadline = time.perf_counter()
+    for _ in range(n_steps):
+        start = time.perf_counter()
+        command = np.asarray(commands(obs.time), dtype=float)
+        action = policy.act(obs, command)
+        base_pos = robot.base_pos if has_ground_truth else NAN3
+        base_quat = robot.base_quat if has_ground_truth else NAN4
+        new_obs = robot.step(action.motor_targets, action.kp, action.kd)
+        compute = time.perf_counter() - start
+        if realtime:
+            next_deadline += robot.control_dt
+            time.sleep(max(0.0, next_deadline - time.perf_counter()))
+        recorder.append(
+            time=obs.time, command=command, motor_pos=obs.motor_pos, motor_vel=obs.motor_vel,
+            motor_torque=obs.motor_torque, joint_pos=obs.joint_pos, joint_vel=obs.joint_vel,
+            motor_target=action.motor_targets, joint_target=action.joint_targets, imu_quat=obs.imu_quat,
+            imu_ang_vel=obs.imu_ang_vel, imu_lin_acc=obs.imu_lin_acc, foot_contact=obs.foot_contact,
+            base_pos=base_pos, base_quat=base_quat, compute_time=compute,
+            step_period=time.perf_counter() - start,
+        )
+        obs = new_obs
+        if on_step is not None:
+            on_step(obs)
+        if getattr(robot, "fallen", False):
+            fall_time = obs.time
+            if stop_on_fall:
+                break
+        if policy.done:
+            break
+    log = recorder.finish(robot.motor_names, robot.joint_names, robot.control_dt, policy.name)
+    fell = fall_time is not None
+    return RunResult(log=log, fell=fell, fall_time=fall_time, completed=not fell)

@@ -1,0 +1,1 @@
+"""MuJoCo simulation backend of the `Robot` interface, and rendering (video, snapshots, viewer)."""

@@ -1,0 +1,200 @@
+"""`MuJoCoRobot`: the `Robot` interface on a MuJoCo model of the spec, with the actuator model in the loop.
+
+Every physics substep (the spec's timestep, 1 ms) the actuator model (`toddlerbot.actuation.model.motor_torque`)
+turns the latest motor targets and firmware gains into motor torques, which MuJoCo applies through the model's
+torque actuators; passive friction, damping and armature come from the joint parameters. One `step` advances
+one control period (``control_dt``, 20 ms at 50 Hz).
+
+Safety in the loop:
+
+* targets are clamped to the motor joints' ranges and, through the transmission map, to the output joints'
+  ranges (so a waist-roll command never asks the differential for more than its limit);
+* non-finite or runaway state raises `SimulationError` naming the simulated time;
+* a fall detector (`MuJoCoRobot.fallen`): torso tilted beyond ``fall_tilt_rad`` or its height below
+  ``fall_height_fraction`` of the standing height.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from toddlerbot.actuation.catalogue import Catalogue, default_catalogue
+from toddlerbot.actuation.model import actuator_arrays, motor_torque
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.robot.builder import FREEJOINT, build_model
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.spec import RobotSpec, load_spec
+
+FOOT_GEOMS = ("left_foot_collision", "right_foot_collision")
+MAX_JOINT_SPEED = 200.0
+"""rad/s; any faster and the simulation has blown up."""
+
+
+class SimulationError(ToddlerbotError):
+    """The simulation became numerically unstable (NaN, runaway velocities)."""
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    control_dt: float = 0.02
+    """Control period, s (50 Hz)."""
+    fall_tilt_rad: float = 1.0
+    """Torso tilt from upright (angle between torso z and world z) that counts as a fall."""
+    fall_height_fraction: float = 0.6
+    """Torso height below this fraction of its standing height counts as a fall."""
+
+    def __post_init__(self) -> None:
+        if self.control_dt <= 0:
+            raise ValueError(f"control_dt must be > 0 s, got {self.control_dt}")
+
+
+class MuJoCoRobot(Robot):
+    """The floating-base robot on a floor, stepped with the actuator model."""
+
+    def __init__(
+        self,
+        spec: RobotSpec | None = None,
+        config: SimConfig | None = None,
+        catalogue: Catalogue | None = None,
+        model: mujoco.MjModel | None = None,
+    ) -> None:
+        spec = spec or load_spec()
+        self.config = config or SimConfig()
+        super().__init__(spec, self.config.control_dt)
+        self.model = model if model is not None else build_model(spec, "floating", scene=True)
+        self.data = mujoco.MjData(self.model)
+        physics_dt = self.model.opt.timestep
+        self.n_substeps = round(self.config.control_dt / physics_dt)
+        if self.n_substeps < 1 or abs(self.n_substeps * physics_dt - self.config.control_dt) > 1e-9:
+            raise ValueError(
+                f"control_dt {self.config.control_dt} s must be a multiple of the physics timestep {physics_dt} s"
+            )
+        catalogue = catalogue or default_catalogue()
+        self.actuator_params = [catalogue[m.model].actuator for m in spec.motors_by_id]
+        m = self.model
+        joints = [m.joint(name) for name in self.motor_names]
+        self._qadr = np.array([j.qposadr[0] for j in joints])
+        self._dadr = np.array([j.dofadr[0] for j in joints])
+        self._act = np.array([m.actuator(name).id for name in self.motor_names])
+        self._motor_range = np.array([j.range for j in joints])
+        self._joint_range = np.array([m.joint(name).range for name in self.joint_names])
+        self._A = self.transmission.matrix
+        self._A_inv = self.transmission.inverse
+        self._imu = {name: slice(m.sensor(name).adr[0], m.sensor(name).adr[0] + m.sensor(name).dim[0])
+                     for name in ("imu_quat", "imu_gyro", "imu_accel")}
+        self._foot_geoms = np.array([m.geom(g).id for g in FOOT_GEOMS])
+        self._floor = m.geom("floor").id
+        self._torso = m.body(spec.bodies[0].name).id
+        self._base_qadr = m.joint(FREEJOINT).qposadr[0]
+        self._home_key = m.key("home").id
+        self._targets = np.zeros(len(self.motor_names))
+        self._torque = np.zeros(len(self.motor_names))
+        self.set_gains(self.default_kp, self.default_kd)
+        self.reset()
+        self.standing_height = float(self.data.xpos[self._torso, 2])
+
+    # -- Robot interface -------------------------------------------------------------------------------------
+    def reset(self) -> Observation:
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self._home_key)
+        mujoco.mj_forward(self.model, self.data)
+        self._targets = self.data.qpos[self._qadr].copy()
+        self._torque[:] = 0.0
+        self.set_gains(self.default_kp, self.default_kd)
+        return self.observe()
+
+    def observe(self) -> Observation:
+        d = self.data
+        q, qd = d.qpos[self._qadr].copy(), d.qvel[self._dadr].copy()
+        return Observation(
+            time=float(d.time),
+            motor_pos=q,
+            motor_vel=qd,
+            motor_torque=self._torque.copy(),
+            joint_pos=self._A @ q,
+            joint_vel=self._A @ qd,
+            imu_quat=d.sensordata[self._imu["imu_quat"]].copy(),
+            imu_ang_vel=d.sensordata[self._imu["imu_gyro"]].copy(),
+            imu_lin_acc=d.sensordata[self._imu["imu_accel"]].copy(),
+            foot_contact=self.foot_contact(),
+        )
+
+    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> Observation:
+        if kp is not None or kd is not None:
+            self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
+        self._targets = self.clamp_targets(motor_targets)
+        m, d, p = self.model, self.data, self._params
+        for _ in range(self.n_substeps):
+            tau = motor_torque(self._targets, d.qpos[self._qadr], d.qvel[self._dadr], p)
+            d.ctrl[self._act] = tau
+            mujoco.mj_step(m, d)
+        self._torque = tau
+        self._check_stable()
+        return self.observe()
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+    def set_gains(self, kp: np.ndarray, kd: np.ndarray) -> None:
+        """Firmware gains (Dynamixel units) used by the actuator model from now on."""
+        self._params = actuator_arrays(self.actuator_params, np.asarray(kp, float), np.asarray(kd, float))
+
+    def clamp_targets(self, motor_targets: np.ndarray) -> np.ndarray:
+        """Motor targets limited to the motor ranges and, through the transmissions, to the output-joint ranges."""
+        q = np.clip(np.asarray(motor_targets, dtype=float), self._motor_range[:, 0], self._motor_range[:, 1])
+        if not np.all(np.isfinite(q)):
+            raise SimulationError(f"non-finite motor target at t={self.data.time:.3f} s: {motor_targets}")
+        joint = self._A @ q
+        clipped = np.clip(joint, self._joint_range[:, 0], self._joint_range[:, 1])
+        if np.any(clipped != joint):
+            q = self._A_inv @ clipped
+        return q
+
+    def foot_contact(self) -> np.ndarray:
+        """(left, right): does each foot's collision geom touch the floor?"""
+        ncon = self.data.ncon
+        if ncon == 0:
+            return np.zeros(2, dtype=bool)
+        geoms = self.data.contact.geom[:ncon]
+        with_floor = geoms[(geoms == self._floor).any(axis=1)]
+        return np.isin(self._foot_geoms, with_floor)
+
+    @property
+    def base_pos(self) -> np.ndarray:
+        """Torso (floating base) position in the world, m."""
+        return self.data.qpos[self._base_qadr : self._base_qadr + 3].copy()
+
+    @property
+    def base_quat(self) -> np.ndarray:
+        """Torso orientation in the world, quaternion w, x, y, z."""
+        return self.data.qpos[self._base_qadr + 3 : self._base_qadr + 7].copy()
+
+    @property
+    def base_lin_vel(self) -> np.ndarray:
+        """Torso linear velocity in the world frame, m/s."""
+        return self.data.qvel[0:3].copy()
+
+    @property
+    def base_ang_vel(self) -> np.ndarray:
+        """Torso angular velocity in the torso frame, rad/s (MuJoCo free-joint convention)."""
+        return self.data.qvel[3:6].copy()
+
+    @property
+    def fallen(self) -> bool:
+        torso_z_axis_z = self.data.xmat[self._torso, 8]
+        height = self.data.xpos[self._torso, 2]
+        return bool(
+            torso_z_axis_z < np.cos(self.config.fall_tilt_rad)
+            or height < self.config.fall_height_fraction * self.standing_height
+        )
+
+    def _check_stable(self) -> None:
+        d = self.data
+        if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
+            raise SimulationError(f"simulation diverged at t={d.time:.3f} s (non-finite state)")
+        speed = np.max(np.abs(d.qvel[6:]))
+        if speed > MAX_JOINT_SPEED:
+            raise SimulationError(
+                f"simulation unstable at t={d.time:.3f} s: a joint moves at {speed:.0f} rad/s "
+                f"(> {MAX_JOINT_SPEED:.0f}); check the gains and targets"
+            )
