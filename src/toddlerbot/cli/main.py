@@ -9,6 +9,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from toddlerbot.cli import design, model, rl
+from toddlerbot.cli import eval as eval_cli
 from toddlerbot.errors import ToddlerbotError
 
 app = typer.Typer(
@@ -19,6 +20,7 @@ app = typer.Typer(
 app.add_typer(model.app, name="model")
 app.add_typer(design.app, name="design")
 app.add_typer(rl.app, name="rl")
+app.add_typer(eval_cli.app, name="eval")
 
 
 def main() -> None:
