@@ -64,6 +64,9 @@ def test_zmp_table_tabulates_steady_state_cycle_in_motor_space():
     assert not np.allclose(table.leg_motor_pos[2, 1, 2, 0], table.leg_motor_pos[2, 1, 1, 0])
     assert table.contact[i][:, 0].sum() + table.contact[i][:, 1].sum() == 8
     assert table.phase_index(0.72 * 1.5) == 4
+    zero = tuple(table.grid.snap(np.zeros(3)))  # standing still: home pose, both feet down
+    np.testing.assert_allclose(table.leg_motor_pos[zero], np.tile(home_motor_pos(spec)[legs], (8, 1)))
+    assert table.contact[zero].min() == 1.0
 
 
 def test_standing_table_is_home_with_both_feet_down():

@@ -35,6 +35,8 @@ def train(
     timesteps: Annotated[int | None, typer.Option(help="Override the number of environment steps.")] = None,
     num_envs: Annotated[int | None, typer.Option(help="Override the number of parallel environments.")] = None,
     seed: Annotated[int, typer.Option(help="PRNG seed.")] = 0,
+    minutes: Annotated[float | None, typer.Option(help="Stop after the epoch that passes this wall time (resume "
+                                                       "later with --resume).")] = None,
 ) -> None:
     """Run PPO (Table 5 hyperparameters unless --smoke) with checkpoints, evaluation and a training curve."""
     _require_jax()
@@ -66,7 +68,8 @@ def train(
             bar.update(task, completed=done, total=total, description="training",
                        info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  {m['sps']:.0f} steps/s")
 
-        _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress)
+        _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress,
+                                    time_limit_s=None if minutes is None else 60 * minutes)
     png = plot.training_curve(history, run_dir / "training_curve.png")
     last = history[-1]
     console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s "

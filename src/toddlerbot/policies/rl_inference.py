@@ -121,7 +121,8 @@ class RLPolicyFile:
         """Deterministic action in [-1, 1]^12 for one normalised-on-the-fly observation vector."""
         x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
         for i, (k, b) in enumerate(zip(self.kernels, self.biases, strict=True)):
-            x = x @ k + b
+            # einsum runs single-threaded: a threaded BLAS gemv stalls for milliseconds on a busy CPU
+            x = np.einsum("i,ij->j", x, k) + b
             if i < len(self.kernels) - 1:
                 x = _swish(x)
         return np.tanh(x[: len(self.leg_motor_index)])

@@ -200,7 +200,7 @@ class WalkEnv(Env):
         info["rng"] = k_next
         obs, info = self._observe(data, info, k_noise, contact=contact, ref_leg=ref_leg)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
-                             metrics=terms, info=info)
+                             metrics={**state.metrics, **terms}, info=info)
 
     # helpers -------------------------------------------------------------------------------------------------
     def _model(self, dr: randomization.DRParams) -> mjx.Model:

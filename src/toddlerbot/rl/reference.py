@@ -18,6 +18,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.rl.config import LEG_MOTORS, CommandConfig
 from toddlerbot.robot.spec import RobotSpec
 from toddlerbot.robot.transmission import build_transmission_map
@@ -113,16 +114,26 @@ def standing_table(spec: RobotSpec, cfg: CommandConfig, period: float, n_phase: 
 def zmp_table(spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, period: float, start_time: float,
               n_phase: int = 36, warmup_cycles: int = 2) -> ReferenceTable:
     """Tabulate a walking generator: for each grid command, one steady-state gait cycle, sampled ``warmup_cycles``
-    cycles after the generator's standing start of ``start_time`` s (phase 0 = the start of a cycle)."""
+    cycles after the generator's standing start of ``start_time`` s (phase 0 = the start of a cycle).
+
+    The zero command is standing still: the home pose with both feet down (a walking generator steps in place)."""
     grid = CommandGrid.from_config(cfg)
     tmap = build_transmission_map(spec)
     legs = leg_motor_indices(spec)
     leg_pos = np.zeros((*grid.shape, n_phase, len(legs)))
     contact = np.zeros((*grid.shape, n_phase, 2))
+    home = home_motor_pos(spec)[legs]
     for index in np.ndindex(*grid.shape):
         command = grid.command(np.array(index))
+        if not np.any(command):
+            leg_pos[index], contact[index] = home, 1.0
+            continue
         for p in range(n_phase):
-            ref = generator.reference(command, start_time + (warmup_cycles + p / n_phase) * period)
+            try:
+                ref = generator.reference(command, start_time + (warmup_cycles + p / n_phase) * period)
+            except ToddlerbotError as exc:
+                raise ToddlerbotError(f"walking generator failed for command {command.tolist()} (narrow "
+                                      f"CommandConfig's ranges): {exc}") from exc
             leg_pos[(*index, p)] = tmap.joint_to_motor(np.asarray(ref.joint_pos))[legs]
             contact[(*index, p)] = np.asarray(ref.contact, dtype=float)
     return ReferenceTable(grid, period, leg_pos, contact)
@@ -130,7 +141,19 @@ def zmp_table(spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, per
 
 def load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
     """The ZMP walking reference when ``toddlerbot.locomotion`` is installed, else the standing reference (with the
-    generator's default gait period). Returns the table and its source name ("zmp" or "standing")."""
+    generator's default gait period). Returns the table and its source name ("zmp" or "standing").
+
+    Tables are cached per (spec name, variant, command config) for the life of the process."""
+    key = (spec.name, spec.variant, cfg)
+    if key not in _CACHE:
+        _CACHE[key] = _load_reference(spec, cfg)
+    return _CACHE[key]
+
+
+_CACHE: dict[tuple, tuple[ReferenceTable, str]] = {}
+
+
+def _load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
     try:
         from toddlerbot.locomotion.zmp_walk import ZMPWalk
     except ImportError:

@@ -129,9 +129,12 @@ def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState,
 
 # training --------------------------------------------------------------------------------------------------------
 def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | None = None, resume: bool = False,
-          progress: Progress | None = None, env: WalkEnv | None = None) -> tuple[TrainingState, list[dict]]:
+          progress: Progress | None = None, env: WalkEnv | None = None, max_epochs: int | None = None,
+          time_limit_s: float | None = None) -> tuple[TrainingState, list[dict]]:
     """Train (or, with ``resume``, continue training) into ``run_dir``; returns the final state and the metric
-    history (one dict per epoch)."""
+    history (one dict per epoch). ``max_epochs`` / ``time_limit_s`` stop this call early (after a checkpoint);
+    ``resume`` continues from there."""
+    t_start = time.perf_counter()
     run_dir = Path(run_dir)
     if resume:
         env_cfg, ppo_cfg = load_config(run_dir)
@@ -236,7 +239,12 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     env_state = p_reset(jax.random.split(k_env, cfg.num_envs).reshape(n_dev, envs_per_dev, -1))
     total = updates_per_epoch * epochs * cfg.env_steps_per_update
     walltime = sum(h["epoch_seconds"] for h in history)
+    epochs_run = 0
     while int(ts.env_steps) < total:
+        if (max_epochs is not None and epochs_run >= max_epochs) or (
+                time_limit_s is not None and time.perf_counter() - t_start > time_limit_s):
+            break
+        epochs_run += 1
         key, k_epoch = jax.random.split(key)
         t0 = time.perf_counter()
         p_ts, env_state, metrics = p_epoch(p_ts, env_state, jax.random.split(k_epoch, n_dev))
