@@ -8,6 +8,7 @@ and env steps per second on this machine.
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import platform
 import tempfile
@@ -27,7 +28,7 @@ def bench_inference(repeats: int = 2000) -> None:
     rng = np.random.default_rng(0)
     sizes = [n_in, *FULL.policy_hidden, 2 * len(LEG_MOTORS)]
     arrays = {}
-    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
         arrays[f"layer{i}_kernel"] = (rng.normal(size=(a, b)) / np.sqrt(a)).astype(np.float32)
         arrays[f"layer{i}_bias"] = np.zeros(b, np.float32)
     arrays["obs_mean"], arrays["obs_std"] = np.zeros(n_in, np.float32), np.ones(n_in, np.float32)

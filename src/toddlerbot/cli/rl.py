@@ -37,8 +37,17 @@ def train(
     seed: Annotated[int, typer.Option(help="PRNG seed.")] = 0,
     minutes: Annotated[float | None, typer.Option(help="Stop after the epoch that passes this wall time (resume "
                                                        "later with --resume).")] = None,
+    epochs: Annotated[int | None, typer.Option(help="Stop after this many epochs (resume later with --resume).")]
+    = None,
 ) -> None:
     """Run PPO (Table 5 hyperparameters unless --smoke) with checkpoints, evaluation and a training curve."""
+    import os
+
+    from toddlerbot.rl.config import SMOKE_XLA_FLAGS
+
+    smoke_run = smoke or (resume is not None and (resume / "smoke").is_file())
+    if smoke_run:  # must be set before JAX starts its CPU backend
+        os.environ.setdefault("XLA_FLAGS", SMOKE_XLA_FLAGS)
     _require_jax()
     from dataclasses import replace
 
@@ -60,6 +69,9 @@ def train(
         if num_envs is not None:
             ppo_cfg = replace(ppo_cfg, num_envs=num_envs)
     console.print(f"run directory: {run_dir}")
+    if smoke and resume is None:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / "smoke").write_text("this run uses the --smoke configuration\n")
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
                   TimeElapsedColumn(), console=console) as bar:
         task = bar.add_task("compiling + training", total=None, info="")
@@ -69,7 +81,9 @@ def train(
                        info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  {m['sps']:.0f} steps/s")
 
         _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress,
-                                    time_limit_s=None if minutes is None else 60 * minutes)
+                                    time_limit_s=None if minutes is None else 60 * minutes, max_epochs=epochs)
+    if not history:
+        raise ToddlerbotError(f"{run_dir}: no epoch ran (limits too tight?)")
     png = plot.training_curve(history, run_dir / "training_curve.png")
     last = history[-1]
     console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s "

@@ -87,7 +87,8 @@ def obs_frame(t, command, motor_pos, home_motor_pos, motor_vel, last_action, gyr
 
 
 def _swish(x: np.ndarray) -> np.ndarray:
-    return x / (1.0 + np.exp(-x))
+    """x * sigmoid(x), with the sigmoid written through tanh so that no exponential overflows."""
+    return x * (0.5 + 0.5 * np.tanh(0.5 * x))
 
 
 class RLPolicyFile:

@@ -5,7 +5,7 @@
   (`toddlerbot.actuation.model.motor_torque` with ``xp=jax.numpy``) as MuJoCo motor torques.
 * Actions: 12 numbers in [-1, 1]; leg motor target = home + ``action_scale`` * action. The other 18 motors hold
   their reference (the home pose).
-* Episodes: `EnvConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
+* Episodes: `PPOConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
   torso falls below ``min_torso_height`` or tilts more than ``max_tilt``.
 * Observations: ``{"state": actor, "privileged_state": critic}`` (see `toddlerbot.rl.observations`).
 * Every reset draws new domain-randomisation parameters, a command, and a push schedule for that env.
@@ -180,7 +180,8 @@ class WalkEnv(Env):
             home_leg_pos=jnp.asarray(self.home_motor_pos[self.leg_index]), contact=contact,
             ref_contact=ref_contact, first_contact=first_contact, air_time=air_time, feet_height=feet_pos[:, 2],
             feet_vel_xy=(feet_pos - info["feet_pos"])[:, :2] / cfg.ctrl_dt,
-            feet_up_z=self._foot_up_sign * data.site_xmat[self.foot_sites][:, 2, self._foot_up_axis], feet_lateral_distance=lateral,
+            feet_up_z=self._foot_up_sign * data.site_xmat[self.foot_sites][:, 2, self._foot_up_axis],
+            feet_lateral_distance=lateral,
             roll=jnp.arctan2(gravity[1], -gravity[2]), pitch=jnp.arcsin(jnp.clip(-gravity[0], -1.0, 1.0)),
             self_collision=self_collision, action=action, last_action=info["last_action"],
             last_last_action=info["last_last_action"], motor_torque=taus[-1],

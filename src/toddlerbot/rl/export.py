@@ -57,7 +57,7 @@ def export_run(run_dir: Path, out: Path) -> Path:
     paths = train.checkpoint_paths(run_dir)
     if not paths:
         raise ToddlerbotError(f"{run_dir}: no checkpoint to export")
-    state, history = _restore(run_dir, paths[-1], env_cfg, ppo_cfg)
+    state, history = restore_checkpoint(paths[-1], env_cfg, ppo_cfg)
     obs_size = env_cfg.obs.history * env_cfg.obs.frame_size(len(home_motor_pos(load_spec())))
     arrays = policy_arrays(state.params.policy, state.normalizer_params, ppo_cfg.normalize_observations, obs_size)
     last = history[-1] if history else {}
@@ -68,17 +68,16 @@ def export_run(run_dir: Path, out: Path) -> Path:
     return write_policy(out, arrays, env_cfg, meta)
 
 
-def _restore(run_dir: Path, path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig):
+def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig):
+    """(TrainingState, metric history) of a checkpoint written with this configuration."""
     import jax
     import optax
 
     from toddlerbot.rl import train
 
+    # the critic's input width is read back from the checkpoint
     obs_size = {"state": (env_cfg.obs.history * env_cfg.obs.frame_size(len(home_motor_pos(load_spec()))),),
-                "privileged_state": (0,)}
-    # The template only needs the tree structure; the critic input width is read back from the checkpoint.
-    payload_shape = _critic_width(path)
-    obs_size["privileged_state"] = (payload_shape,)
+                "privileged_state": (_critic_width(path),)}
     networks = train.make_networks(obs_size, len(LEG_MOTORS), ppo_cfg)
     optimizer = optax.chain(optax.clip_by_global_norm(ppo_cfg.max_grad_norm), optax.adam(ppo_cfg.learning_rate))
     template = train._initial_state(networks, optimizer, obs_size, jax.random.PRNGKey(0))
