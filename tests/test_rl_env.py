@@ -42,8 +42,8 @@ def test_each_env_gets_its_own_randomisation_draw(env, states):
     assert float(model.geom_friction[env.floor_geom, 0]) == pytest.approx(float(dr.floor_friction[1]))
     torso_mass = float(model.body_mass[env.torso_body])
     nominal = float(env.sys.body_mass[env.torso_body])
-    assert torso_mass == pytest.approx(nominal * float(dr.mass_scale[1, env.torso_body]) + float(dr.torso_added_mass[1]),
-                                       rel=1e-5)
+    expected = nominal * float(dr.mass_scale[1, env.torso_body]) + float(dr.torso_added_mass[1])
+    assert torso_mass == pytest.approx(expected, rel=1e-5)
 
 
 def test_observations_have_history_and_privileged_extras(env, states):

@@ -48,7 +48,7 @@ def smoke_run(tmp_path_factory):
 
 
 def test_smoke_run_trains_two_epochs_with_sane_metrics(smoke_run):
-    run, first, _, final, history = smoke_run
+    run, _first, _, final, history = smoke_run
     steps = config.SMOKE.env_steps_per_update
     assert [h["env_steps"] for h in history] == [steps, 2 * steps]
     assert int(final.env_steps) == 2 * steps

@@ -23,8 +23,10 @@ class WalkRLPolicy(Policy):
         if tuple(policy.motor_names) != tuple(robot.motor_names):
             raise ToddlerbotError(f"{policy.path}: trained for motors {policy.motor_names[:3]}..., but the robot has "
                                   f"{robot.motor_names[:3]}... ({len(robot.motor_names)} motors)")
-        if abs(robot.control_dt - 0.02) > 1e-9:
-            raise ToddlerbotError(f"walk-rl runs at 50 Hz; the robot's control period is {robot.control_dt} s")
+        trained_dt = policy.meta.get("ctrl_dt", robot.control_dt)
+        if abs(robot.control_dt - trained_dt) > 1e-9:
+            raise ToddlerbotError(f"{policy.path}: trained at a {trained_dt} s control period; the robot runs at "
+                                  f"{robot.control_dt} s")
         self.controller = RLController(policy)
         self._t0 = 0.0
 

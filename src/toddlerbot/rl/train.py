@@ -145,6 +145,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     if not resume:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, env.cfg, ppo_cfg)
+        (run_dir / "reference.txt").write_text(env.reference_source + "\n")
     n_dev = jax.local_device_count()
     if cfg.num_envs % n_dev:
         raise ToddlerbotError(f"num_envs {cfg.num_envs} is not divisible by the {n_dev} JAX devices")
@@ -173,7 +174,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         opt_state, params, key = carry
         key, k_perm, k_grad = jax.random.split(key, 3)
         shuffled = jax.tree.map(
-            lambda x: jax.random.permutation(k_perm, x).reshape((cfg.num_minibatches, -1) + x.shape[1:]), data)
+            lambda x: jax.random.permutation(k_perm, x).reshape((cfg.num_minibatches, -1, *x.shape[1:])), data)
         (opt_state, params, _), metrics = jax.lax.scan(
             functools.partial(minibatch_step, normalizer=normalizer), (opt_state, params, k_grad), shuffled)
         return (opt_state, params, key), metrics
@@ -192,7 +193,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
 
         (env_state, _), data = jax.lax.scan(unroll, (env_state, k_unroll), None, length=rollouts)
         data = jax.tree.map(lambda x: jnp.swapaxes(x, 1, 2), data)
-        data = jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), data)
+        data = jax.tree.map(lambda x: x.reshape((-1, *x.shape[2:])), data)
         normalizer = running_statistics.update(ts.normalizer_params, data.observation, pmap_axis_name=AXIS)
         (opt_state, params, _), metrics = jax.lax.scan(
             functools.partial(sgd_step, data=data, normalizer=normalizer),
@@ -233,7 +234,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         ts, key, history = load_checkpoint(paths[-1], ts)
     evaluator = _evaluator(env, make_policy, cfg, key) if cfg.num_eval_envs > 0 else None
 
-    replicate = lambda x: jnp.broadcast_to(x, (n_dev,) + jnp.shape(x))  # noqa: E731
+    replicate = lambda x: jnp.broadcast_to(x, (n_dev, *jnp.shape(x)))  # noqa: E731
     p_ts = jax.tree.map(replicate, ts)
     key, k_env = jax.random.split(key)
     env_state = p_reset(jax.random.split(k_env, cfg.num_envs).reshape(n_dev, envs_per_dev, -1))
