@@ -248,6 +248,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         epochs_run += 1
         key, k_epoch = jax.random.split(key)
         t0 = time.perf_counter()
+        p_ts, env_state = _strip_weak_types((p_ts, env_state))  # else every epoch's new dtypes recompile
         p_ts, env_state, metrics = p_epoch(p_ts, env_state, jax.random.split(k_epoch, n_dev))
         metrics = {k: float(v[0]) for k, v in metrics.items()}
         seconds = time.perf_counter() - t0
@@ -266,6 +267,11 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         if progress:
             progress(steps, total, record)
     return ts, history
+
+
+def _strip_weak_types(tree):
+    """The same arrays without JAX's weak-type flag, so that a jitted function sees one signature every call."""
+    return jax.tree.map(lambda x: jnp.asarray(x).astype(jnp.asarray(x).dtype), tree)
 
 
 def _evaluator(env: WalkEnv, make_policy, cfg: PPOConfig, key: jax.Array) -> acting.Evaluator:
