@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.2,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,0,0.3; 20:0.1,0,0.2; 24:0,0,0"
-"""The default evaluation schedule (runtime command syntax, 26 s): stand, walk forward at 0.1 then 0.2 m/s,
-stop, side-step, turn in place, walk on a curve, stop."""
+DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.05,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,0,0.3; 20:0.1,0,0.2; 24:0,0,0"
+"""The default evaluation schedule (runtime command syntax, 26 s), inside the trained command ranges: stand, walk
+forward at 0.1 then 0.05 m/s, stop, side-step, turn in place, walk on a curve, stop."""
 DEFAULT_SECONDS = 26.0
 
 
