@@ -69,6 +69,8 @@ class MotorModel:
     axes: int
     """Output shafts per unit: 2 for 2XL430 and 2XC430."""
     actuator: ActuatorParams
+    model_number: int | None = None
+    """Model number reported by a Dynamixel ping (control table address 0); None if unknown."""
 
     @property
     def mass_per_axis_kg(self) -> float:
@@ -114,6 +116,7 @@ def _parse(raw: object, source: str) -> Catalogue:
                 dimensions_mm=tuple(float(x) for x in entry["dimensions_mm"]),
                 axes=int(entry.get("axes", 1)),
                 actuator=ActuatorParams(**entry["actuator"]),
+                model_number=int(entry["model_number"]) if "model_number" in entry else None,
             )
         except KeyError as exc:
             raise SpecError(f"{where}: missing field {exc.args[0]!r}") from None

@@ -9,8 +9,9 @@ the parameters as an `ActuatorArrays` (a NamedTuple, hence a JAX pytree), one en
   q_dot_max, and tau_q_dot_max beyond (with tau_q_dot_max = 0 this is Eq. 9 exactly).
 * Braking limit (Eq. 10): a torque that opposes the motion is limited by the constant tau_brake instead.
   (Eq. 10 as printed swaps the two bounds; we follow the appendix's text: braking torque is the larger one.)
-* Passive resistance (friction loss, damping, armature) is not computed here: MuJoCo applies it from the
-  joint's frictionloss, damping and armature, which the model builder sets from the same parameters.
+* Passive resistance (Eq. 6): tau_r = frictionloss * sign(q_dot) + damping * q_dot, plus the armature (rotor
+  inertia). In the simulator MuJoCo applies all three from the joint's frictionloss, damping and armature, which
+  the model builder sets from the same parameters; `resistance_torque` is the same law for test-bed analysis.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def actuator_arrays(
     params: Sequence[ActuatorParams], kp_dynamixel: Sequence[float], kd_dynamixel: Sequence[float]
 ) -> ActuatorArrays:
     """Stack per-motor parameters and firmware gains into arrays (numpy; pass through jnp.asarray for JAX)."""
-    gains = np.array([physical_gains(kp, kd, p) for p, kp, kd in zip(params, kp_dynamixel, kd_dynamixel)])
+    gains = np.array([physical_gains(kp, kd, p) for p, kp, kd in zip(params, kp_dynamixel, kd_dynamixel, strict=True)])
     field = lambda name: np.array([getattr(p, name) for p in params], dtype=float)  # noqa: E731
     return ActuatorArrays(
         kp=gains[:, 0], kd=gains[:, 1], kd_min=field("kd_min"), tau_max=field("tau_max"),
@@ -69,13 +70,29 @@ def pd_torque(q_target, q, q_dot, p: ActuatorArrays, xp: ModuleType = np):
     return p.kp * (q_target - q) - (p.kd_min + p.kd) * q_dot
 
 
+def torque_bounds(q_dot, p: ActuatorArrays, xp: ModuleType = np):
+    """(lower, upper) torque the motor can apply at speed q_dot (rad/s), N*m (Eq. 9-10).
+
+    Along the motion the acceleration limit applies, against it the braking limit tau_brake; at rest both
+    directions accelerate.
+    """
+    accel = acceleration_limit(q_dot, p, xp)
+    upper = xp.where(q_dot < 0, p.tau_brake, accel)
+    lower = -xp.where(q_dot > 0, p.tau_brake, accel)
+    return lower, upper
+
+
 def limit_torque(tau, q_dot, p: ActuatorArrays, xp: ModuleType = np):
     """Clamp a commanded torque: the acceleration limit along the motion, tau_brake against it (Eq. 9-10)."""
-    opposes_motion = tau * q_dot < 0
-    limit = xp.where(opposes_motion, p.tau_brake, acceleration_limit(q_dot, p, xp))
-    return xp.clip(tau, -limit, limit)
+    lower, upper = torque_bounds(q_dot, p, xp)
+    return xp.clip(tau, lower, upper)
 
 
 def motor_torque(q_target, q, q_dot, p: ActuatorArrays, xp: ModuleType = np):
     """Torque the motor applies to its joint (before MuJoCo's passive resistance), N*m."""
     return limit_torque(pd_torque(q_target, q, q_dot, p, xp), q_dot, p, xp)
+
+
+def resistance_torque(q_dot, damping, frictionloss, xp: ModuleType = np):
+    """Passive resistance of Eq. 6 (N*m, opposing positive q_dot): frictionloss * sign(q_dot) + damping * q_dot."""
+    return frictionloss * xp.sign(q_dot) + damping * q_dot

@@ -14,11 +14,17 @@ from toddlerbot.cli.output import console
 from toddlerbot.robot.builder import VARIANTS, build_mjspec, variant_spec
 from toddlerbot.robot.spec import load_spec
 from toddlerbot.robot.summary import summarize
+from toddlerbot.sysid.params import catalogue_with_params
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
 
 SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
 VariantOption = Annotated[str, typer.Option("--variant", help=f"One of: {', '.join(VARIANTS)}.")]
+MotorParamsOption = Annotated[
+    list[Path] | None,
+    typer.Option("--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable); replaces that motor "
+                 "model's actuator parameters."),
+]
 
 
 def _check_variant(variant: str) -> str:
@@ -33,10 +39,11 @@ def build(
     variant: VariantOption = "floating",
     scene: Annotated[bool, typer.Option("--scene", help="Add a floor, lights and cameras.")] = False,
     spec_path: SpecOption = None,
+    motor_params: MotorParamsOption = None,
 ) -> None:
     """Write the MJCF of the robot (deterministic: same spec, same bytes)."""
     spec, base = variant_spec(_check_variant(variant), load_spec(spec_path))
-    mjspec = build_mjspec(spec, base, scene)
+    mjspec = build_mjspec(spec, base, scene, catalogue=catalogue_with_params(motor_params or []))
     mjspec.compile()  # refuse to write a model MuJoCo cannot compile
     output.parent.mkdir(parents=True, exist_ok=True)
     output.write_text(mjspec.to_xml())

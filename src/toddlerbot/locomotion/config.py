@@ -25,6 +25,12 @@ class WalkConfig:
     """Weight on the ZMP tracking error in the preview controller's cost."""
     jerk_weight: float = 1e-6
     """Weight on the CoM jerk in the preview controller's cost."""
+    leg_mass_correction: bool = False
+    """Place the torso so that the whole-robot CoM at the current leg angles (moving swing leg included) follows
+    the planned CoM; False (default) keeps the home pose's CoM offset in the torso frame. Off by default: on the
+    simulated robot it did not make walking more robust (docs/simulation.md, "What was tried")."""
+    com_iterations: int = 2
+    """Torso placement / leg IK alternations per tick for the leg-mass correction."""
     max_vx: float = 0.3
     """Largest forward/backward speed accepted, m/s (commands are clipped to the limits)."""
     max_vy: float = 0.15

@@ -14,15 +14,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.builder import build_model, home_qpos
 from toddlerbot.robot.spec import RobotSpec
 
 FOOT_SITES = ("left_foot_center", "right_foot_center")
-
-
-class IKError(ToddlerbotError):
-    """A foot target is out of the leg's reach."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +68,27 @@ class LegIK:
         """Whole-robot CoM in the torso frame at the home pose, m."""
         self._q = self.home_q.copy()
 
+    def joint_axes(self, q: np.ndarray | None = None) -> np.ndarray:
+        """(2, 6, 3) rotation axis of each leg joint in the torso frame at leg angles q (default: home); mirrored
+        joints of the two legs have opposite axes."""
+        m, d = self.model, self.data
+        d.qpos[self._qadr] = self.home_q if q is None else q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        axes = np.empty((2, 6, 3))
+        for leg in range(2):
+            mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._sites[leg])
+            axes[leg] = self._jacr[:, self._dadr[leg]].T
+        return axes
+
+    def com(self, q: np.ndarray) -> np.ndarray:
+        """Whole-robot CoM (m) in the torso frame with the legs at angles q (2, 6) and every other joint at home."""
+        m, d = self.model, self.data
+        d.qpos[self._qadr] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        return d.subtree_com[self._torso] - d.xpos[self._torso]
+
     def _foot_poses(self) -> tuple[np.ndarray, np.ndarray]:
         d = self.data
         torso_pos = d.xpos[self._torso]
@@ -110,7 +126,8 @@ class LegIK:
             q = np.clip(q, self._range[..., 0], self._range[..., 1])
             if err < self.tolerance:
                 break
-        if err > 1e-3:
-            raise IKError(f"leg IK did not converge (residual {err:.4f}); foot target out of reach: {foot_pos}")
+        self.residual = err
+        """Largest position (m) / orientation (rad) error of the last solution: > 0 when a target was out of reach
+        (the legs then stop at their joint limits, closest to the target)."""
         self._q = q
         return q

@@ -150,8 +150,14 @@ class ZMPWalk:
         return WalkState(tick=0, cart=cart, zmp_error_sum=np.zeros(2), walk_poses=[np.zeros(3)],
                          first_stance=first_stance, leg_q=self.ik.home_q.copy(), start_feet=feet)
 
-    def step(self, state: WalkState, command: np.ndarray) -> tuple[WalkState, WalkReference]:
-        """The reference at ``state.tick`` under ``command`` and the state of the next tick (state is not modified)."""
+    def step(
+        self, state: WalkState, command: np.ndarray, torso_tilt: np.ndarray | None = None
+    ) -> tuple[WalkState, WalkReference]:
+        """The reference at ``state.tick`` under ``command`` and the state of the next tick (state is not modified).
+
+        ``torso_tilt``: optional (2, 3, 3) rotations, per leg, of the torso relative to its planned upright
+        orientation (a feedback input: the measured tilt, scaled); the leg IK then places each foot where the plan
+        wants it in the world although the torso is tilted. None (offline use) means upright."""
         cfg = self.config
         cmd = self.clip_command(command)
         tick = state.tick
@@ -160,10 +166,10 @@ class ZMPWalk:
         if k >= 0 and (tick - cfg.start_ticks) % cfg.step_ticks == 0 and len(poses) < k + 2:
             poses.append(advance(poses[-1], cmd, cfg.step_ticks * cfg.dt))  # fix S_{k+1}
         footsteps = self._footsteps(state, poses, cmd, k + 2 + cfg.preview_ticks // cfg.step_ticks + 2)
-        zmp_future = np.array([self._zmp_ref(state, footsteps, i) for i in range(tick, tick + cfg.preview_ticks + 1)])
+        zmp_future = self._zmp_refs(state, footsteps, np.arange(tick, tick + cfg.preview_ticks + 1))
         cart, err_sum, zmp = preview_step(self.gains, state.cart, state.zmp_error_sum, zmp_future)
         foot_floor, lift, contact = self._feet(state, footsteps, tick)
-        ref, leg_q = self._pose(tick, cmd, state, foot_floor, lift, contact, state.cart, zmp, zmp_future[0])
+        ref, leg_q = self._pose(tick, cmd, state, foot_floor, lift, contact, state.cart, zmp, zmp_future[0], torso_tilt)
         next_state = WalkState(tick=tick + 1, cart=cart, zmp_error_sum=err_sum, walk_poses=poses,
                                first_stance=state.first_stance, leg_q=leg_q, start_feet=state.start_feet)
         return next_state, ref
@@ -212,18 +218,19 @@ class ZMPWalk:
             steps[j] = foot_pose(poses[j], stance_side(j, first), self.stance_width)
         return steps
 
-    def _zmp_ref(self, state: WalkState, steps: dict[int, np.ndarray], tick: int) -> np.ndarray:
+    def _zmp_refs(self, state: WalkState, steps: dict[int, np.ndarray], ticks: np.ndarray) -> np.ndarray:
+        """(len(ticks), 2) ZMP reference: the start midpoint while standing, then on footstep S_k, moving linearly
+        from S_{k-1} (the start midpoint for k = 0) during step k's double support."""
         cfg = self.config
-        k = self._step_index(tick)
         start = state.start_feet[:, :2].mean(axis=0)
-        if k < 0:
-            return start
-        tau = tick - cfg.start_ticks - k * cfg.step_ticks
-        target = steps[k][:2]
-        if tau >= cfg.double_support_ticks:
-            return target
-        prev = start if k == 0 else steps[k - 1][:2]
-        return prev + (tau + 1) / cfg.double_support_ticks * (target - prev)
+        n = max(steps) + 1
+        targets = np.array([start] + [steps[j][:2] for j in range(n)])  # row 0: start midpoint; row j + 1: S_j
+        k = np.where(ticks < cfg.start_ticks, -1, (ticks - cfg.start_ticks) // cfg.step_ticks)
+        tau = ticks - cfg.start_ticks - k * cfg.step_ticks
+        prev = np.where((k <= 0)[:, None], start, targets[np.maximum(k, 0)])
+        target = targets[k + 1]
+        blend = np.where(k < 0, 1.0, np.minimum((tau + 1) / cfg.double_support_ticks, 1.0))[:, None]
+        return prev + blend * (target - prev)
 
     def _feet(self, state: WalkState, steps: dict[int, np.ndarray], tick: int):
         """Foot floor poses (2, 3: x, y, yaw), lifts (2,) and contact flags (2,) at a tick."""
@@ -248,22 +255,37 @@ class ZMPWalk:
             contact[swing] = s >= 1.0
         return feet, lift, contact
 
-    def _pose(self, tick, cmd, state, feet, lift, contact, cart, zmp, zmp_ref) -> tuple[WalkReference, np.ndarray]:
+    def _pose(
+        self, tick, cmd, state, feet, lift, contact, cart, zmp, zmp_ref, torso_tilt
+    ) -> tuple[WalkReference, np.ndarray]:
         cfg = self.config
         yaw_l, yaw_r = feet[LEFT, 2], feet[RIGHT, 2]
         torso_yaw = yaw_r + 0.5 * ((yaw_l - yaw_r + np.pi) % (2 * np.pi) - np.pi)
         c, s = np.cos(torso_yaw), np.sin(torso_yaw)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         com = np.array([cart[0, 0], cart[0, 1], self.com_height])
-        torso = com - rot @ self.com_offset
         foot_world = np.column_stack([feet[:, :2], lift])
-        foot_torso = (foot_world - torso) @ rot  # rot.T @ (p - torso) for each row
         foot_rot = np.empty((2, 3, 3))
         for leg in (LEFT, RIGHT):
             d = feet[leg, 2] - torso_yaw
             cd, sd = np.cos(d), np.sin(d)
             foot_rot[leg] = np.array([[cd, -sd, 0.0], [sd, cd, 0.0], [0.0, 0.0, 1.0]]) @ self.ik.home_foot_rot[leg]
-        leg_q = self.ik.solve(foot_torso, foot_rot, state.leg_q)
+        # the torso sits where the CoM offset puts it below the cart; with leg_mass_correction the offset is the
+        # whole robot's CoM at the legs' angles (moving swing leg included), so torso placement and IK alternate
+        leg_q = state.leg_q
+        com_offset = self.ik.com(leg_q) if cfg.leg_mass_correction else self.com_offset
+        for _ in range(cfg.com_iterations if cfg.leg_mass_correction else 1):
+            torso = com - rot @ com_offset
+            foot_torso = (foot_world - torso) @ rot  # rot.T @ (p - torso) for each row
+            leg_rot = foot_rot.copy()
+            if torso_tilt is not None:
+                # the torso is rotated by tilt (in the yaw-aligned frame) about its origin: express targets in it
+                for leg in (LEFT, RIGHT):
+                    foot_torso[leg] = torso_tilt[leg].T @ foot_torso[leg]
+                    leg_rot[leg] = torso_tilt[leg].T @ foot_rot[leg]
+            leg_q = self.ik.solve(foot_torso, leg_rot, leg_q)
+            if cfg.leg_mass_correction:
+                com_offset = self.ik.com(leg_q)
         joint_pos = self.home_joint_pos.copy()
         joint_pos[self._leg_index] = leg_q
         k_tick = tick - cfg.start_ticks

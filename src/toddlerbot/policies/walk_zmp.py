@@ -1,8 +1,13 @@
-"""`walk-zmp`: the ZMP pattern generator's leg targets plus torso attitude feedback from the IMU.
+"""`walk-zmp`: the ZMP pattern generator's leg targets plus feedback from the IMU.
 
-Feedback (gains in `AttitudeFeedback`): the torso's pitch and roll error (IMU orientation versus upright) shift the
-ankle pitch/roll of the legs and the hip roll, which turns the feet against the tilt (an ankle strategy) and keeps
-the torso level. Everything else is the generator's reference.
+The generator stays a pure function of its command and time; all feedback lives here (gains in
+`AttitudeFeedback`):
+
+* attitude: the torso's pitch and roll error (IMU orientation versus upright) and their rates shift the ankle
+  pitch/roll (and optionally hip roll) of the legs, turning the feet against the tilt (an ankle strategy);
+* heading hold: the commanded yaw rate is integrated into a desired heading; the yaw-rate command given to the
+  generator is corrected by the heading error from the IMU (foot slip otherwise turns the robot slowly);
+* stride calibration (`StrideCalibration`): systematic stride errors are compensated in the planned command.
 """
 
 from __future__ import annotations
@@ -19,12 +24,48 @@ from toddlerbot.robot.interface import Observation, Robot
 
 @dataclass(frozen=True)
 class AttitudeFeedback:
-    ankle_pitch: float = 0.0
+    """Feedback gains. Joint offsets rotate the foot relative to the torso about the torso's y (pitch terms) or x
+    (roll terms) axis, in the same sense for both legs whatever the joints' mirroring (signs from the model)."""
+
+    ankle_pitch: float = 1.0
     """rad of ankle pitch per rad of torso pitch."""
+    ankle_pitch_rate: float = 0.0
+    """rad of ankle pitch per rad/s of torso pitch rate (IMU gyro)."""
     ankle_roll: float = 0.0
     """rad of ankle roll per rad of torso roll."""
+    ankle_roll_rate: float = 0.0
+    """rad of ankle roll per rad/s of torso roll rate."""
     hip_roll: float = 0.0
     """rad of hip roll per rad of torso roll."""
+    swing_tilt: float = 0.0
+    """Fraction of the measured torso tilt the swing leg's IK compensates (places the foot in the world frame)."""
+    stance_tilt: float = 0.0
+    """Fraction of the measured torso tilt the stance leg's IK compensates."""
+    heading: float = 1.5
+    """Heading hold: rad/s of yaw-rate command per rad of heading error (the commanded yaw rate integrated from
+    the start minus the IMU yaw change)."""
+    heading_integral: float = 0.0
+    """rad/s of yaw-rate command per rad*s of integrated heading error (removes a steady yaw slip)."""
+
+
+@dataclass(frozen=True)
+class StrideCalibration:
+    """Systematic stride errors of the walking robot (foot slip, stance-leg compliance), compensated by adjusting
+    the command given to the generator: planned (vx, vy) = (vx * vx_gain + |vy| * vx_per_vy, vy * vy_gain).
+    The defaults are measured on the simulated robot with the default gains (docs/simulation.md); a real robot
+    needs its own values."""
+
+    vx_gain: float = 1.0
+    """Planned forward speed per commanded forward speed."""
+    vy_gain: float = 1.15
+    """Planned sideways speed per commanded sideways speed."""
+    vx_per_vy: float = 0.45
+    """Planned forward speed per commanded sideways speed, either way (sideways steps to both sides slip
+    backwards: > 0 compensates)."""
+
+    def apply(self, command: np.ndarray) -> np.ndarray:
+        vx, vy, wz = command
+        return np.array([vx * self.vx_gain + abs(vy) * self.vx_per_vy, vy * self.vy_gain, wz])
 
 
 def tilt(quat: np.ndarray) -> tuple[float, float]:
@@ -35,33 +76,86 @@ def tilt(quat: np.ndarray) -> tuple[float, float]:
     return float(roll), float(pitch)
 
 
+def yaw(quat: np.ndarray) -> float:
+    """Heading (rad) of a w, x, y, z quaternion (ZYX Euler angles)."""
+    w, x, y, z = quat
+    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def rotation_rp(roll: float, pitch: float) -> np.ndarray:
+    """Rotation matrix of pitch about y after roll about x (R = Ry(pitch) @ Rx(roll))."""
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    return ry @ rx
+
+
 class WalkZMPPolicy(Policy):
     name = "walk-zmp"
 
-    def __init__(self, robot: Robot, config: WalkConfig | None = None, feedback: AttitudeFeedback | None = None) -> None:
+    def __init__(
+        self,
+        robot: Robot,
+        config: WalkConfig | None = None,
+        feedback: AttitudeFeedback | None = None,
+        leg_kp_scale: float = 2.0,
+        stride: StrideCalibration | None = None,
+    ) -> None:
         super().__init__(robot)
+        names = list(robot.joint_names)
+        legs = np.array(["hip" in j or "knee" in j or "ankle" in j for j in robot.motor_names])
+        self.kp = np.where(legs, robot.default_kp * leg_kp_scale, robot.default_kp)
+        """Firmware P gains: the leg motors stiffened by leg_kp_scale (the spec's gains let the stance leg sag
+        enough for the swing foot to scuff the floor; x3 over-stiffens it and the feet land short)."""
         self.walk = ZMPWalk(config or WalkConfig(dt=robot.control_dt), robot.spec)
         if abs(self.walk.config.dt - robot.control_dt) > 1e-12:
             raise ValueError(f"walk dt {self.walk.config.dt} s must equal the control period {robot.control_dt} s")
         self.feedback = feedback or AttitudeFeedback()
-        names = list(robot.joint_names)
-        self._ankle_pitch = np.array([names.index(f"{s}_ankle_pitch") for s in ("left", "right")])
-        self._ankle_roll = np.array([names.index(f"{s}_ankle_roll") for s in ("left", "right")])
-        self._hip_roll = np.array([names.index(f"{s}_hip_roll") for s in ("left", "right")])
+        self.stride = stride or StrideCalibration()
+        chains = self.walk.ik.chains.joint_names
+        axes = self.walk.ik.joint_axes()
+
+        def joint(suffix: str, axis: int) -> tuple[np.ndarray, np.ndarray]:
+            """Joint-vector indices of one joint per leg and the sign turning the foot about +axis."""
+            legs = [next(i for i, j in enumerate(chain) if j.endswith(suffix)) for chain in chains]
+            return (np.array([names.index(chains[leg][i]) for leg, i in enumerate(legs)]),
+                    np.sign([axes[leg, i, axis] for leg, i in enumerate(legs)]))
+
+        self._ankle_pitch, self._ankle_pitch_sign = joint("ankle_pitch", 1)
+        self._ankle_roll, self._ankle_roll_sign = joint("ankle_roll", 0)
+        self._hip_roll, self._hip_roll_sign = joint("hip_roll", 0)
         self.last_reference: WalkReference | None = None
 
     def reset(self, obs: Observation) -> None:
         self._state = None
+        self._planned_contact = np.ones(2, dtype=bool)
+        self._heading_error = 0.0
+        self._heading_error_sum = 0.0
+        self._last_yaw = yaw(obs.imu_quat)
 
     def act(self, obs: Observation, command: np.ndarray) -> Action:
+        fb = self.feedback
+        command = np.asarray(command, dtype=float)
         if self._state is None:
             self._state = self.walk.start(command)
-        self._state, ref = self.walk.step(self._state, command)
+        roll, pitch = tilt(obs.imu_quat)
+        heading = yaw(obs.imu_quat)
+        self._heading_error -= (heading - self._last_yaw + np.pi) % (2 * np.pi) - np.pi
+        self._last_yaw = heading
+        self._heading_error_sum += self._heading_error * self.control_dt
+        walk_command = self.stride.apply(command) + np.array(
+            [0.0, 0.0, fb.heading * self._heading_error + fb.heading_integral * self._heading_error_sum])
+        contact = self._planned_contact
+        gains = np.where(contact, fb.stance_tilt, fb.swing_tilt)
+        tilts = np.array([rotation_rp(g * roll, g * pitch) for g in gains])
+        self._state, ref = self.walk.step(self._state, walk_command, tilts)
+        self._heading_error += self.walk.clip_command(command)[2] * self.control_dt
+        self._planned_contact = ref.contact
         self.last_reference = ref
         q = ref.joint_pos.copy()
-        roll, pitch = tilt(obs.imu_quat)
-        fb = self.feedback
-        q[self._ankle_pitch] += fb.ankle_pitch * pitch * np.array([1.0, -1.0])
-        q[self._ankle_roll] += fb.ankle_roll * roll
-        q[self._hip_roll] += fb.hip_roll * roll
-        return self.joint_action(q)
+        roll_rate, pitch_rate = obs.imu_ang_vel[0], obs.imu_ang_vel[1]
+        q[self._ankle_pitch] += (fb.ankle_pitch * pitch + fb.ankle_pitch_rate * pitch_rate) * self._ankle_pitch_sign
+        q[self._ankle_roll] += (fb.ankle_roll * roll + fb.ankle_roll_rate * roll_rate) * self._ankle_roll_sign
+        q[self._hip_roll] += fb.hip_roll * roll * self._hip_roll_sign
+        action = self.joint_action(q)
+        return Action(action.motor_targets, action.joint_targets, kp=self.kp)

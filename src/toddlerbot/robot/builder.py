@@ -52,6 +52,8 @@ _INTEGRATORS = {
 _SOLVERS = {"Newton": mujoco.mjtSolver.mjSOL_NEWTON, "CG": mujoco.mjtSolver.mjSOL_CG, "PGS": mujoco.mjtSolver.mjSOL_PGS}
 _CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
 _ROBOT_RGBA = (0.85, 0.55, 0.2, 1.0)
+_SKELETON_RADIUS = 0.007
+_SKELETON_MIN_LENGTH = 0.01
 
 # Scene cameras (position, xyaxes), all tracking the robot's centre of mass.
 _SCENE_CAMERAS = {
@@ -122,6 +124,7 @@ def build_mjspec(
         for c in body.cameras:
             b.add_camera(name=c.name, pos=c.pos, quat=c.quat, fovy=c.fovy)
 
+    _add_skeleton(mj, spec)
     _add_transmissions(mj, spec)
     for g1, g2 in spec.contacts.self_pairs:
         mj.add_pair(geomname1=g1, geomname2=g2)
@@ -139,8 +142,10 @@ def build_mjspec(
     return mj
 
 
-def build_model(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> mujoco.MjModel:
-    return build_mjspec(spec, base, scene).compile()
+def build_model(
+    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
+) -> mujoco.MjModel:
+    return build_mjspec(spec, base, scene, catalogue).compile()
 
 
 def build_xml(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> str:
@@ -149,6 +154,20 @@ def build_xml(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> 
 
 def _pad3(size: list[float]) -> list[float]:
     return list(size) + [0.0] * (3 - len(size))
+
+
+def _add_skeleton(mj: mujoco.MjSpec, spec: RobotSpec) -> None:
+    """Visual-only capsules from each body to its children, so links without collision geoms are drawn.
+
+    They have no mass (bodies carry explicit inertials) and never collide (contype = conaffinity = 0).
+    """
+    for body in spec.bodies:
+        if body.parent == "world" or np.linalg.norm(body.pos) < _SKELETON_MIN_LENGTH:
+            continue
+        mj.body(body.parent).add_geom(
+            name=f"{body.name}_link_visual", type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=(0, 0, 0, *body.pos),
+            size=(_SKELETON_RADIUS, 0, 0), contype=0, conaffinity=0, group=1, rgba=(0.35, 0.35, 0.38, 1.0),
+        )
 
 
 def _set_options(mj: mujoco.MjSpec, spec: RobotSpec) -> None:
@@ -242,11 +261,15 @@ def home_qpos(model: mujoco.MjModel, spec: RobotSpec) -> np.ndarray:
 
 def lowest_point(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     """Lowest z of any robot collision geom (boxes by their corners, round geoms by their extent)."""
-    return min(geom_z_extent(model, data, g)[0] for g in range(model.ngeom) if model.geom_bodyid[g] != 0)
+    return min(geom_z_extent(model, data, g)[0] for g in _collision_geoms(model))
 
 
 def highest_point(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    return max(geom_z_extent(model, data, g)[1] for g in range(model.ngeom) if model.geom_bodyid[g] != 0)
+    return max(geom_z_extent(model, data, g)[1] for g in _collision_geoms(model))
+
+
+def _collision_geoms(model: mujoco.MjModel) -> list[int]:
+    return [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0 and model.geom_contype[g]]
 
 
 def geom_z_extent(model: mujoco.MjModel, data: mujoco.MjData, geom: int) -> tuple[float, float]:

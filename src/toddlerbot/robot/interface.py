@@ -68,7 +68,9 @@ class Robot(ABC):
         """The latest observation, without advancing time."""
 
     @abstractmethod
-    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> Observation:
+    def step(
+        self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+    ) -> Observation:
         """Command motor position targets (rad) with optional per-motor firmware gains, advance one control
         period (control_dt) and return the new observation."""
 

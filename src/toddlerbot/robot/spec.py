@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -212,7 +212,7 @@ class RackAndPinion(_Strict):
 
 
 Transmission = Annotated[
-    Union[SpurGear, ParallelLinkage, BevelDifferential, RackAndPinion], Field(discriminator="type")
+    SpurGear | ParallelLinkage | BevelDifferential | RackAndPinion, Field(discriminator="type")
 ]
 
 

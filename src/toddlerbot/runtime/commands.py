@@ -4,6 +4,7 @@ or newlines (``#`` starts a comment), e.g. ``"0:0.1,0,0; 5:0,0,0.3"``: from each
 
 from __future__ import annotations
 
+import itertools
 from bisect import bisect_right
 from pathlib import Path
 
@@ -22,7 +23,7 @@ class CommandSchedule:
     def __init__(self, times: list[float], commands: list[np.ndarray]) -> None:
         if not times:
             raise CommandError("a command schedule needs at least one entry")
-        if any(b <= a for a, b in zip(times, times[1:])):
+        if any(b <= a for a, b in itertools.pairwise(times)):
             raise CommandError(f"command times must increase, got {times}")
         self.times = list(times)
         self.commands = [np.asarray(c, dtype=float) for c in commands]

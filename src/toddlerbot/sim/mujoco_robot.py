@@ -64,7 +64,8 @@ class MuJoCoRobot(Robot):
         spec = spec or load_spec()
         self.config = config or SimConfig()
         super().__init__(spec, self.config.control_dt)
-        self.model = model if model is not None else build_model(spec, "floating", scene=True)
+        catalogue = catalogue or default_catalogue()
+        self.model = model if model is not None else build_model(spec, "floating", scene=True, catalogue=catalogue)
         self.data = mujoco.MjData(self.model)
         physics_dt = self.model.opt.timestep
         self.n_substeps = round(self.config.control_dt / physics_dt)
@@ -72,7 +73,6 @@ class MuJoCoRobot(Robot):
             raise ValueError(
                 f"control_dt {self.config.control_dt} s must be a multiple of the physics timestep {physics_dt} s"
             )
-        catalogue = catalogue or default_catalogue()
         self.actuator_params = [catalogue[m.model].actuator for m in spec.motors_by_id]
         m = self.model
         joints = [m.joint(name) for name in self.motor_names]
@@ -121,7 +121,9 @@ class MuJoCoRobot(Robot):
             foot_contact=self.foot_contact(),
         )
 
-    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> Observation:
+    def step(
+        self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+    ) -> Observation:
         if kp is not None or kd is not None:
             self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
         self._targets = self.clamp_targets(motor_targets)

@@ -1,0 +1,131 @@
+"""`toddlerbot sim ...`: run a policy on the simulated robot, render it, summarise and plot run logs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies import POLICIES
+
+app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
+                  no_args_is_help=True)
+
+
+@app.command()
+def run(
+    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(POLICIES)}.")] = "walk-zmp",
+    command: Annotated[str | None, typer.Option(
+        "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
+        "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")] = None,
+    command_file: Annotated[
+        Path | None, typer.Option("--command-file", help="Schedule file (one entry per line); overrides --command.")
+    ] = None,
+    motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around "
+                                               "or a motion YAML file.")] = None,
+    seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")] = 10.0,
+    control_hz: Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")] = 50.0,
+    realtime: Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")] = False,
+    video: Annotated[Path | None, typer.Option("--video", help="Write an MP4 from the tracking camera.")] = None,
+    snapshot: Annotated[Path | None, typer.Option("--snapshot", help="Write a PNG of the last frame.")] = None,
+    camera: Annotated[str, typer.Option("--camera", help="perspective, side, front, top or head_camera.")] =
+        "perspective",
+    viewer: Annotated[bool, typer.Option("--viewer", help="Open the interactive MuJoCo viewer (needs a display; "
+                                         "implies --realtime).")] = False,
+    log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
+    summary_json: Annotated[Path | None, typer.Option("--summary-json", help="Write the summary as JSON.")] = None,
+    motor_params: Annotated[list[Path] | None, typer.Option(
+        "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")] = None,
+) -> None:
+    """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
+    from rich.progress import Progress
+
+    from toddlerbot.policies import make_policy
+    from toddlerbot.runtime.commands import CommandSchedule
+    from toddlerbot.runtime.runner import run_policy
+    from toddlerbot.runtime.summary import summarize
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+    from toddlerbot.sim.render import Recorder, has_display
+    from toddlerbot.sysid.params import catalogue_with_params
+
+    if policy not in POLICIES:
+        raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
+    if seconds <= 0 or control_hz <= 0:
+        raise ToddlerbotError("--seconds and --control-hz must be > 0")
+    if command is None:
+        command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
+    schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)
+    catalogue = catalogue_with_params(motor_params or [])
+    robot = MuJoCoRobot(config=SimConfig(control_dt=1.0 / control_hz), catalogue=catalogue)
+    pol = make_policy(policy, robot, motion)
+    recorder = None
+    if video or snapshot:
+        recorder = Recorder(robot.model, robot.data, camera)
+    frame_every = max(1, round(1.0 / 30.0 / robot.control_dt))
+    handle = None
+    if viewer:
+        if not has_display():
+            raise ToddlerbotError("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY); use --video instead")
+        import mujoco.viewer
+
+        handle = mujoco.viewer.launch_passive(robot.model, robot.data)
+        realtime = True
+    steps = {"n": 0}
+
+    with Progress(console=console, transient=True) as progress:
+        task = progress.add_task(f"simulating {policy}", total=round(seconds / robot.control_dt))
+
+        def on_step(obs) -> None:
+            if recorder is not None and steps["n"] % frame_every == 0:
+                recorder.capture()
+            if handle is not None:
+                handle.sync()
+            steps["n"] += 1
+            progress.advance(task)
+
+        result = run_policy(robot, pol, schedule, seconds, realtime=realtime, on_step=on_step)
+    if handle is not None:
+        handle.close()
+    summary = summarize(result.log, result.fell, result.fall_time)
+    if recorder is not None:
+        if video:
+            recorder.write_video(video, fps=1.0 / (frame_every * robot.control_dt))
+            console.print(f"wrote {video} ({len(recorder.frames)} frames)")
+        if snapshot:
+            recorder.write_png(snapshot)
+            console.print(f"wrote {snapshot}")
+        recorder.close()
+    if log:
+        result.log.save(log)
+        console.print(f"wrote {log}")
+    if summary_json:
+        summary_json.parent.mkdir(parents=True, exist_ok=True)
+        summary_json.write_text(json.dumps(summary.to_dict(), indent=2))
+    t = summary.tracking
+    status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
+    console.print(
+        f"[bold]{policy}[/] {summary.duration_s:.2f} s: {status}; displacement "
+        f"({summary.displacement_m[0]:+.3f}, {summary.displacement_m[1]:+.3f}) m, path {summary.distance_m:.3f} m, "
+        f"yaw change {summary.yaw_change_rad:+.3f} rad\n"
+        f"tracking errors: position {t.position_m:.3f} m, linear velocity {t.lin_vel_mps:.3f} m/s, "
+        f"angular velocity {t.ang_vel_radps:.3f} rad/s; compute {summary.mean_compute_ms:.2f} ms/step"
+    )
+    if summary.fell:
+        raise typer.Exit(1)
+
+
+@app.command()
+def plot(
+    log: Annotated[Path, typer.Argument(help="Run log (.npz) from `sim run --log`.")],
+    out: Annotated[Path, typer.Option("-o", "--out", help="Directory for the PNGs.")] = Path("plots"),
+) -> None:
+    """Plot a run log: per-joint tracking, IMU signals, loop-time histogram."""
+    from toddlerbot.runtime.log import RunLog
+    from toddlerbot.runtime.plot import plot_log
+
+    for path in plot_log(RunLog.load(log), out):
+        console.print(f"wrote {path}")

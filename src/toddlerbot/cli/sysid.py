@@ -1,0 +1,175 @@
+"""`toddlerbot sysid ...`: motor system identification (appendix sections 8.8-8.9). See docs/sysid.md."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from toddlerbot.actuation.catalogue import default_catalogue
+from toddlerbot.cli.output import console
+from toddlerbot.sysid.errors import SysIDError
+from toddlerbot.sysid.evaluate import evaluate, plot_tracking
+from toddlerbot.sysid.excitation import DEFAULT_KP, PROFILES, excitation_set
+from toddlerbot.sysid.fit import fit as run_fit
+from toddlerbot.sysid.logs import read_columns
+from toddlerbot.sysid.manifest import load_manifest
+from toddlerbot.sysid.params import load_params, save_params
+from toddlerbot.sysid.rigs import parse_rig
+from toddlerbot.sysid.synthetic import synthesize, write_runs
+from toddlerbot.sysid.testbed import armature_from_spindown, fit_friction
+
+app = typer.Typer(help="Motor system identification: test-bed analysis, excitation, fit and evaluation.",
+                  no_args_is_help=True)
+testbed = typer.Typer(help="Motor test-bed analysis (appendix 8.8).", no_args_is_help=True)
+app.add_typer(testbed, name="testbed")
+
+ManifestArg = Annotated[Path, typer.Argument(help="Manifest (JSON or YAML) naming the run CSVs, motor and rig.")]
+JsonOption = Annotated[bool, typer.Option("--json", help="Machine-readable output.")]
+
+
+@app.command("fit")
+def fit_command(
+    manifest: ManifestArg,
+    output: Annotated[Path, typer.Option("-o", "--output", help="params.json to write.")],
+    fit_kp_scale: Annotated[bool, typer.Option("--fit-kp-scale", help="Also fit the firmware-to-physical kp factor.")]
+    = False,
+    seed: Annotated[int, typer.Option("--seed", min=1, help="CMA-ES seed (>= 1); same seed, same result.")] = 1,
+    evals: Annotated[int, typer.Option("--evals", min=4, help="Candidate evaluations.")] = 2000,
+    popsize: Annotated[int, typer.Option("--popsize", min=4, help="Candidates per CMA-ES generation.")] = 32,
+    start: Annotated[Path | None, typer.Option("--start", help="params.json to start from (default: catalogue).")]
+    = None,
+) -> None:
+    """Fit damping, friction loss, armature, tau_max, q_dot_tau_max, tau_q_dot_max, q_dot_max, kd_min, tau_brake."""
+    m = load_manifest(manifest)
+    start_params = None
+    if start is not None:
+        name, start_params = load_params(start)
+        if name != m.motor.name:
+            raise SysIDError(f"{start}: parameters are for {name}, but {manifest} is a {m.motor.name}")
+    with Progress(TextColumn("fitting"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"),
+                  TimeElapsedColumn(), console=console, transient=True) as bar:
+        task = bar.add_task("", total=evals)
+        result = run_fit(m, fit_kp_scale=fit_kp_scale, seed=seed, evals=evals, popsize=popsize, start=start_params,
+                         progress=lambda n, rmse: bar.update(task, completed=n, description=f"RMSE {rmse:.3f} deg"))
+    provenance = {
+        "manifest": str(manifest), "runs": len(m.runs), "rig": m.rig.type, "seed": seed, "evals": result.evals,
+        "generations": result.generations, "rmse_deg": result.rmse_deg, "wall_s": round(result.wall_s, 2),
+    }
+    save_params(output, m.motor.name, result.params, result.fitted, provenance)
+    console.print(f"wrote {output}: {m.motor.name}, RMSE {result.rmse_deg:.3f} deg over {len(m.runs)} runs "
+                  f"({result.evals} evaluations, {result.wall_s:.1f} s)")
+
+
+@app.command("eval")
+def eval_command(
+    manifest: ManifestArg,
+    params: Annotated[Path, typer.Argument(help="params.json (from `sysid fit`).")],
+    as_json: JsonOption = False,
+    plot: Annotated[Path | None, typer.Option("--plot", help="Folder for measured-vs-simulated plots.")] = None,
+) -> None:
+    """Tracking MAE/RMSE (degrees) of a parameter set per run and overall."""
+    m = load_manifest(manifest)
+    name, p = load_params(params)
+    if name != m.motor.name:
+        raise SysIDError(f"{params}: parameters are for {name}, but {manifest} is a {m.motor.name}")
+    ev = evaluate(m, p)
+    written = plot_tracking(m, ev, plot) if plot is not None else []
+    if as_json:
+        typer.echo(json.dumps(ev.to_json(), indent=2))
+        return
+    table = Table(title=f"{name} on {m.rig.type}: tracking error")
+    for col in ("run", "MAE (deg)", "RMSE (deg)"):
+        table.add_column(col, justify="left" if col == "run" else "right")
+    for r in ev.runs:
+        table.add_row(r.file, f"{r.mae_deg:.3f}", f"{r.rmse_deg:.3f}")
+    table.add_row("[bold]overall[/]", f"[bold]{ev.mae_deg:.3f}[/]", f"[bold]{ev.rmse_deg:.3f}[/]")
+    console.print(table)
+    if written:
+        console.print(f"wrote {len(written)} plot(s) to {plot}")
+
+
+@app.command()
+def excite(
+    output: Annotated[Path, typer.Option("-o", "--output", help="Folder for the run CSVs and manifest.json.")],
+    motor: Annotated[str, typer.Option("--motor", help="Catalogue name or alias.")] = "XC330",
+    rig: Annotated[str, typer.Option("--rig", help="Rig as JSON, as in a manifest.")]
+    = '{"type": "pendulum", "mass": 0.49, "length": 0.1}',
+    profile: Annotated[list[str] | None, typer.Option("--profile", help=f"Repeatable; {', '.join(PROFILES)}.")]
+    = None,
+    kp: Annotated[list[int] | None, typer.Option("--kp", help="Firmware kp values to cycle (repeatable).")] = None,
+    duration: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
+    rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = 200.0,
+    amplitude: Annotated[float, typer.Option("--amplitude", help="Goal amplitude, rad.")] = 0.5,
+    center: Annotated[float, typer.Option("--center", help="Goal centre, rad.")] = 0.0,
+    simulate: Annotated[bool, typer.Option("--simulate", help="Also simulate the runs (synthetic logs).")] = False,
+    params: Annotated[Path | None, typer.Option("--params", help="params.json for --simulate (default: catalogue).")]
+    = None,
+    noise_deg: Annotated[float, typer.Option("--noise-deg", help="Position noise std for --simulate, deg.")] = 0.1,
+    seed: Annotated[int, typer.Option("--seed", help="Noise seed for --simulate.")] = 0,
+) -> None:
+    """Write excitation profiles (one CSV per profile x kp) and a manifest; --simulate fills in positions."""
+    model = default_catalogue()[motor]
+    rig_obj = parse_rig(_json_arg(rig, "--rig"), "--rig")
+    for name in profile or []:
+        if name not in PROFILES:
+            raise SysIDError(f"--profile: unknown profile {name!r}; expected one of {', '.join(PROFILES)}")
+    runs_ex = excitation_set(tuple(profile or PROFILES), tuple(kp or DEFAULT_KP), duration, rate, amplitude, center)
+    p = load_params(params)[1] if params is not None else model.actuator
+    import numpy as np
+
+    runs = synthesize(runs_ex, rig_obj, p, np.radians(noise_deg) if simulate else 0.0, seed)
+    path = write_runs(output, model.name, rig_obj, runs, with_position=simulate)
+    what = "synthetic logs" if simulate else "goal profiles (run them on the motor to fill in `position`)"
+    console.print(f"wrote {len(runs)} {what} and {path}")
+
+
+@testbed.command()
+def friction(
+    log: Annotated[Path, typer.Argument(help="CSV with columns speed (rad/s) and torque (N*m).")],
+    as_json: JsonOption = False,
+) -> None:
+    """Friction loss and damping from constant-speed back-drive data (linear fit per direction)."""
+    data = read_columns(log, ("speed", "torque"))
+    result = fit_friction(data["speed"], data["torque"], source=str(log))
+    body = {"frictionloss": result.frictionloss, "damping": result.damping,
+            "directions": {k: dataclasses.asdict(v) for k, v in result.directions.items()}}
+    if as_json:
+        typer.echo(json.dumps(body, indent=2))
+        return
+    console.print(f"frictionloss {result.frictionloss:.4f} N*m   damping {result.damping:.5f} N*m*s/rad")
+    for name, line in result.directions.items():
+        console.print(f"  {name:8s}: intercept {line.intercept:.4f}  slope {line.slope:.5f}  "
+                      f"R^2 {line.r2:.4f}  ({line.samples} samples)")
+
+
+@testbed.command()
+def spindown(
+    log: Annotated[Path, typer.Argument(help="CSV with columns time (s) and velocity (rad/s), from power cut.")],
+    damping: Annotated[float, typer.Option("--damping", help="Fitted damping, N*m*s/rad.")],
+    frictionloss: Annotated[float, typer.Option("--frictionloss", help="Fitted friction loss, N*m.")],
+    load_inertia: Annotated[float, typer.Option("--load-inertia", help="Test-bed inertia on the shaft, kg*m^2.")]
+    = 0.0,
+    as_json: JsonOption = False,
+) -> None:
+    """Armature from a spin-down: I = 2 E / w0^2, E the energy dissipated until the stop."""
+    data = read_columns(log, ("time", "velocity"))
+    result = armature_from_spindown(data["time"], data["velocity"], damping, frictionloss, load_inertia,
+                                    source=str(log))
+    if as_json:
+        typer.echo(json.dumps(dataclasses.asdict(result), indent=2))
+        return
+    console.print(f"w0 {result.omega0:.3f} rad/s  E {result.energy:.5f} J  I {result.inertia:.6f} kg*m^2  "
+                  f"armature {result.armature:.6f} kg*m^2  (stopped after {result.stop_time:.2f} s)")
+
+
+def _json_arg(text: str, option: str) -> object:
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SysIDError(f"{option}: not valid JSON ({exc})") from None

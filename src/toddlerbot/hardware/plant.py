@@ -1,0 +1,217 @@
+"""The motion behind the emulated motors' registers.
+
+* `SimplePlant`: every motor is an independent inertia driven by the actuator model
+  (`toddlerbot.actuation.model.motor_torque`) with the gains in its control table (via `physical_gains`).
+* `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor; the same
+  actuator model runs every 1 ms physics step, paced to wall-clock time in a background thread.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+
+import mujoco
+import numpy as np
+
+from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays, motor_torque
+from toddlerbot.hardware.control_table import (
+    MODE_CURRENT_BASED_POSITION,
+    pulses_to_rad,
+    rad_s_to_velocity,
+    rad_to_pulses,
+    torque_to_load,
+    traits,
+)
+from toddlerbot.hardware.emulated_motor import EmulatedMotor
+from toddlerbot.robot.builder import build_model
+from toddlerbot.robot.spec import RobotSpec
+
+LOAD_INERTIA = 0.002
+"""Load inertia added to the armature of each motor in `SimplePlant`, kg*m^2."""
+MAX_LAG = 0.05
+"""Largest lag (s) of the hardware-in-the-loop simulation behind wall-clock time; beyond it, time is dropped
+(reported by `HilPlant.realtime_factor`)."""
+
+
+class SimplePlant:
+    """Independent motors: inertia (armature + LOAD_INERTIA), the actuator model, MuJoCo-like passive terms."""
+
+    def __init__(self, motors: list[EmulatedMotor]) -> None:
+        self.motors = motors
+        params = [m.model.actuator for m in motors]
+        self.params = params
+        self.inertia = np.array([a.armature + LOAD_INERTIA for a in params])
+        self.damping = np.array([a.damping for a in params])
+        self.friction = np.array([a.frictionloss for a in params])
+        self.q = np.zeros(len(motors))
+        self.qd = np.zeros(len(motors))
+        self.tau = np.zeros(len(motors))
+        self.dt = 0.001
+        self._last = time.perf_counter()
+
+    def start(self, lock: threading.Lock) -> None:
+        self._last = time.perf_counter()
+
+    def stop(self) -> None:
+        pass
+
+    def update(self) -> None:
+        """Advance to the present wall-clock time (called under the bus lock before each instruction).
+
+        At most 4 semi-implicit Euler steps per call (each <= 5 ms, stable for these gains and inertias);
+        time beyond that is dropped, so an idle bus never delays an answer."""
+        now = time.perf_counter()
+        elapsed, self._last = now - self._last, now
+        steps = min(int(elapsed / self.dt), 4)
+        if steps:
+            dt = min(elapsed / steps, 0.005)
+            cmd = commands(self.motors, self.params)
+            for _ in range(steps):
+                tau = np.where(cmd.torque_on, motor_torque(cmd.q_target, self.q, self.qd, cmd.arrays), 0.0)
+                tau = np.clip(tau, -cmd.tau_limit, cmd.tau_limit)
+                passive = self.damping * self.qd + self.friction * np.tanh(self.qd / 0.01)
+                self.qd += dt * (tau - passive) / self.inertia
+                self.q += dt * self.qd
+                self.tau = tau
+        else:
+            self._last -= elapsed
+        publish(self.motors, self.q, self.qd, self.tau)
+
+
+@dataclass
+class Commands:
+    torque_on: np.ndarray
+    q_target: np.ndarray
+    arrays: ActuatorArrays
+    tau_limit: np.ndarray
+
+
+def commands(motors: list[EmulatedMotor], params: list) -> Commands:
+    """Targets (rad, motor angle) and gains from the control tables."""
+    goal = np.array([m.get("goal_position") - m.mounting_offset - m.turn_offset - m.get("homing_offset")
+                     for m in motors])
+    kp = tuple(m.get("position_p_gain") for m in motors)
+    kd = tuple(m.get("position_d_gain") for m in motors)
+    tau_limit = np.full(len(motors), np.inf)
+    for i, m in enumerate(motors):
+        t = traits(m.model)
+        if m.get("operating_mode") == MODE_CURRENT_BASED_POSITION:
+            tau_limit[i] = abs(m.get("goal_current")) * t.current_unit_a * t.torque_per_amp
+    return Commands(
+        torque_on=np.array([m.torque_on for m in motors]), q_target=pulses_to_rad(goal),
+        arrays=_arrays(tuple(params), kp, kd), tau_limit=tau_limit,
+    )
+
+
+@lru_cache(maxsize=8)
+def _arrays(params: tuple, kp: tuple, kd: tuple) -> ActuatorArrays:
+    return actuator_arrays(params, kp, kd)
+
+
+def publish(motors: list[EmulatedMotor], q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> None:
+    """Write present position/velocity/current into the control tables."""
+    pulses = rad_to_pulses(q)
+    vel = rad_s_to_velocity(qd)
+    tick = int(time.perf_counter() * 1000) % 32768
+    for i, m in enumerate(motors):
+        m.set("present_position", int(pulses[i]) + m.mounting_offset + m.turn_offset + m.get("homing_offset"))
+        m.set("present_velocity", int(vel[i]))
+        m.set("present_current", torque_to_load(float(tau[i]), m.model))
+        m.set("realtime_tick", tick)
+        m.set("moving", int(abs(qd[i]) > 0.02))
+
+
+class HilPlant:
+    """The whole robot in MuJoCo (floating base, floor), motors driven by the actuator model every physics step.
+
+    The simulation holds still (robot hanging on its stand) until the first motor's torque is enabled, then
+    runs in real time in a background thread; `realtime_factor` reports how well it kept up.
+    """
+
+    def __init__(self, motors: list[EmulatedMotor], spec: RobotSpec) -> None:
+        self.motors = motors
+        self.params = [m.model.actuator for m in motors]
+        self.model = build_model(spec, base="floating", scene=True)
+        self.data = mujoco.MjData(self.model)
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
+        mujoco.mj_forward(self.model, self.data)
+        joints = self.model.actuator_trnid[:, 0]
+        self.qadr = self.model.jnt_qposadr[joints]
+        self.vadr = self.model.jnt_dofadr[joints]
+        self.torso = self.model.body("torso").id
+        self.sim_time = 0.0
+        self.wall_time = 0.0
+        self.powered_min_height = np.inf
+        """Lowest torso height (m) seen while any motor had torque on."""
+        self.powered_min_upright = np.inf
+        """Lowest torso uprightness seen while any motor had torque on."""
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._lock: threading.Lock | None = None
+        self._publish()
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_time / self.wall_time if self.wall_time > 0 else 1.0
+
+    def torso_height(self) -> float:
+        """Height of the torso frame above the floor, m."""
+        return float(self.data.xpos[self.torso][2])
+
+    def torso_uprightness(self) -> float:
+        """z component of the torso's up axis in the world (1 = upright, 0 = lying)."""
+        return float(self.data.xmat[self.torso][8])
+
+    def _publish(self) -> None:
+        publish(self.motors, self.data.qpos[self.qadr], self.data.qvel[self.vadr], self.data.ctrl.copy())
+
+    def start(self, lock: threading.Lock) -> None:
+        self._lock = lock
+        self._thread = threading.Thread(target=self._run, name="hil-physics", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+    def update(self) -> None:
+        pass  # the physics thread publishes
+
+    def _run(self) -> None:
+        assert self._lock is not None
+        m, d = self.model, self.data
+        dt = m.opt.timestep
+        while not self._stop.is_set():
+            with self._lock:
+                started = any(mo.torque_on for mo in self.motors)
+            if started:
+                break
+            time.sleep(0.002)
+        t0 = time.perf_counter()
+        lost = 0.0  # wall-clock time the simulation gave up on (host too slow)
+        while not self._stop.is_set():
+            self.wall_time = time.perf_counter() - t0
+            behind = self.wall_time - lost - self.sim_time
+            if behind > MAX_LAG:  # never run flat out to catch up: the bus must keep answering
+                lost += behind - MAX_LAG
+            if behind < dt:
+                time.sleep(min(dt, 0.002))
+                continue
+            with self._lock:
+                cmd = commands(self.motors, self.params)
+            for _ in range(min(int(behind / dt), 10)):
+                q, qd = d.qpos[self.qadr], d.qvel[self.vadr]
+                tau = np.where(cmd.torque_on, motor_torque(cmd.q_target, q, qd, cmd.arrays), 0.0)
+                d.ctrl[:] = np.clip(tau, -cmd.tau_limit, cmd.tau_limit)
+                mujoco.mj_step(m, d)
+                self.sim_time += dt
+            if cmd.torque_on.any():
+                self.powered_min_height = min(self.powered_min_height, self.torso_height())
+                self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
+            with self._lock:
+                self._publish()
+            time.sleep(0)  # let the serving thread answer between batches

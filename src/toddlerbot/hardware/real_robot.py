@@ -1,0 +1,142 @@
+"""The real robot behind the `Robot` interface: Dynamixel bus + zero-point calibration + IMU.
+
+Motor angles are ``q = (reading - offset - turns * 4096) * 2*pi/4096``: `offset` from the per-robot calibration
+file, `turns` chosen once at start-up so that each motor lies within half a turn of the middle of its joint range
+(the multi-turn count is lost at every power-up). Policies command motor angles (rad) and firmware gains, as
+in the simulator; the spec's transmission map gives the joint-space view.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from toddlerbot.hardware.calibration import Calibration
+from toddlerbot.hardware.control_table import PULSES_PER_REV, pulses_to_rad, rad_to_pulses
+from toddlerbot.hardware.driver import DEFAULT_BAUDRATE, DEFAULT_RETRIES, DynamixelBus, MotorState, motors_of
+from toddlerbot.hardware.imu import Imu, StaticImu
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.spec import RobotSpec
+
+
+def home_motor_angles(spec: RobotSpec, robot: Robot) -> np.ndarray:
+    """Motor angles (rad) of the spec's home pose."""
+    q_joint = np.array([spec.home.get(j, 0.0) for j in robot.joint_names])
+    return robot.transmission.joint_to_motor(q_joint)
+
+
+class RealRobot(Robot):
+    """ToddlerBot on its Dynamixel bus. Use as a context manager: torque is disabled on exit, errors and Ctrl-C."""
+
+    def __init__(
+        self,
+        spec: RobotSpec,
+        port: str,
+        calibration: Calibration,
+        control_dt: float = 0.02,
+        baudrate: int = DEFAULT_BAUDRATE,
+        imu: Imu | None = None,
+        reset_duration: float = 2.0,
+        calibration_source: str = "calibration",
+        retries: int = DEFAULT_RETRIES,
+    ) -> None:
+        super().__init__(spec, control_dt)
+        self.offsets = calibration.offsets_for(spec, calibration_source)
+        self.bus = DynamixelBus(port, motors_of(spec), baudrate=baudrate, retries=retries)
+        self.imu = imu or StaticImu()
+        self.reset_duration = reset_duration
+        self.turns = np.zeros(len(self.offsets), dtype=np.int64)
+        joints = spec.joints
+        ranges = [joints[m.joint].range or (-np.inf, np.inf) for m in spec.motors_by_id]
+        self.lower, self.upper = np.array(ranges).T
+        """Motor joint limits from the spec, rad: goals are clipped to them (extended position mode has none)."""
+        self.range_mid = np.where(np.isfinite(self.lower + self.upper), (self.lower + self.upper) / 2, 0.0)
+        self._gains: tuple[np.ndarray, np.ndarray] | None = None
+        self._t0 = 0.0
+        self._deadline = 0.0
+        self._last: Observation | None = None
+
+    # ---- conversions -----------------------------------------------------------------------------------
+    def resolve_turns(self, pulses: np.ndarray) -> None:
+        """Choose each motor's whole turns so that its angle lies within half a turn of its range's middle."""
+        raw = pulses_to_rad(pulses - self.offsets)
+        self.turns = np.rint((raw - self.range_mid) / (2 * np.pi)).astype(np.int64)
+
+    def _angles(self, pulses: np.ndarray) -> np.ndarray:
+        """Calibrated motor angles (rad) from raw readings (pulses)."""
+        return pulses_to_rad(pulses - self.offsets - self.turns * PULSES_PER_REV)
+
+    def _pulses(self, angles: np.ndarray) -> np.ndarray:
+        """Raw goal positions (pulses) from motor angles (rad)."""
+        return rad_to_pulses(angles) + self.offsets + self.turns * PULSES_PER_REV
+
+    def _observation(self, state: MotorState) -> Observation:
+        q = self._angles(state.position)
+        imu = self.imu.read()
+        tm = self.transmission
+        return Observation(
+            time=time.perf_counter() - self._t0, motor_pos=q, motor_vel=state.velocity, motor_torque=state.torque,
+            joint_pos=tm.motor_to_joint(q), joint_vel=tm.motor_to_joint(state.velocity), imu_quat=imu.quat,
+            imu_ang_vel=imu.ang_vel, imu_lin_acc=imu.lin_acc, foot_contact=np.zeros(2, dtype=bool),
+        )
+
+    # ---- Robot -----------------------------------------------------------------------------------------
+    def reset(self) -> Observation:
+        """Open, check and configure the bus, enable torque where the motors are, then move to the home pose
+        over `reset_duration` seconds."""
+        bus = self.bus
+        if not bus.is_open:
+            bus.open()
+        try:
+            bus.scan()
+            bus.configure()
+            bus.check_voltage()
+            state = bus.read_state()
+            self.resolve_turns(state.position)
+            bus.enable_torque(state.position)
+            self._gains = (self.default_kp.copy(), self.default_kd.copy())
+            self._t0 = self._deadline = time.perf_counter()
+            start, home = self._angles(state.position), home_motor_angles(self.spec, self)
+            steps = max(1, round(self.reset_duration / self.control_dt))
+            obs = None
+            for k in range(1, steps + 1):
+                obs = self.step(start + (home - start) * k / steps)
+        except BaseException:
+            bus.close()
+            raise
+        self._t0 = time.perf_counter()
+        return obs
+
+    def observe(self) -> Observation:
+        if self._last is None:
+            raise RuntimeError("call reset() first")
+        return self._last
+
+    def step(
+        self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+    ) -> Observation:
+        bus = self.bus
+        try:
+            if kp is not None or kd is not None:
+                new = (self.default_kp if kp is None else np.asarray(kp),
+                       self.default_kd if kd is None else np.asarray(kd))
+                if self._gains is None or not all(np.array_equal(a, b) for a, b in zip(new, self._gains, strict=True)):
+                    bus.write_gains(*new)
+                    self._gains = (new[0].copy(), new[1].copy())
+            bus.write_goal_positions(self._pulses(np.clip(motor_targets, self.lower, self.upper)))
+            self._deadline += self.control_dt
+            delay = self._deadline - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            else:
+                self._deadline = time.perf_counter()  # overran: do not try to catch up
+            self._last = self._observation(bus.read_state())
+        except BaseException:
+            bus.close()
+            raise
+        return self._last
+
+    def close(self) -> None:
+        self.bus.close()
+        self.imu.close()

@@ -1,0 +1,136 @@
+"""Keyframe motions: a human-editable YAML format, validated against the robot spec, interpolated in time.
+
+Format (angles in degrees, times in seconds; see ``motions/*.yaml``)::
+
+    name: wave
+    description: wave the right hand
+    interpolation: smooth        # smooth (cubic ease in/out between keyframes) or linear
+    joints: [right_shoulder_roll, right_elbow_roll]   # output joints the motion moves; others hold home
+    keyframes:
+      - {t: 0.0, right_shoulder_roll: -15, right_elbow_roll: 30}
+      - {t: 1.0, right_shoulder_roll: -150, right_elbow_roll: 30}
+
+Every keyframe gives every listed joint; times start at 0 and increase; every angle lies within the joint's
+range in the spec. Joint names are the output joints of `TransmissionMap.joint_names` (e.g. ``left_knee``,
+``waist_yaw``), so motions do not depend on gear ratios.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.robot.spec import RobotSpec
+from toddlerbot.robot.transmission import build_transmission_map
+
+MOTIONS_DIR = resources.files("toddlerbot.policies") / "motions"
+INTERPOLATIONS = ("smooth", "linear")
+
+
+class MotionError(ToddlerbotError):
+    """A motion file is malformed or asks for something the robot cannot do."""
+
+
+@dataclass(frozen=True)
+class Motion:
+    name: str
+    joints: tuple[str, ...]
+    times: np.ndarray
+    """(k,) keyframe times, s."""
+    poses: np.ndarray
+    """(k, len(joints)) keyframe angles, rad."""
+    interpolation: str
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1])
+
+    def at(self, t: float) -> np.ndarray:
+        """Joint angles (rad) of the listed joints at time t (clamped to the motion's span)."""
+        t = min(max(t, 0.0), self.duration)
+        i = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2))
+        span = self.times[i + 1] - self.times[i]
+        s = (t - self.times[i]) / span
+        if self.interpolation == "smooth":
+            s = s * s * (3.0 - 2.0 * s)
+        return self.poses[i] + s * (self.poses[i + 1] - self.poses[i])
+
+
+def builtin_motions() -> list[str]:
+    return sorted(p.name.removesuffix(".yaml") for p in MOTIONS_DIR.iterdir() if p.name.endswith(".yaml"))
+
+
+def motion_path(name_or_path: str) -> Path:
+    """A built-in motion name (squat, wave, look_around) or a path to a motion file."""
+    if name_or_path in builtin_motions():
+        return Path(str(MOTIONS_DIR / f"{name_or_path}.yaml"))
+    path = Path(name_or_path)
+    if not path.is_file():
+        raise MotionError(f"unknown motion {name_or_path!r}: not a built-in ({', '.join(builtin_motions())}) "
+                          "nor an existing file")
+    return path
+
+
+def load_motion(name_or_path: str, spec: RobotSpec) -> Motion:
+    path = motion_path(name_or_path)
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise MotionError(f"{path}: not valid YAML ({exc})") from None
+    return parse_motion(raw, spec, str(path))
+
+
+def parse_motion(raw: object, spec: RobotSpec, source: str) -> Motion:
+    if not isinstance(raw, dict):
+        raise MotionError(f"{source}: expected a mapping with name, joints and keyframes")
+    for key in ("joints", "keyframes"):
+        if key not in raw:
+            raise MotionError(f"{source}: missing '{key}'")
+    valid = build_transmission_map(spec).joint_names
+    joints = raw["joints"]
+    if not isinstance(joints, list) or not joints:
+        raise MotionError(f"{source}: 'joints' must be a non-empty list of joint names")
+    for j in joints:
+        if j not in valid:
+            raise MotionError(f"{source}: unknown joint {j!r} in 'joints'; expected output joints like "
+                              f"{', '.join(valid[:4])}, ...")
+    interpolation = raw.get("interpolation", "smooth")
+    if interpolation not in INTERPOLATIONS:
+        raise MotionError(f"{source}: interpolation {interpolation!r} is not one of {', '.join(INTERPOLATIONS)}")
+    frames = raw["keyframes"]
+    if not isinstance(frames, list) or len(frames) < 2:
+        raise MotionError(f"{source}: 'keyframes' must list at least two keyframes")
+    times, poses = [], []
+    for i, frame in enumerate(frames):
+        where = f"{source}: keyframe {i}"
+        if not isinstance(frame, dict) or "t" not in frame:
+            raise MotionError(f"{where}: expected a mapping with 't' and one angle per joint")
+        missing = [j for j in joints if j not in frame]
+        if missing:
+            raise MotionError(f"{where}: missing joint(s) {', '.join(missing)} (every keyframe lists every joint)")
+        extra = [k for k in frame if k != "t" and k not in joints]
+        if extra:
+            raise MotionError(f"{where}: joint(s) {', '.join(map(str, extra))} not listed in 'joints'")
+        pose = []
+        for j in joints:
+            value = frame[j]
+            if not isinstance(value, (int, float)) or not np.isfinite(value):
+                raise MotionError(f"{where}: {j} must be a number of degrees, got {value!r}")
+            lo, hi = spec.joints[j].range or (-np.inf, np.inf)
+            rad = np.deg2rad(value)
+            if not lo - 1e-9 <= rad <= hi + 1e-9:
+                raise MotionError(f"{where}: {j} = {value} deg is out of range "
+                                  f"[{np.rad2deg(lo):.1f}, {np.rad2deg(hi):.1f}] deg")
+            pose.append(rad)
+        times.append(float(frame["t"]))
+        poses.append(pose)
+    if times[0] != 0.0 or any(b <= a for a, b in itertools.pairwise(times)):
+        raise MotionError(f"{source}: keyframe times must start at 0 and increase, got {times}")
+    return Motion(name=str(raw.get("name", Path(source).stem)), joints=tuple(joints), times=np.array(times),
+                  poses=np.array(poses), interpolation=interpolation)

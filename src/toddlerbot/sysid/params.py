@@ -1,0 +1,117 @@
+"""The fitted actuator parameters: search bounds, candidate matrices and ``params.json`` files.
+
+A ``params.json`` (written by ``toddlerbot sysid fit``) holds ``{"motor": <catalogue name>, "actuator": {the ten
+ActuatorParams fields}, "fitted": [names], "fit": {...provenance...}}``. `catalogue_with_params` loads one or
+more of them into a motor `Catalogue`, which the model builder (``build_mjspec(..., catalogue=...)``) and the
+actuator model then use: that is the hook behind a simulator ``--motor-params FILE`` option.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, default_catalogue
+from toddlerbot.errors import SpecError
+from toddlerbot.sysid.errors import SysIDError
+from toddlerbot.sysid.io import atomic_write_text
+
+MODEL_PARAMETERS = (
+    "damping", "frictionloss", "armature", "tau_max", "q_dot_tau_max", "tau_q_dot_max", "q_dot_max", "kd_min",
+    "tau_brake",
+)
+"""The 9 parameters of the appendix (section 8.9), always fitted."""
+
+BOUNDS: dict[str, tuple[float, float]] = {
+    "damping": (0.0, 0.05),  # N*m*s/rad
+    "frictionloss": (0.0, 0.3),  # N*m
+    "armature": (2e-4, 0.03),  # kg*m^2
+    "tau_max": (0.05, 6.0),  # N*m
+    "q_dot_tau_max": (0.0, 8.0),  # rad/s
+    "tau_q_dot_max": (0.0, 6.0),  # N*m
+    "q_dot_max": (0.2, 20.0),  # rad/s ABOVE q_dot_tau_max (searched as the span, so q_dot_max > q_dot_tau_max)
+    "kd_min": (0.0, 2.0),  # N*m*s/rad
+    "tau_brake": (0.05, 10.0),  # N*m
+    "kp_scale": (50.0, 400.0),  # firmware P gain per N*m/rad
+}
+"""Search bounds of each parameter (q_dot_max: bounds of q_dot_max - q_dot_tau_max)."""
+
+
+def parameter_names(fit_kp_scale: bool) -> tuple[str, ...]:
+    return (*MODEL_PARAMETERS, "kp_scale") if fit_kp_scale else MODEL_PARAMETERS
+
+
+def to_unit(params: ActuatorParams, names: Sequence[str]) -> np.ndarray:
+    """Parameters -> point of the unit cube the optimiser searches (clipped into the bounds)."""
+    u = []
+    for name in names:
+        lo, hi = BOUNDS[name]
+        value = getattr(params, name) - (params.q_dot_tau_max if name == "q_dot_max" else 0.0)
+        u.append((value - lo) / (hi - lo))
+    return np.clip(np.array(u), 0.0, 1.0)
+
+
+def from_unit(u: np.ndarray, names: Sequence[str], base: ActuatorParams) -> dict[str, np.ndarray]:
+    """Unit-cube points (pop, len(names)) -> every ActuatorParams field as an array (pop,); unfitted fields
+    keep ``base``'s value."""
+    u = np.atleast_2d(np.clip(u, 0.0, 1.0))
+    out = {f.name: np.full(len(u), float(getattr(base, f.name))) for f in dataclasses.fields(ActuatorParams)}
+    for i, name in enumerate(names):
+        lo, hi = BOUNDS[name]
+        out[name] = lo + u[:, i] * (hi - lo)
+    if "q_dot_max" in names:
+        out["q_dot_max"] = out["q_dot_max"] + out["q_dot_tau_max"]
+    return out
+
+
+def params_at(fields: dict[str, np.ndarray], i: int) -> ActuatorParams:
+    """Candidate ``i`` of `from_unit`'s output as ActuatorParams."""
+    return ActuatorParams(**{k: float(v[i]) for k, v in fields.items()})
+
+
+def save_params(path: str | Path, motor: str, params: ActuatorParams, fitted: Iterable[str],
+                fit: dict[str, Any]) -> Path:
+    """Write a params.json atomically."""
+    body = {"motor": motor, "actuator": dataclasses.asdict(params), "fitted": list(fitted), "fit": fit}
+    return atomic_write_text(path, json.dumps(body, indent=2) + "\n")
+
+
+def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[str, ActuatorParams]:
+    """(catalogue motor name, ActuatorParams) of a params.json; raise `SysIDError` naming the file."""
+    path = Path(path)
+    catalogue = catalogue or default_catalogue()
+    try:
+        raw = json.loads(path.read_text())
+    except OSError as exc:
+        raise SysIDError(f"{path}: cannot read parameters ({exc.strerror or exc})") from None
+    except json.JSONDecodeError as exc:
+        raise SysIDError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(raw, dict) or not isinstance(raw.get("actuator"), dict) or "motor" not in raw:
+        raise SysIDError(f"{path}: expected {{'motor': name, 'actuator': {{...}}}}")
+    try:
+        name = catalogue[str(raw["motor"])].name
+    except SpecError:
+        raise SysIDError(f"{path}: unknown motor model {raw['motor']!r}") from None
+    known = {f.name for f in dataclasses.fields(ActuatorParams)}
+    unknown = sorted(set(raw["actuator"]) - known)
+    if unknown:
+        raise SysIDError(f"{path}: unknown actuator field(s) {', '.join(unknown)}; expected {', '.join(sorted(known))}")
+    try:
+        params = dataclasses.replace(catalogue[name].actuator, **raw["actuator"])
+    except (TypeError, ValueError) as exc:
+        raise SysIDError(f"{path}: {exc}") from None
+    return name, params
+
+
+def catalogue_with_params(paths: Iterable[str | Path], catalogue: Catalogue | None = None) -> Catalogue:
+    """The motor catalogue with each params.json applied to its motor model (later files win)."""
+    catalogue = catalogue or default_catalogue()
+    for path in paths:
+        name, params = load_params(path, catalogue)
+        catalogue = catalogue.with_actuator(name, params)
+    return catalogue

@@ -1,0 +1,38 @@
+import mujoco
+import numpy as np
+import pytest
+
+from toddlerbot.actuation.catalogue import default_catalogue
+from toddlerbot.actuation.model import actuator_arrays, motor_torque
+from toddlerbot.robot.builder import build_model
+from toddlerbot.robot.spec import load_spec
+
+
+@pytest.fixture(scope="session")
+def spec():
+    return load_spec()
+
+
+@pytest.fixture(scope="session")
+def gripper_spec():
+    return load_spec(variant="gripper")
+
+
+class MotorPD:
+    """Holds motor targets with the actuator model, as the firmware would (test helper)."""
+
+    def __init__(self, model: mujoco.MjModel, spec) -> None:
+        motors = spec.motors_by_id
+        catalogue = default_catalogue()
+        self.params = actuator_arrays([catalogue[m.model].actuator for m in motors], [m.kp for m in motors],
+                                      [m.kd for m in motors])
+        self.qadr = np.array([model.joint(m.joint).qposadr[0] for m in motors])
+        self.vadr = np.array([model.joint(m.joint).dofadr[0] for m in motors])
+
+    def apply(self, data: mujoco.MjData, targets: np.ndarray) -> None:
+        data.ctrl[:] = motor_torque(targets, data.qpos[self.qadr], data.qvel[self.vadr], self.params)
+
+
+@pytest.fixture(scope="session")
+def fixed_model(spec):
+    return build_model(spec, "fixed")

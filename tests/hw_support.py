@@ -1,0 +1,49 @@
+"""Shared helpers of the hardware tests: an in-process emulator on a pty and the official SDK as its peer."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+
+from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
+from toddlerbot.robot.spec import RobotSpec, load_spec
+
+sdk = pytest.importorskip("dynamixel_sdk")
+port_handler = pytest.importorskip("dynamixel_sdk.port_handler")
+
+
+@contextmanager
+def emulated(
+    spec: RobotSpec | None = None, faults: Faults | None = None, **kwargs
+) -> Iterator[tuple[EmulatedBus, str]]:
+    """An emulated bus served from a thread; yields (bus, device path).
+
+    The SDK busy-waits for status packets while holding the GIL; a short switch interval lets the emulator
+    thread answer promptly (the CLI emulator runs in its own process and needs no such thing). The SDK's status
+    timeout (2 x latency timer + 2 ms) is raised from 34 to about 100 ms so that a loaded CI machine does not
+    turn scheduling delays into spurious timeouts."""
+    old = sys.getswitchinterval()
+    old_latency = port_handler.LATENCY_TIMER
+    sys.setswitchinterval(0.0002)
+    port_handler.LATENCY_TIMER = 50
+    bus = EmulatedBus(spec or load_spec(), faults=faults, **kwargs)
+    server = PtyServer(bus).start()
+    try:
+        yield bus, server.path
+    finally:
+        server.stop()
+        sys.setswitchinterval(old)
+        port_handler.LATENCY_TIMER = old_latency
+
+
+@contextmanager
+def sdk_port(path: str, baudrate: int = 2_000_000) -> Iterator[object]:
+    port = sdk.PortHandler(path)
+    assert port.openPort() and port.setBaudRate(baudrate)
+    try:
+        yield port
+    finally:
+        port.closePort()

@@ -1,0 +1,44 @@
+"""Imports point down the layers, and the runtime core never imports JAX or PyTorch (ARCHITECTURE.md)."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import toddlerbot
+
+PACKAGE = Path(toddlerbot.__file__).parent
+LAYER = {
+    "errors": 0, "actuation": 0, "robot": 1,
+    "sysid": 2, "sim": 2, "hardware": 2, "locomotion": 2, "design": 2,
+    "policies": 3, "runtime": 3,
+    "rl": 4, "manipulation": 4, "cli": 4,
+}
+HEAVY = {"jax", "jaxlib", "flax", "brax", "optax", "orbax", "torch"}
+HEAVY_ALLOWED = {"rl", "manipulation"}
+
+
+def _modules():
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(PACKAGE).parts
+        if len(parts) > 1:
+            yield parts[0], path
+
+
+def _imports(path: Path):
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            yield from (alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            yield node.module
+
+
+@pytest.mark.parametrize("area,path", list(_modules()), ids=lambda v: str(v).split("toddlerbot/")[-1])
+def test_imports_point_down(area, path):
+    assert area in LAYER, f"{area} has no layer in ARCHITECTURE.md"
+    for name in _imports(path):
+        top = name.split(".")
+        if top[0] == "toddlerbot" and len(top) > 1 and top[1] in LAYER:
+            assert LAYER[top[1]] <= LAYER[area], f"{path.name} ({area}) imports {name} from a higher layer"
+        if area not in HEAVY_ALLOWED:
+            assert top[0] not in HEAVY, f"{path.name} ({area}) imports {name}; core modules must not need it"

@@ -1,0 +1,139 @@
+"""Zero-point calibration against the emulator, calibration files, and the real-robot backend applying them."""
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from hw_support import emulated
+from toddlerbot.cli.hw import app
+from toddlerbot.hardware.calibration import (
+    GROUPS,
+    Calibration,
+    CalibrationError,
+    group_motors,
+    load_calibration,
+    measure_offsets,
+    merge,
+    save_calibration,
+)
+from toddlerbot.hardware.control_table import RAD_PER_PULSE
+from toddlerbot.hardware.driver import DynamixelBus, motors_of
+from toddlerbot.hardware.real_robot import RealRobot, home_motor_angles
+from toddlerbot.robot.spec import load_spec
+
+SPEC = load_spec()
+
+
+def _calibrate(path, group, existing=None, robot="tb-07", spec=SPEC, force=False):
+    ids = {m.id for m in group_motors(spec, group)}
+    with DynamixelBus(path, motors_of(spec, ids)) as bus:
+        return merge(existing, robot, spec, group, measure_offsets(bus), force=force)
+
+
+def test_groups_follow_the_jigs_and_cover_every_motor():
+    sizes = {g: len(group_motors(SPEC, g)) for g in GROUPS}
+    assert sizes == {"arm": 14, "neck": 2, "hip": 8, "ankle": 6}
+    assert {m.joint for m in group_motors(SPEC, "ankle")} == {
+        "left_knee_drive", "left_ankle_roll", "left_ankle_pitch", "right_knee_drive", "right_ankle_roll",
+        "right_ankle_pitch"}
+    gripper = SPEC.with_variant("gripper")
+    assert len(group_motors(gripper, "arm")) == 16
+
+
+def test_group_by_group_calibration_recovers_the_hidden_offsets(tmp_path):
+    with emulated(SPEC, offsets_seed=5) as (emu, path):
+        cal = None
+        for group in GROUPS:
+            cal = _calibrate(path, group, cal)
+        assert not any(m.torque_on for m in emu.motors)
+    assert cal.offsets == {m.name: m.mounting_offset for m in emu.motors}
+    assert set(cal.groups) == set(GROUPS)
+    save_calibration(cal, tmp_path / "tb-07.yaml")
+    loaded = load_calibration(tmp_path / "tb-07.yaml", SPEC, robot="tb-07")
+    assert loaded.offsets == cal.offsets
+
+
+def test_cli_calibrates_one_group_and_refuses_to_overwrite_with_implausible_values(tmp_path):
+    out = tmp_path / "tb-07.yaml"
+    runner = CliRunner()
+    cli = ["calibrate", "-o", str(out), "--robot", "tb-07", "--group", "neck"]
+    with emulated(SPEC, offsets_seed=1) as (emu, path):
+        result = runner.invoke(app, [*cli, "--port", path])
+        assert result.exit_code == 0, result.output
+        assert load_calibration(out).offsets == {m.name: m.mounting_offset for m in emu.motors[:2]}
+    good = out.read_bytes()
+    with emulated(SPEC, offsets_seed=2) as (emu, path):  # same robot "rebuilt": the neck offsets jump
+        result = runner.invoke(app, [*cli, "--port", path])
+        assert isinstance(result.exception, CalibrationError)
+        assert "refusing to overwrite good offsets" in str(result.exception)
+        assert "neck_yaw_drive moved" in str(result.exception)
+        assert out.read_bytes() == good  # nothing written
+        result = runner.invoke(app, [*cli, "--port", path, "--force"])
+        assert result.exit_code == 0
+        assert load_calibration(out).offsets["neck_yaw_drive"] == emu.motors[0].mounting_offset
+
+
+def test_a_moving_joint_is_implausible(tmp_path):
+    with emulated(SPEC) as (emu, path):
+        emu.plant.qd[0] = 6.0  # neck yaw swinging: its jig is not in place
+        with pytest.raises(CalibrationError, match=r"motor 0 \(neck_yaw_drive, XC330-T288\) is moving"):
+            _calibrate(path, "neck")
+
+
+def test_calibration_for_another_robot_or_spec_is_refused(tmp_path):
+    cal = Calibration("tb-07", "toddlerbot_v1", {m.joint: 2048 for m in SPEC.motors})
+    path = tmp_path / "tb-07.yaml"
+    save_calibration(cal, path)
+    with pytest.raises(CalibrationError, match=rf"{path}: calibration of robot 'tb-07', not of 'tb-08'"):
+        load_calibration(path, SPEC, robot="tb-08")
+    with pytest.raises(CalibrationError, match=rf"{path}: made for spec 'toddlerbot_v1'.*toddlerbot_v1\+gripper"):
+        load_calibration(path, SPEC.with_variant("gripper"))
+    with pytest.raises(CalibrationError, match="belongs to robot 'tb-07'"):
+        merge(cal, "tb-08", SPEC, "neck", {"neck_yaw_drive": 1})
+    partial = Calibration("tb-07", "toddlerbot_v1", {"neck_yaw_drive": 1})
+    with pytest.raises(CalibrationError, match=r"no zero offset for neck_pitch_drive.*ankle, arm, hip, neck"):
+        partial.offsets_for(SPEC)
+    with pytest.raises(CalibrationError, match="cannot read calibration file"):
+        load_calibration(tmp_path / "missing.yaml")
+
+
+def test_real_robot_applies_offsets_and_recovers_multi_turn_positions():
+    with emulated(SPEC, offsets_seed=9) as (emu, path):
+        cal = Calibration("tb", "toddlerbot_v1", {m.name: m.mounting_offset for m in emu.motors})
+        # power up with the neck yaw at +2.5 rad and the left hip pitch at -1.2 rad: readings wrap into 0..4095
+        emu.plant.q[0], emu.plant.q[4] = 2.5, -1.2
+        with emu.lock:
+            for m in emu.motors:
+                emu._power_up(m)
+        assert all(0 <= m.get("present_position") < 4096 for m in emu.motors)
+        with RealRobot(SPEC, path, cal, control_dt=0.01) as robot:
+            robot.bus.open()
+            robot.bus.scan()
+            state = robot.bus.read_state()
+            robot.resolve_turns(state.position)
+            q = robot._angles(state.position)
+            assert q[0] == pytest.approx(2.5, abs=2 * RAD_PER_PULSE)
+            assert q[4] == pytest.approx(-1.2, abs=2 * RAD_PER_PULSE)
+            assert np.abs(q - emu.plant.q).max() < 2 * RAD_PER_PULSE
+
+
+def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
+    with emulated(SPEC, offsets_seed=4) as (emu, path):
+        cal = Calibration("tb", "toddlerbot_v1", {m.name: m.mounting_offset for m in emu.motors})
+        with RealRobot(SPEC, path, cal, control_dt=0.01, reset_duration=0.3) as robot:
+            obs = robot.reset()
+            home = home_motor_angles(SPEC, robot)
+            for _ in range(30):
+                obs = robot.step(home)
+            assert np.abs(obs.motor_pos - home).max() < 0.05
+            assert obs.joint_pos == pytest.approx(robot.transmission.motor_to_joint(obs.motor_pos))
+            kp = robot.default_kp * 0.5
+            robot.step(home, kp=kp, kd=np.full(30, 7))
+            assert [m.get("position_p_gain") for m in emu.motors] == [int(k) for k in kp]
+            assert {m.get("position_d_gain") for m in emu.motors} == {7}
+            wild = home.copy()
+            wild[0] = 10.0  # beyond neck yaw's joint range: the goal is clipped to the range
+            robot.step(wild)
+            goal = emu.motor(0).get("goal_position")
+            assert robot._angles(np.array([goal]))[0] == pytest.approx(robot.upper[0], abs=RAD_PER_PULSE)
+        assert not any(m.torque_on for m in emu.motors)

@@ -1,0 +1,109 @@
+"""Policies, runner, logs, command parsing and bad-input errors."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from toddlerbot.cli.main import app
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies import make_policy
+from toddlerbot.policies.motions import MotionError, builtin_motions, load_motion
+from toddlerbot.robot.spec import load_spec
+from toddlerbot.runtime.commands import CommandError, CommandSchedule
+from toddlerbot.runtime.log import RunLog
+from toddlerbot.runtime.runner import run_policy
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return MuJoCoRobot()
+
+
+def test_command_schedule_parses_and_holds_values():
+    s = CommandSchedule.parse("0:0.1,0,0; 5:0,0,0.3")
+    np.testing.assert_array_equal(s(4.99), [0.1, 0, 0])
+    np.testing.assert_array_equal(s(7.0), [0, 0, 0.3])
+
+
+@pytest.mark.parametrize("text", ["0:0.1,0", "abc", "0;0.1,0,0", "1:0,0,0; 0:0,0,0", ""])
+def test_malformed_command_is_a_clear_error(text):
+    with pytest.raises(CommandError):
+        CommandSchedule.parse(text)
+
+
+def test_stand_holds_30_s_and_log_round_trips(robot, tmp_path):
+    res = run_policy(robot, make_policy("stand", robot), CommandSchedule.parse("0:0,0,0"), 30.0)
+    assert not res.fell
+    assert len(res.log.time) == 1500
+    assert res.log.base_pos[-1, 2] > 0.9 * res.log.base_pos[0, 2]
+    path = res.log.save(tmp_path / "run.npz")
+    back = RunLog.load(path)
+    np.testing.assert_array_equal(back.joint_pos, res.log.joint_pos)
+    assert back.joint_names == res.log.joint_names
+
+
+@pytest.mark.parametrize("motion", ["squat", "wave", "look_around"])
+def test_each_shipped_motion_completes_without_falling(robot, motion):
+    policy = make_policy("replay", robot, motion)
+    res = run_policy(robot, policy, lambda t: np.zeros(3), 30.0)
+    assert not res.fell
+    assert policy.done
+    assert res.log.time[-1] == pytest.approx(policy.motion.duration, abs=0.05)
+    # the motion was actually performed: the joints reached the keyframes' extremes
+    idx = [res.log.joint_names.index(j) for j in policy.motion.joints]
+    reached = np.abs(res.log.joint_pos[:, idx] - res.log.joint_pos[0, idx]).max(axis=0)
+    wanted = np.abs(policy.motion.poses - policy.motion.poses[0]).max(axis=0)
+    assert np.all(reached > 0.5 * wanted)
+
+
+def test_builtin_motions_shipped():
+    assert {"squat", "wave", "look_around"} <= set(builtin_motions())
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "m.yaml"
+    p.write_text(text)
+    return str(p)
+
+
+def test_motion_with_missing_joint_is_rejected(tmp_path):
+    path = _write(tmp_path, "joints: [neck_yaw, neck_pitch]\nkeyframes:\n - {t: 0, neck_yaw: 0, neck_pitch: 0}\n"
+                            " - {t: 1, neck_yaw: 10}\n")
+    with pytest.raises(MotionError, match=r"keyframe 1: missing joint.*neck_pitch"):
+        load_motion(path, load_spec())
+
+
+def test_motion_with_out_of_range_angle_is_rejected(tmp_path):
+    path = _write(tmp_path, "joints: [left_knee]\nkeyframes:\n - {t: 0, left_knee: 0}\n - {t: 1, left_knee: 45}\n")
+    with pytest.raises(MotionError, match="left_knee = 45 deg is out of range"):
+        load_motion(path, load_spec())
+
+
+def test_unknown_policy_is_a_clear_error(robot):
+    with pytest.raises(ToddlerbotError, match="unknown policy 'fly'"):
+        make_policy("fly", robot)
+
+
+def test_cli_bad_input_is_one_line_without_traceback(tmp_path):
+    from toddlerbot.cli import main as cli_main
+
+    for args in (["sim", "run", "--policy", "fly"], ["sim", "run", "--command", "0:oops"]):
+        with pytest.raises(SystemExit) as exc:
+            import sys
+
+            sys.argv = ["toddlerbot", *args]
+            cli_main.main()
+        assert exc.value.code == 2
+
+
+def test_cli_stand_writes_summary_json(tmp_path):
+    out = tmp_path / "s.json"
+    result = CliRunner().invoke(app, ["sim", "run", "--policy", "stand", "--seconds", "2", "--summary-json", str(out)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(out.read_text())
+    assert summary["fell"] is False
+    assert set(summary["tracking"]) == {"position_m", "lin_vel_mps", "ang_vel_radps"}
+    assert np.hypot(*summary["displacement_m"]) < 0.02

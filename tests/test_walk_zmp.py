@@ -1,0 +1,166 @@
+"""ZMP walking: the generator is deterministic and consistent; the simulated robot walks the commanded distances."""
+
+import numpy as np
+import pytest
+
+from toddlerbot.locomotion.config import WalkConfig
+from toddlerbot.locomotion.preview import preview_gains, preview_step
+from toddlerbot.locomotion.zmp_walk import ZMPWalk
+from toddlerbot.policies.walk_zmp import StrideCalibration, WalkZMPPolicy
+from toddlerbot.runtime.commands import CommandSchedule
+from toddlerbot.runtime.runner import run_policy
+from toddlerbot.runtime.summary import summarize
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return ZMPWalk()
+
+
+def test_preview_control_tracks_a_zmp_step():
+    g = preview_gains(0.02, 0.3, 60, 1.0, 1e-6)
+    ref = np.zeros((300, 2))
+    ref[100:, 1] = 0.04
+    x, e = np.zeros((3, 2)), np.zeros(2)
+    for k in range(230):
+        x, e, zmp = preview_step(g, x, e, ref[k : k + 61])
+    assert abs(x[0, 1] - 0.04) < 1e-3  # the CoM settles over the new support point
+    assert abs(zmp[1] - 0.04) < 1e-3
+
+
+def test_reference_is_deterministic_and_matches_online_stepping(walk):
+    cmd = np.array([0.1, 0.0, 0.2])
+    traj = walk.trajectory(cmd, 2.0)
+    again = ZMPWalk().trajectory(cmd, 2.0)
+    np.testing.assert_array_equal(traj.joint_pos, again.joint_pos)
+    ref = walk.reference(cmd, 1.5)
+    np.testing.assert_allclose(ref.joint_pos, traj.joint_pos[75], atol=1e-12)
+    assert ref.time == pytest.approx(1.5)
+
+
+def test_planned_feet_follow_the_command(walk):
+    traj = walk.trajectory(np.array([0.1, 0.0, 0.0]), 10.0)
+    assert traj.foot_pos[-1, :, 0].mean() == pytest.approx(0.1 * (10.0 - walk.config.start_time), abs=0.06)
+    # single support: exactly one foot planned in contact; the planned ZMP stays near its reference
+    assert np.all(traj.contact.sum(axis=1) >= 1)
+    assert np.max(np.abs(traj.zmp - traj.zmp_ref)) < 0.04
+    # the legs' forward kinematics put the feet where the plan says (relative to the torso)
+    i = 300
+    pos, _ = walk.ik.forward(traj.joint_pos[i][walk._leg_index])
+    yaw = traj.torso_yaw[i]
+    c, s = np.cos(yaw), np.sin(yaw)
+    rel = (traj.foot_pos[i] - traj.torso_pos[i]) @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    np.testing.assert_allclose(pos, rel, atol=1e-5)
+
+
+def test_gait_config_is_validated():
+    with pytest.raises(ValueError, match="double_support_ratio"):
+        WalkConfig(double_support_ratio=1.2)
+
+
+def test_leg_mass_correction_puts_the_whole_robot_com_on_the_plan():
+    walk = ZMPWalk(WalkConfig(leg_mass_correction=True))
+    traj = walk.trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
+    for i in (30, 40, 47):  # standing, double support, single support (swing leg moving)
+        com = traj.torso_pos[i] + walk.ik.com(traj.joint_pos[i][walk._leg_index])  # torso upright, yaw ~0
+        np.testing.assert_allclose(com[:2], traj.com_pos[i, :2], atol=2e-3)
+    # without it the home-pose CoM offset is kept and the swing leg moves the real CoM off the plan
+    home = ZMPWalk().trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
+    i = 47
+    com = home.torso_pos[i] + walk.ik.com(home.joint_pos[i][walk._leg_index])
+    assert np.linalg.norm(com[:2] - home.com_pos[i, :2]) > 2e-3
+
+
+def _walk(cmd, seconds=10.0):
+    robot = MuJoCoRobot()
+    commands = cmd if callable(cmd) else (lambda t: np.array(cmd))
+    res = run_policy(robot, WalkZMPPolicy(robot), commands, seconds)
+    return summarize(res.log, res.fell, res.fall_time)
+
+
+def _commanded(commands, seconds, dt=0.02):
+    """(dx, dy, dyaw) the commands integrate to over ``seconds``, in the start heading frame."""
+    cmd = np.array([commands(i * dt) for i in range(round(seconds / dt))])
+    yaw = np.concatenate([[0.0], np.cumsum(cmd[:-1, 2] * dt)])
+    return (np.sum(np.cos(yaw) * cmd[:, 0] - np.sin(yaw) * cmd[:, 1]) * dt,
+            np.sum(np.sin(yaw) * cmd[:, 0] + np.cos(yaw) * cmd[:, 1]) * dt, np.sum(cmd[:, 2]) * dt)
+
+
+SCHEDULE = "0:0.1,0,0; 3:0,0.05,0; 5.5:-0.05,0,0.2"
+# (command, achieved/commanded ratio window per axis that is asserted; axes with a small command get an
+# absolute drift bound instead). Ratios measured on 6 s walks (docs/simulation.md): within 25 % except three
+# known gaps whose windows are regression bounds around the measured value, not goals: backwards over-strides
+# (x1.39), slow forward (x0.71) and fast sideways (x0.71) under-stride.
+GRID = [
+    ((-0.1, 0.0, 0.0), {0: (1.25, 1.55)}),
+    ((0.05, 0.0, 0.0), {0: (0.6, 0.85)}),
+    ((0.15, 0.0, 0.0), {0: (0.9, 1.25)}),
+    ((0.0, -0.05, 0.0), {1: (0.75, 1.25)}),
+    ((0.0, 0.08, 0.0), {1: (0.6, 0.85)}),
+    ((0.0, 0.0, -0.3), {2: (0.85, 1.15)}),
+    ((0.08, 0.03, 0.2), {0: (0.75, 1.25), 1: (0.75, 1.25), 2: (0.85, 1.15)}),
+    (SCHEDULE, {0: (0.75, 1.25), 1: (0.75, 1.25)}),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cmd,windows", GRID, ids=lambda v: str(v) if not isinstance(v, dict) else "")
+def test_command_grid_6_s(cmd, windows):
+    commands = CommandSchedule.parse(cmd) if isinstance(cmd, str) else (lambda t: np.array(cmd))
+    s = _walk(commands, 6.0)
+    assert not s.fell
+    achieved = (*s.displacement_m, s.yaw_change_rad)
+    commanded = _commanded(commands, 6.0)
+    for axis, (lo, hi) in windows.items():
+        assert lo <= achieved[axis] / commanded[axis] <= hi, (axis, achieved, commanded)
+    for axis in set(range(2)) - set(windows):
+        assert abs(achieved[axis]) < 0.15, (axis, achieved)  # drift on an axis with no command
+    if 2 not in windows:
+        assert abs(achieved[2] - commanded[2]) < 0.15
+
+
+# Windows: the issue's outcome windows, narrowed to the goals the policy meets with margin (measured figures in
+# docs/simulation.md); drift bounds sit about twice above the measured drift.
+@pytest.mark.slow
+def test_walks_forward_0p1_mps_for_10_s():
+    s = _walk([0.1, 0.0, 0.0])
+    assert not s.fell
+    assert 0.9 <= s.displacement_m[0] <= 1.1  # issue window 0.8-1.2 m; 0.96 m planned after the 0.4 s start
+    assert abs(s.displacement_m[1]) < 0.08  # heading hold: no sideways drift
+    assert abs(s.yaw_change_rad) < 0.1
+    assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03 and s.tracking.ang_vel_radps < 0.05
+
+
+@pytest.mark.slow
+def test_turns_in_place_at_0p3_radps():
+    s = _walk([0.0, 0.0, 0.3])
+    assert not s.fell
+    assert 2.7 <= s.yaw_change_rad <= 3.3  # issue window 2.4-3.6 rad; 2.88 rad commanded after the start
+    assert np.hypot(*s.displacement_m) < 0.3
+    assert s.tracking.ang_vel_radps < 0.06
+
+
+@pytest.mark.slow
+def test_steps_sideways_at_0p05_mps():
+    s = _walk([0.0, 0.05, 0.0])
+    assert not s.fell
+    assert 0.45 <= s.displacement_m[1] <= 0.55  # issue window 0.35-0.65 m; 0.48 m planned after the start
+    assert abs(s.displacement_m[0]) < 0.12  # the stride calibration cancels the backward slip
+    assert abs(s.yaw_change_rad) < 0.1
+    assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03
+
+
+def test_feedback_signs_come_from_the_model():
+    robot = MuJoCoRobot()
+    policy = WalkZMPPolicy(robot)
+    # mirrored joints (hip roll, ankle pitch) get opposite signs on the two legs; ankle roll is not mirrored
+    np.testing.assert_array_equal(policy._ankle_pitch_sign, [1.0, -1.0])
+    np.testing.assert_array_equal(policy._hip_roll_sign, [-1.0, 1.0])
+    np.testing.assert_array_equal(policy._ankle_roll_sign, [1.0, 1.0])
+
+
+def test_stride_calibration_compensates_sideways_back_slip_both_ways():
+    cal = StrideCalibration(vx_gain=1.0, vy_gain=1.2, vx_per_vy=0.5)
+    np.testing.assert_allclose(cal.apply(np.array([0.0, 0.05, 0.1])), [0.025, 0.06, 0.1])
+    np.testing.assert_allclose(cal.apply(np.array([0.1, -0.05, 0.0])), [0.125, -0.06, 0.0])
