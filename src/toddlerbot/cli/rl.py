@@ -11,7 +11,7 @@ import typer
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 
-app = typer.Typer(help="Reinforcement-learning locomotion (needs the [train] extra: jax, mujoco-mjx, brax).",
+app = typer.Typer(help="Reinforcement-learning locomotion (needs the \\[train] extra: jax, mujoco-mjx, brax).",
                   no_args_is_help=True)
 
 DEFAULT_EXPORT = Path(__file__).resolve().parents[1] / "policies" / "weights" / "walk_rl.npz"
