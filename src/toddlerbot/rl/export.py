@@ -61,14 +61,15 @@ def export_run(run_dir: Path, out: Path) -> Path:
     obs_size = env_cfg.obs.history * env_cfg.obs.frame_size(len(home_motor_pos(load_spec())))
     arrays = policy_arrays(state.params.policy, state.normalizer_params, ppo_cfg.normalize_observations, obs_size)
     last = history[-1] if history else {}
-    meta = {"ctrl_dt": env_cfg.ctrl_dt, "reference": env_cfg_reference(run_dir), "run": run_dir.name, "checkpoint": paths[-1].name, "env_steps": int(state.env_steps),
+    meta = {"ctrl_dt": env_cfg.ctrl_dt, "reference": run_reference_source(run_dir), "run": run_dir.name,
+            "checkpoint": paths[-1].name, "env_steps": int(state.env_steps),
             "walltime_s": last.get("walltime"), "episode_reward": last.get("episode_reward"),
             "step_reward": last.get("step_reward"), "sps": last.get("sps"),
             "policy_hidden": list(ppo_cfg.policy_hidden)}
     return write_policy(out, arrays, env_cfg, meta)
 
 
-def env_cfg_reference(run_dir: Path) -> str | None:
+def run_reference_source(run_dir: Path) -> str | None:
     """The reference source ("zmp" or "standing") a run recorded, if any."""
     path = Path(run_dir) / "reference.txt"
     return path.read_text().strip() if path.is_file() else None
