@@ -108,15 +108,16 @@ POLICIES = ("walk-rl", "walk-zmp")
 
 
 def _make_policy(name: str, robot, weights: Path | None):
+    """walk-rl from an exported file; every other walking policy from the runtime's registry."""
+    if name not in POLICIES:
+        raise ValueError(f"unknown policy {name!r}; expected one of {', '.join(POLICIES)}")
     if name == "walk-rl":
         from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy
 
         return WalkRLPolicy(robot, weights or DEFAULT_WEIGHTS)
-    if name == "walk-zmp":
-        from toddlerbot.policies.walk_zmp import WalkZMPPolicy
+    from toddlerbot.policies import make_policy
 
-        return WalkZMPPolicy(robot)
-    raise ValueError(f"unknown policy {name!r}; expected one of {', '.join(POLICIES)}")
+    return make_policy(name, robot)
 
 
 def plot_tracking(result: TrackingResult, title: str, path: Path) -> Path:
