@@ -124,6 +124,12 @@ def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState,
         state = serialization.from_state_dict(template, payload["state"])
     except (ValueError, KeyError) as exc:
         raise ToddlerbotError(f"{path}: not a checkpoint of this configuration ({exc})") from exc
+    shapes = [(np.shape(a), np.shape(b)) for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template),
+                                                         strict=True)]
+    if any(a != b for a, b in shapes):
+        first = next((a, b) for a, b in shapes if a != b)
+        raise ToddlerbotError(f"{path}: not a checkpoint of this configuration (array of shape {first[0]} where "
+                              f"the networks need {first[1]})")
     return state, jnp.asarray(payload["key"]), json.loads(payload["history"])
 
 
