@@ -56,3 +56,5 @@ def test_cli_resume_and_export_without_a_run_fail_with_one_line(tmp_path):
     assert result.exit_code != 0 and "config.json missing" in str(result.exception)
     result = runner.invoke(app, ["rl", "export", str(tmp_path)])
     assert result.exit_code != 0 and "config.json missing" in str(result.exception)
+    result = runner.invoke(app, ["rl", "train", "--num-envs", "3", "--out", str(tmp_path / "x")])
+    assert result.exit_code != 0 and "multiple of num_envs (3)" in str(result.exception)

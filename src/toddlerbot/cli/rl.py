@@ -64,10 +64,13 @@ def train(
         run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
         env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
         ppo_cfg = replace(config.SMOKE if smoke else config.FULL, seed=seed)
-        if timesteps is not None:
-            ppo_cfg = replace(ppo_cfg, num_timesteps=timesteps)
-        if num_envs is not None:
-            ppo_cfg = replace(ppo_cfg, num_envs=num_envs)
+        try:
+            if timesteps is not None:
+                ppo_cfg = replace(ppo_cfg, num_timesteps=timesteps)
+            if num_envs is not None:
+                ppo_cfg = replace(ppo_cfg, num_envs=num_envs)
+        except ValueError as exc:
+            raise ToddlerbotError(f"--num-envs/--timesteps: {exc}") from exc
     console.print(f"run directory: {run_dir}")
     if smoke and resume is None:
         run_dir.mkdir(parents=True, exist_ok=True)
