@@ -8,7 +8,8 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from toddlerbot.cli import actuator, design, hw, model, sim, sysid
+from toddlerbot.cli import actuator, design, hw, model, rl, sim, sysid
+from toddlerbot.cli import eval as eval_cli
 from toddlerbot.errors import ToddlerbotError
 
 app = typer.Typer(
@@ -22,6 +23,8 @@ app.add_typer(sim.app, name="sim")
 app.add_typer(actuator.app, name="actuator")
 app.add_typer(sysid.app, name="sysid")
 app.add_typer(hw.app, name="hw")
+app.add_typer(rl.app, name="rl")
+app.add_typer(eval_cli.app, name="eval")
 
 
 def main() -> None:

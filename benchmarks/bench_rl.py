@@ -1,0 +1,94 @@
+"""RL figures: numpy inference latency of a full-size policy, and (with --env) MJX environment JIT-compile time
+and env steps per second on this machine.
+
+    PYTHONPATH=src python benchmarks/bench_rl.py            # inference only (seconds)
+    PYTHONPATH=src python benchmarks/bench_rl.py --env      # + MJX env compile and throughput (minutes on CPU)
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def bench_inference(repeats: int = 2000) -> None:
+    from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig, RLController, RLPolicyFile
+    from toddlerbot.rl.config import FULL, EnvConfig
+    from toddlerbot.rl.export import write_policy
+
+    obs = ObsConfig(gait_period=0.72)
+    n_in = obs.history * obs.frame_size(30)
+    rng = np.random.default_rng(0)
+    sizes = [n_in, *FULL.policy_hidden, 2 * len(LEG_MOTORS)]
+    arrays = {}
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
+        arrays[f"layer{i}_kernel"] = (rng.normal(size=(a, b)) / np.sqrt(a)).astype(np.float32)
+        arrays[f"layer{i}_bias"] = np.zeros(b, np.float32)
+    arrays["obs_mean"], arrays["obs_std"] = np.zeros(n_in, np.float32), np.ones(n_in, np.float32)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {})
+        ctrl = RLController(RLPolicyFile(path))
+    home = ctrl.policy.home_motor_pos
+    quat = np.array([1.0, 0, 0, 0])
+    for _ in range(50):
+        ctrl.step(0.0, np.zeros(3), home, np.zeros(30), np.zeros(3), quat)
+    times = np.empty(repeats)
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        ctrl.step(i * 0.02, np.array([0.1, 0, 0]), home, np.zeros(30), np.zeros(3), quat)
+        times[i] = time.perf_counter() - t0
+    print(f"numpy inference, policy {sizes} ({n_in} inputs = {obs.history} frames): "
+          f"median {np.median(times) * 1e3:.3f} ms, p99 {np.percentile(times, 99) * 1e3:.3f} ms per 50 Hz step")
+
+
+def bench_env(batches: tuple[int, ...], steps: int) -> None:
+    import jax
+    import jax.numpy as jnp
+
+    from toddlerbot.rl.config import EnvConfig
+    from toddlerbot.rl.env import WalkEnv
+
+    t0 = time.perf_counter()
+    env = WalkEnv(EnvConfig())
+    print(f"env construction (incl. ZMP reference table, {env.reference_source}): {time.perf_counter() - t0:.1f} s")
+    for batch in batches:
+        reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+        t0 = time.perf_counter()
+        state = reset(jax.random.split(jax.random.PRNGKey(0), batch))
+        jax.block_until_ready(state.obs)
+        t_reset = time.perf_counter() - t0
+        action = jnp.zeros((batch, env.action_size))
+        t0 = time.perf_counter()
+        state = step(state, action)
+        jax.block_until_ready(state.obs)
+        t_step = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            state = step(state, action)
+        jax.block_until_ready(state.obs)
+        rate = batch * steps / (time.perf_counter() - t0)
+        print(f"batch {batch:4d}: compile reset {t_reset:.1f} s, step {t_step:.1f} s; {rate:.0f} env steps/s "
+              f"({rate * env.cfg.n_substeps:.0f} physics steps/s, {rate * env.cfg.ctrl_dt:.2f}x real time)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--env", action="store_true", help="also benchmark the MJX environment (slow on CPU)")
+    parser.add_argument("--batches", type=int, nargs="+", default=[1, 32])
+    parser.add_argument("--steps", type=int, default=20)
+    args = parser.parse_args()
+    print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}")
+    bench_inference()
+    if args.env:
+        bench_env(tuple(args.batches), args.steps)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,61 @@
+"""``toddlerbot eval``: evaluate walking policies in the CPU simulator."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
+
+app = typer.Typer(help="Evaluate policies in simulation (appendix Table 7).", no_args_is_help=True)
+
+
+@app.command()
+def tracking(
+    policy: Annotated[str, typer.Option(help="walk-rl or walk-zmp.")] = "walk-rl",
+    commands: Annotated[str | None, typer.Option(
+        help="Command schedule in the runtime syntax, e.g. '0:0.1,0,0; 5:0,0,0.3' (default: the documented "
+             "evaluation schedule).")] = None,
+    seconds: Annotated[float | None, typer.Option(help="Duration, s (default 26 s, or 5 s past the last command "
+                                                         "of --commands).")] = None,
+    weights: Annotated[Path | None, typer.Option(help="Exported RL policy (.npz) for walk-rl.")] = None,
+    plot: Annotated[Path | None, typer.Option(help="Where to save the commanded-vs-achieved velocity plot.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
+) -> None:
+    """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls."""
+    from toddlerbot.rl.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, POLICIES, evaluate_policy, plot_tracking
+    from toddlerbot.runtime.commands import CommandSchedule
+
+    if policy not in POLICIES:
+        raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
+    schedule_text = commands or DEFAULT_COMMANDS
+    if seconds is None:
+        seconds = DEFAULT_SECONDS if commands is None else CommandSchedule.parse(commands, "--commands").times[-1] + 5
+    if seconds <= 0:
+        raise ToddlerbotError(f"--seconds must be > 0, got {seconds}")
+    with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not as_json else _null():
+        result = evaluate_policy(policy, schedule_text, seconds, weights)
+    summary = result.summary()
+    if plot is not None:
+        plot_tracking(result, policy, plot)
+    if as_json:
+        print(json.dumps(summary))
+        return
+    console.print(f"[bold]{policy}[/]: position {summary['position_m']:.3f} m, linear velocity "
+                  f"{summary['lin_vel_mps']:.3f} m/s, angular velocity {summary['ang_vel_radps']:.3f} rad/s, "
+                  f"falls {summary['falls']} ({summary['duration_s']:.1f} s simulated)")
+    console.print("appendix Table 7 (simulation): 0.082 m, 0.016 m/s, 0.056 rad/s")
+    if plot is not None:
+        console.print(f"plot: {plot}")
+
+
+class _null:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> None:
+        return None

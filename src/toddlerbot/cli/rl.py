@@ -1,0 +1,106 @@
+"""``toddlerbot rl``: train a walking policy with PPO in MJX and export it for numpy inference."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
+
+app = typer.Typer(help="Reinforcement-learning locomotion (needs the \\[train] extra: jax, mujoco-mjx, brax).",
+                  no_args_is_help=True)
+
+DEFAULT_EXPORT = Path(__file__).resolve().parents[1] / "policies" / "weights" / "walk_rl.npz"
+
+
+def _require_jax() -> None:
+    try:
+        import brax  # noqa: F401
+        import jax  # noqa: F401
+        from mujoco import mjx  # noqa: F401
+    except ImportError as exc:
+        raise ToddlerbotError(f"RL training needs the [train] extra (pip install 'toddlerbot[train]'): {exc}") from exc
+
+
+@app.command()
+def train(
+    out: Annotated[Path | None, typer.Option(help="Run directory (default runs/rl/<timestamp>).")] = None,
+    smoke: Annotated[bool, typer.Option(help="Tiny configuration that finishes on a 2-core CPU in minutes.")] = False,
+    resume: Annotated[Path | None, typer.Option(help="Continue the run in this directory from its last checkpoint.")]
+    = None,
+    timesteps: Annotated[int | None, typer.Option(help="Override the number of environment steps.")] = None,
+    num_envs: Annotated[int | None, typer.Option(help="Override the number of parallel environments.")] = None,
+    seed: Annotated[int, typer.Option(help="PRNG seed.")] = 0,
+    minutes: Annotated[float | None, typer.Option(help="Stop after the epoch that passes this wall time (resume "
+                                                       "later with --resume).")] = None,
+    epochs: Annotated[int | None, typer.Option(help="Stop after this many epochs (resume later with --resume).")]
+    = None,
+) -> None:
+    """Run PPO (Table 5 hyperparameters unless --smoke) with checkpoints, evaluation and a training curve."""
+    import os
+
+    from toddlerbot.rl.config import SMOKE_XLA_FLAGS
+
+    smoke_run = smoke or (resume is not None and (resume / "smoke").is_file())
+    if smoke_run:  # must be set before JAX starts its CPU backend
+        os.environ.setdefault("XLA_FLAGS", SMOKE_XLA_FLAGS)
+    _require_jax()
+    from dataclasses import replace
+
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from toddlerbot.rl import config, plot
+    from toddlerbot.rl import train as training
+
+    if resume is not None:
+        run_dir, env_cfg, ppo_cfg = resume, None, None
+        if not (resume / "config.json").is_file():
+            raise ToddlerbotError(f"{resume}: no training run to resume (config.json missing)")
+    else:
+        run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
+        env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
+        ppo_cfg = replace(config.SMOKE if smoke else config.FULL, seed=seed)
+        try:
+            if timesteps is not None:
+                ppo_cfg = replace(ppo_cfg, num_timesteps=timesteps)
+            if num_envs is not None:
+                ppo_cfg = replace(ppo_cfg, num_envs=num_envs)
+        except ValueError as exc:
+            raise ToddlerbotError(f"--num-envs/--timesteps: {exc}") from exc
+    console.print(f"run directory: {run_dir}")
+    if smoke and resume is None:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / "smoke").write_text("this run uses the --smoke configuration\n")
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
+                  TimeElapsedColumn(), console=console) as bar:
+        task = bar.add_task("compiling + training", total=None, info="")
+
+        def progress(done: int, total: int, m: dict) -> None:
+            bar.update(task, completed=done, total=total, description="training",
+                       info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  {m['sps']:.0f} steps/s")
+
+        _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress,
+                                    time_limit_s=None if minutes is None else 60 * minutes, max_epochs=epochs)
+    if not history:
+        raise ToddlerbotError(f"{run_dir}: no epoch ran (limits too tight?)")
+    png = plot.training_curve(history, run_dir / "training_curve.png")
+    last = history[-1]
+    console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s "
+                  f"({last['sps']:.0f} steps/s), reward/step {last['step_reward']:.3f}; curve {png}")
+
+
+@app.command()
+def export(
+    run: Annotated[Path, typer.Argument(help="Training run directory.")],
+    out: Annotated[Path, typer.Option(help="Exported .npz.")] = DEFAULT_EXPORT,
+) -> None:
+    """Write the run's latest checkpoint as a numpy-only policy file for the `walk-rl` runtime policy."""
+    _require_jax()
+    from toddlerbot.rl.export import export_run
+
+    path = export_run(run, out)
+    console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")

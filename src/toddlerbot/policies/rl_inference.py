@@ -1,0 +1,167 @@
+"""Numpy-only inference of an exported RL walking policy (no JAX: this runs on the robot's CPU at 50 Hz).
+
+An exported policy is one ``.npz`` file holding
+
+* ``layer{i}_kernel`` / ``layer{i}_bias``: the actor MLP (swish hidden activations, linear output whose first
+  half is the mean of a tanh-Normal; the deterministic action is ``tanh(mean)``),
+* ``obs_mean`` / ``obs_std``: the observation normalisation learned during training,
+* ``home_motor_pos``: motor angles of the home pose (rad, motor-id order), ``leg_motor_index``: the 12
+  commanded motors, ``motor_names``,
+* ``obs_config``: the `ObsConfig` as JSON, ``meta``: training metadata as JSON.
+
+`obs_frame` is the single definition of one observation frame; the MJX environment builds its frames with the
+same function (``xp=jax.numpy``), which is what makes training and deployment agree.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+
+from toddlerbot.errors import ToddlerbotError
+
+LEG_MOTORS = (
+    "left_hip_pitch", "left_hip_roll", "left_hip_yaw_drive", "left_knee_drive", "left_ankle_roll",
+    "left_ankle_pitch", "right_hip_pitch", "right_hip_roll", "right_hip_yaw_drive", "right_knee_drive",
+    "right_ankle_roll", "right_ankle_pitch",
+)
+"""The 12 motors an RL walking policy commands (motor joint names of the spec)."""
+
+
+@dataclass(frozen=True)
+class ObsConfig:
+    """What the actor observes; stored in the exported file so inference builds the trained observation."""
+
+    history: int = 15
+    """Frames stacked in the actor observation (newest first)."""
+    action_scale: float = 0.25
+    """Leg motor target = home + action_scale * action, rad per unit action."""
+    motor_vel_scale: float = 0.05
+    """Motor speeds (rad/s) are multiplied by this."""
+    gyro_scale: float = 0.25
+    """IMU angular velocity (rad/s) is multiplied by this."""
+    gait_period: float | None = None
+    """s per gait cycle; the phase features are sin and cos of 2*pi*t/period. None (in a training config) means
+    the walking reference's period; exported files always hold the number."""
+    noise_motor_pos: float = 0.02
+    """Training noise half-widths at noise level 1: motor angle rad, motor speed rad/s, gyro rad/s, gravity
+    (unit vector). Not used at inference."""
+    noise_motor_vel: float = 1.0
+    noise_gyro: float = 0.1
+    noise_gravity: float = 0.05
+
+    def frame_size(self, n_motors: int) -> int:
+        """Features per frame: phase 2, command 3, motor angles relative to home and motor speeds (n_motors
+        each), last action 12, gyro 3, gravity direction in the IMU frame 3."""
+        return 2 + 3 + 2 * n_motors + len(LEG_MOTORS) + 3 + 3
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self))
+
+    @classmethod
+    def from_json(cls, text: str) -> ObsConfig:
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in json.loads(text).items() if k in names})
+
+
+def gravity_in_frame(quat, xp: ModuleType = np):
+    """Unit gravity direction expressed in the frame with orientation quat (w, x, y, z, frame -> world)."""
+    w, x, y, z = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
+    # third row of the rotation matrix, negated: R^T @ (0, 0, -1)
+    return -xp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1)
+
+
+def obs_frame(t, command, motor_pos, home_motor_pos, motor_vel, last_action, gyro, gravity, cfg: ObsConfig,
+              xp: ModuleType = np):
+    """One actor observation frame (see `ObsConfig.frame_size`); t in s, command (vx, vy, yaw rate)."""
+    angle = 2 * np.pi * t / cfg.gait_period
+    phase = xp.stack([xp.sin(angle), xp.cos(angle)])
+    return xp.concatenate([
+        phase, command, motor_pos - home_motor_pos, motor_vel * cfg.motor_vel_scale, last_action,
+        gyro * cfg.gyro_scale, gravity,
+    ])
+
+
+def _swish(x: np.ndarray) -> np.ndarray:
+    """x * sigmoid(x), with the sigmoid written through tanh so that no exponential overflows."""
+    return x * (0.5 + 0.5 * np.tanh(0.5 * x))
+
+
+class RLPolicyFile:
+    """An exported policy loaded for numpy inference."""
+
+    def __init__(self, path: str | Path) -> None:
+        path = Path(path)
+        if not path.is_file():
+            raise ToddlerbotError(f"{path}: exported policy not found (run `toddlerbot rl export`)")
+        with np.load(path) as data:
+            try:
+                n_layers = len([k for k in data.files if k.endswith("_kernel")])
+                self.kernels = [data[f"layer{i}_kernel"].astype(np.float32) for i in range(n_layers)]
+                self.biases = [data[f"layer{i}_bias"].astype(np.float32) for i in range(n_layers)]
+                self.obs_mean = data["obs_mean"].astype(np.float32)
+                self.obs_std = data["obs_std"].astype(np.float32)
+                self.home_motor_pos = data["home_motor_pos"].astype(float)
+                self.leg_motor_index = data["leg_motor_index"].astype(int)
+                self.motor_names = tuple(str(n) for n in data["motor_names"])
+                self.obs_config = ObsConfig.from_json(str(data["obs_config"]))
+                self.meta = json.loads(str(data["meta"]))
+            except KeyError as exc:
+                raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from exc
+        self.path = path
+        expected = self.obs_config.history * self.obs_config.frame_size(len(self.home_motor_pos))
+        if self.kernels[0].shape[0] != expected or self.obs_mean.shape != (expected,):
+            raise ToddlerbotError(f"{path}: network input {self.kernels[0].shape[0]} does not match the observation "
+                                  f"config ({expected} = {self.obs_config.history} frames)")
+
+    def action(self, obs: np.ndarray) -> np.ndarray:
+        """Deterministic action in [-1, 1]^12 for one normalised-on-the-fly observation vector."""
+        x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
+        for i, (k, b) in enumerate(zip(self.kernels, self.biases, strict=True)):
+            # einsum runs single-threaded: a threaded BLAS gemv stalls for milliseconds on a busy CPU
+            x = np.einsum("i,ij->j", x, k) + b
+            if i < len(self.kernels) - 1:
+                x = _swish(x)
+        return np.tanh(x[: len(self.leg_motor_index)])
+
+
+class RLController:
+    """Keeps the observation history and last action; turns robot state + command into motor targets."""
+
+    def __init__(self, policy: RLPolicyFile) -> None:
+        self.policy = policy
+        self.cfg = policy.obs_config
+        self.reset()
+
+    def reset(self) -> None:
+        self.history: np.ndarray | None = None
+        self.last_action = np.zeros(len(self.policy.leg_motor_index))
+
+    def observation(self, t: float, command: np.ndarray, motor_pos: np.ndarray, motor_vel: np.ndarray,
+                    gyro: np.ndarray, imu_quat: np.ndarray) -> np.ndarray:
+        """Push a new frame (robot state at time t s since the gait started) and return the stacked history."""
+        frame = obs_frame(t, np.asarray(command, float), motor_pos, self.policy.home_motor_pos, motor_vel,
+                          self.last_action, gyro, gravity_in_frame(np.asarray(imu_quat, float)), self.cfg)
+        if self.history is None:
+            self.history = np.tile(frame, (self.cfg.history, 1))
+        else:
+            self.history = np.concatenate([frame[None], self.history[:-1]])
+        return self.history.reshape(-1)
+
+    def motor_targets(self, action: np.ndarray) -> np.ndarray:
+        """Motor position targets (rad, motor-id order): home pose with the leg offsets of the action."""
+        targets = self.policy.home_motor_pos.copy()
+        targets[self.policy.leg_motor_index] += self.cfg.action_scale * action
+        return targets
+
+    def step(self, t: float, command: np.ndarray, motor_pos: np.ndarray, motor_vel: np.ndarray,
+             gyro: np.ndarray, imu_quat: np.ndarray) -> np.ndarray:
+        """One 50 Hz control step: observation -> action -> motor targets."""
+        obs = self.observation(t, command, motor_pos, motor_vel, gyro, imu_quat)
+        action = self.policy.action(obs)
+        self.last_action = action
+        return self.motor_targets(action)

@@ -1,0 +1,40 @@
+"""`walk-rl`: an exported RL walking policy run with numpy at the control rate (simulation or real robot)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.base import Action, Policy
+from toddlerbot.policies.rl_inference import RLController, RLPolicyFile
+from toddlerbot.robot.interface import Observation, Robot
+
+DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "walk_rl.npz"
+
+
+class WalkRLPolicy(Policy):
+    name = "walk-rl"
+
+    def __init__(self, robot: Robot, weights: str | Path = DEFAULT_WEIGHTS) -> None:
+        super().__init__(robot)
+        policy = RLPolicyFile(weights)
+        if tuple(policy.motor_names) != tuple(robot.motor_names):
+            raise ToddlerbotError(f"{policy.path}: trained for motors {policy.motor_names[:3]}..., but the robot has "
+                                  f"{robot.motor_names[:3]}... ({len(robot.motor_names)} motors)")
+        trained_dt = policy.meta.get("ctrl_dt", robot.control_dt)
+        if abs(robot.control_dt - trained_dt) > 1e-9:
+            raise ToddlerbotError(f"{policy.path}: trained at a {trained_dt} s control period; the robot runs at "
+                                  f"{robot.control_dt} s")
+        self.controller = RLController(policy)
+        self._t0 = 0.0
+
+    def reset(self, obs: Observation) -> None:
+        self.controller.reset()
+        self._t0 = obs.time
+
+    def act(self, obs: Observation, command: np.ndarray) -> Action:
+        targets = self.controller.step(obs.time - self._t0, command, obs.motor_pos, obs.motor_vel, obs.imu_ang_vel,
+                                       obs.imu_quat)
+        return Action(motor_targets=targets, joint_targets=self.transmission.motor_to_joint(targets))

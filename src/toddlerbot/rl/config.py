@@ -1,0 +1,169 @@
+"""Plain-data configuration of the walking environment, its rewards, domain randomisation and PPO.
+
+Every number the RL stack uses is defined here once; the exported policy file carries the observation
+part of it (`ObsConfig`) so inference builds exactly the observations the policy was trained on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig
+
+__all__ = ["LEG_MOTORS", "ObsConfig"]
+
+@dataclass(frozen=True)
+class CommandConfig:
+    """Velocity commands (torso yaw frame): vx, vy m/s, yaw rate rad/s, snapped to the reference grid.
+
+    The ranges are those the ZMP generator tabulates without leg-IK failures today (0.15 m/s forward with
+    0.1 m/s sideways is out of its reach); widen them together with the generator."""
+
+    vx: tuple[float, float] = (-0.1, 0.1)
+    vy: tuple[float, float] = (-0.05, 0.05)
+    yaw: tuple[float, float] = (-0.4, 0.4)
+    grid: tuple[int, int, int] = (5, 3, 5)
+    """Grid points along vx, vy, yaw (each range includes 0 as a grid point when it straddles 0)."""
+    stand_prob: float = 0.15
+    """Probability that a sampled command is zero (stand still)."""
+    turn_prob: float = 0.15
+    """Probability that a sampled command is a pure turn in place."""
+    resample_s: float = 5.0
+    """Commands are resampled every this many seconds within an episode."""
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Table 6 weights (all positive; penalty terms return negative values) and the terms' shape parameters."""
+
+    weights: dict[str, float] = field(default_factory=lambda: {
+        # imitation
+        "torso_quat": 1.0, "lin_vel_xy": 5.0, "lin_vel_z": 1.0, "ang_vel_xy": 2.0, "ang_vel_z": 5.0,
+        "leg_motor_pos": 5.0, "feet_contact": 1.0,
+        # regularisation
+        "feet_air_time": 500.0, "feet_clearance": 0.05, "feet_distance": 1.0, "feet_slip": 0.05,
+        "align_ground": 1.0, "stand_still": 1.0, "torso_roll": 0.5, "torso_pitch": 0.5, "collision": 0.1,
+        "leg_action_rate": 0.05, "leg_action_acc": 0.05, "motor_torque": 0.01, "energy": 0.05,
+        # survival
+        "survival": 10.0,
+    })
+    tracking_sigma: float = 20.0
+    """Sharpness of exp(-sigma * error^2) imitation kernels, 1/(unit^2)."""
+    leg_pos_sigma: float = 2.0
+    air_time_target: float = 0.2
+    """s; first-contact air time above this is rewarded (below is penalised)."""
+    clearance_target: float = 0.03
+    """m; desired swing-foot sole height."""
+    feet_distance_range: tuple[float, float] = (0.06, 0.15)
+    """m; allowed lateral distance between the feet centres."""
+    torso_tilt_limit: float = 0.2
+    """rad; torso roll/pitch beyond this are penalised linearly."""
+
+
+@dataclass(frozen=True)
+class RandomizationConfig:
+    """Domain randomisation ranges (uniform); scales multiply the model's nominal value."""
+
+    floor_friction: tuple[float, float] = (0.4, 1.0)
+    damping_scale: tuple[float, float] = (0.8, 1.2)
+    armature_scale: tuple[float, float] = (0.8, 1.2)
+    frictionloss_scale: tuple[float, float] = (0.8, 1.2)
+    mass_scale: tuple[float, float] = (0.9, 1.1)
+    torso_added_mass: tuple[float, float] = (-0.05, 0.2)
+    """kg added to the torso."""
+    kp_scale: tuple[float, float] = (0.9, 1.1)
+    kd_scale: tuple[float, float] = (0.9, 1.1)
+    tau_max_scale: tuple[float, float] = (0.9, 1.1)
+    q_dot_max_scale: tuple[float, float] = (0.9, 1.1)
+    obs_noise_level: tuple[float, float] = (0.5, 1.5)
+    action_delay_prob: float = 0.5
+    """Probability that an episode applies each action one control step late."""
+    push_interval_s: tuple[float, float] = (2.0, 5.0)
+    push_velocity: float = 0.3
+    """m/s; largest horizontal velocity kick of a push."""
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    ctrl_dt: float = 0.02
+    """Control period, s (50 Hz)."""
+    sim_dt: float = 0.004
+    """MJX physics timestep, s (ctrl_dt / sim_dt substeps)."""
+    solver_iterations: int = 4
+    solver_ls_iterations: int = 8
+    min_torso_height: float = 0.2
+    """m; the episode ends (fall) when the torso origin drops below this..."""
+    max_tilt: float = 1.0
+    """...or the torso tilts more than this, rad."""
+    obs: ObsConfig = field(default_factory=ObsConfig)
+    command: CommandConfig = field(default_factory=CommandConfig)
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    randomization: RandomizationConfig = field(default_factory=RandomizationConfig)
+    randomize: bool = True
+
+    @property
+    def n_substeps(self) -> int:
+        n = round(self.ctrl_dt / self.sim_dt)
+        if abs(n * self.sim_dt - self.ctrl_dt) > 1e-9:
+            raise ValueError(f"ctrl_dt {self.ctrl_dt} is not a multiple of sim_dt {self.sim_dt}")
+        return n
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """Brax PPO hyperparameters; the defaults are Table 5."""
+
+    num_timesteps: int = 300_000_000
+    num_envs: int = 1024
+    episode_length: int = 1000
+    unroll_length: int = 20
+    batch_size: int = 256
+    num_minibatches: int = 4
+    num_updates_per_batch: int = 4
+    discounting: float = 0.97
+    learning_rate: float = 1e-4
+    entropy_cost: float = 5e-4
+    clipping_epsilon: float = 0.2
+    policy_hidden: tuple[int, ...] = (512, 256, 128)
+    value_hidden: tuple[int, ...] = (512, 256, 128)
+    gae_lambda: float = 0.95
+    max_grad_norm: float = 1.0
+    reward_scaling: float = 1.0
+    normalize_observations: bool = True
+    num_evals: int = 20
+    """Evaluations (and checkpoints) spread over the run."""
+    num_eval_envs: int = 128
+    """Envs of the deterministic evaluation after every epoch; 0 skips it (saves one compilation)."""
+    eval_episode_length: int = 1000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if (self.batch_size * self.num_minibatches) % self.num_envs:
+            raise ValueError(f"batch_size * num_minibatches ({self.batch_size * self.num_minibatches}) must be a "
+                             f"multiple of num_envs ({self.num_envs})")
+
+    @property
+    def env_steps_per_update(self) -> int:
+        return self.batch_size * self.num_minibatches * self.unroll_length
+
+
+FULL = PPOConfig()
+SMOKE = PPOConfig(
+    num_timesteps=2 * 4 * 2 * 5, num_envs=4, episode_length=40, unroll_length=5, batch_size=4, num_minibatches=2,
+    num_updates_per_batch=1, policy_hidden=(32, 32), value_hidden=(32, 32), num_evals=2, num_eval_envs=0,
+)
+"""Tiny run for CPU tests: 2 epochs of one update (4 envs x 2 minibatches x 5 steps), no separate evaluation."""
+
+SMOKE_XLA_FLAGS = "--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true"
+"""XLA flags of `--smoke` runs: unoptimised CPU code compiles several times faster; the few steps it then runs
+are slow, which a smoke run does not mind. Never use them for real training."""
+
+
+def smoke_env_config() -> EnvConfig:
+    """The environment of the smoke run: a 3-frame history and a 3 x 1 x 3 command grid (quick to tabulate)."""
+    return EnvConfig(obs=replace(ObsConfig(), history=3),
+                     command=replace(CommandConfig(), grid=(3, 1, 3)))
+
+
+def to_dict(cfg: object) -> dict:
+    return asdict(cfg)  # type: ignore[arg-type]

@@ -1,0 +1,92 @@
+"""Per-episode domain randomisation (JAX): one independent draw per environment at every reset.
+
+The draw is a `DRParams` pytree kept in the environment state; `apply_to_model` turns it into that env's MJX
+model (floor friction, joint damping/armature/friction loss, link masses) and `apply_to_actuators` into its
+actuator parameters (kp/kd, torque and speed limits). Under ``jax.vmap`` every env thus simulates its own robot.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from mujoco import mjx
+
+from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.rl.config import RandomizationConfig
+
+
+class DRParams(NamedTuple):
+    floor_friction: jax.Array
+    """Sliding friction coefficient of the floor."""
+    damping_scale: jax.Array
+    """(nv,) multipliers."""
+    armature_scale: jax.Array
+    frictionloss_scale: jax.Array
+    mass_scale: jax.Array
+    """(nbody,) multipliers of mass and inertia."""
+    torso_added_mass: jax.Array
+    """kg."""
+    kp_scale: jax.Array
+    """(n_motors,) multipliers."""
+    kd_scale: jax.Array
+    tau_max_scale: jax.Array
+    q_dot_max_scale: jax.Array
+    obs_noise_level: jax.Array
+    action_delay: jax.Array
+    """1.0: actions take effect one control step late."""
+
+
+def nominal(nv: int, nbody: int, n_motors: int) -> DRParams:
+    """The un-randomised robot (all scales 1, friction 1, no delay)."""
+    one = jnp.ones(())
+    return DRParams(one, jnp.ones(nv), jnp.ones(nv), jnp.ones(nv), jnp.ones(nbody), jnp.zeros(()),
+                    jnp.ones(n_motors), jnp.ones(n_motors), jnp.ones(n_motors), jnp.ones(n_motors), one,
+                    jnp.zeros(()))
+
+
+def sample(key: jax.Array, cfg: RandomizationConfig, nv: int, nbody: int, n_motors: int) -> DRParams:
+    keys = iter(jax.random.split(key, 13))
+
+    def u(rng: tuple[float, float], shape: tuple[int, ...] = ()) -> jax.Array:
+        return jax.random.uniform(next(keys), shape, minval=rng[0], maxval=rng[1])
+
+    return DRParams(
+        floor_friction=u(cfg.floor_friction),
+        damping_scale=u(cfg.damping_scale, (nv,)),
+        armature_scale=u(cfg.armature_scale, (nv,)),
+        frictionloss_scale=u(cfg.frictionloss_scale, (nv,)),
+        mass_scale=u(cfg.mass_scale, (nbody,)),
+        torso_added_mass=u(cfg.torso_added_mass),
+        kp_scale=u(cfg.kp_scale, (n_motors,)),
+        kd_scale=u(cfg.kd_scale, (n_motors,)),
+        tau_max_scale=u(cfg.tau_max_scale, (n_motors,)),
+        q_dot_max_scale=u(cfg.q_dot_max_scale, (n_motors,)),
+        obs_noise_level=u(cfg.obs_noise_level),
+        action_delay=(jax.random.uniform(next(keys)) < cfg.action_delay_prob).astype(jnp.float32),
+    )
+
+
+def apply_to_model(model: mjx.Model, p: DRParams, floor_geom: int, torso_body: int) -> mjx.Model:
+    """The env's own MJX model: the nominal one with this draw's physical parameters."""
+    mass = model.body_mass * p.mass_scale
+    added = jnp.zeros_like(mass).at[torso_body].set(p.torso_added_mass)
+    scale = (mass + added) / jnp.maximum(model.body_mass, 1e-9)
+    return model.tree_replace({
+        "geom_friction": model.geom_friction.at[floor_geom, 0].set(p.floor_friction),
+        "dof_damping": model.dof_damping * p.damping_scale,
+        "dof_armature": model.dof_armature * p.armature_scale,
+        "dof_frictionloss": model.dof_frictionloss * p.frictionloss_scale,
+        "body_mass": mass + added,
+        "body_inertia": model.body_inertia * scale[:, None],
+    })
+
+
+def apply_to_actuators(a: ActuatorArrays, p: DRParams) -> ActuatorArrays:
+    """Scaled gains and limits; the speed breakpoints scale together so their order is kept."""
+    return a._replace(
+        kp=a.kp * p.kp_scale, kd=a.kd * p.kd_scale, tau_max=a.tau_max * p.tau_max_scale,
+        tau_q_dot_max=a.tau_q_dot_max * p.tau_max_scale, q_dot_tau_max=a.q_dot_tau_max * p.q_dot_max_scale,
+        q_dot_max=a.q_dot_max * p.q_dot_max_scale,
+    )

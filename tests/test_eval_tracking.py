@@ -1,0 +1,80 @@
+"""Velocity-tracking evaluation: the error definitions on synthetic runs, and `toddlerbot eval tracking` end to end."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from toddlerbot.cli.main import app
+from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig
+from toddlerbot.rl.tracking import evaluate_policy, tracking_errors
+
+DT = 0.02
+
+
+def _yaw_quat(yaw):
+    return np.stack([np.cos(yaw / 2), np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2)], axis=1)
+
+
+def test_perfect_tracking_scores_zero():
+    t = np.arange(0, 10, DT)
+    command = np.where(t[:, None] < 5, [0.1, 0.0, 0.0], [0.0, 0.0, 0.3])
+    yaw = np.concatenate([[0.0], np.cumsum(command[:-1, 2]) * DT])
+    vel = np.stack([np.cos(yaw) * command[:, 0], np.sin(yaw) * command[:, 0]], axis=1)
+    pos = np.concatenate([[np.zeros(2)], np.cumsum(vel[:-1] * DT, axis=0)])
+    base = np.column_stack([pos, np.full(len(t), 0.3)])
+    r = tracking_errors(t, command, base, _yaw_quat(yaw), fell=False)
+    assert r.position_m < 1e-9 and r.lin_vel_mps < 1e-9 and r.ang_vel_radps < 1e-9 and r.falls == 0
+
+
+def test_standing_robot_under_a_walk_command():
+    t = np.arange(0, 10, DT)
+    command = np.tile([0.1, 0.0, 0.2], (len(t), 1))
+    base = np.tile([0.0, 0.0, 0.3], (len(t), 1))
+    r = tracking_errors(t, command, base, _yaw_quat(np.zeros(len(t))), fell=True)
+    assert r.lin_vel_mps == pytest.approx(0.1, rel=1e-6)
+    assert r.ang_vel_radps == pytest.approx(0.2, rel=1e-6)
+    assert r.falls == 1
+    assert 0.2 < r.position_m < 0.5  # mean distance to a 1 m curved path, well below its 1 m end
+
+
+def _zero_policy(path):
+    """An exported policy whose network outputs exactly zero: it holds the home pose."""
+    from toddlerbot.rl.config import EnvConfig
+    from toddlerbot.rl.export import write_policy
+
+    obs = ObsConfig(history=2, gait_period=0.72)
+    n = obs.history * obs.frame_size(30)
+    arrays = {"layer0_kernel": np.zeros((n, 16), np.float32), "layer0_bias": np.zeros(16, np.float32),
+              "layer1_kernel": np.zeros((16, 2 * len(LEG_MOTORS)), np.float32),
+              "layer1_bias": np.zeros(2 * len(LEG_MOTORS), np.float32),
+              "obs_mean": np.zeros(n, np.float32), "obs_std": np.ones(n, np.float32)}
+    return write_policy(path, arrays, EnvConfig(obs=obs), {"ctrl_dt": 0.02})
+
+
+def test_walk_rl_holding_home_stands_and_tracks_a_zero_command(tmp_path):
+    r = evaluate_policy("walk-rl", "0:0,0,0", seconds=3.0, weights=_zero_policy(tmp_path / "zero.npz"))
+    assert r.falls == 0
+    assert r.duration_s == pytest.approx(3.0)
+    assert r.position_m < 0.01 and r.lin_vel_mps < 0.01 and r.ang_vel_radps < 0.02
+
+
+def test_cli_prints_json_and_saves_plot(tmp_path):
+    weights = _zero_policy(tmp_path / "zero.npz")
+    result = CliRunner().invoke(app, ["eval", "tracking", "--policy", "walk-rl", "--weights", str(weights),
+                                      "--commands", "0:0,0,0; 1:0.05,0,0", "--seconds", "2", "--json",
+                                      "--plot", str(tmp_path / "track.png")])
+    assert result.exit_code == 0, result.output
+    metrics = json.loads(result.output)
+    assert set(metrics) >= {"position_m", "lin_vel_mps", "ang_vel_radps", "falls"}
+    assert metrics["falls"] == 0
+    assert (tmp_path / "track.png").stat().st_size > 10_000
+
+
+def test_cli_rejects_unknown_policy_and_bad_commands():
+    runner = CliRunner()
+    result = runner.invoke(app, ["eval", "tracking", "--policy", "dance"])
+    assert result.exit_code != 0 and "unknown policy 'dance'" in str(result.exception or result.output)
+    result = runner.invoke(app, ["eval", "tracking", "--policy", "walk-zmp", "--commands", "0:0.1,0"])
+    assert result.exit_code != 0

@@ -1,0 +1,60 @@
+"""Training checkpoints hold the whole state (optimiser included), restore exactly, and fail clearly."""
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("brax")
+optax = pytest.importorskip("optax")
+
+from typer.testing import CliRunner  # noqa: E402
+
+from toddlerbot.cli.main import app  # noqa: E402
+from toddlerbot.errors import ToddlerbotError  # noqa: E402
+from toddlerbot.rl import train  # noqa: E402
+from toddlerbot.rl.config import PPOConfig  # noqa: E402
+
+
+def _state(hidden=(16, 8), seed=0):
+    cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=hidden, value_hidden=hidden)
+    obs = {"state": (10,), "privileged_state": (14,)}
+    networks = train.make_networks(obs, 12, cfg)
+    optimizer = optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(cfg.learning_rate))
+    state = train._initial_state(networks, optimizer, obs, jax.random.PRNGKey(seed))
+    # one real Adam step so the moments are non-zero
+    grads = jax.tree.map(lambda p: 0.1 * np.ones_like(p), state.params)
+    updates, opt_state = optimizer.update(grads, state.optimizer_state, state.params)
+    return state.replace(params=optax.apply_updates(state.params, updates), optimizer_state=opt_state,
+                         env_steps=jax.numpy.asarray(20480, jax.numpy.int32))
+
+
+def test_checkpoint_round_trip_is_exact_including_adam_moments(tmp_path):
+    state = _state()
+    key = jax.random.PRNGKey(7)
+    path = train.save_checkpoint(tmp_path, state, key, [{"env_steps": 20480, "step_reward": 0.1}])
+    assert path.name == "step_000000020480.msgpack" and train.checkpoint_paths(tmp_path) == [path]
+    template = _state(seed=1)  # same structure, different numbers
+    restored, restored_key, history = train.load_checkpoint(path, template)
+    for a, b in zip(jax.tree.leaves(restored), jax.tree.leaves(state), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    adam = restored.optimizer_state[1][0]
+    assert int(adam.count) == 1 and float(np.abs(jax.tree.leaves(adam.mu)[0]).max()) > 0
+    np.testing.assert_array_equal(np.asarray(restored_key), np.asarray(key))
+    assert history == [{"env_steps": 20480, "step_reward": 0.1}]
+    assert not list(tmp_path.glob("checkpoints/*.tmp"))  # written atomically
+
+
+def test_checkpoint_of_another_network_is_a_clear_error(tmp_path):
+    path = train.save_checkpoint(tmp_path, _state(hidden=(16, 8)), jax.random.PRNGKey(0), [])
+    with pytest.raises(ToddlerbotError, match="not a checkpoint of this configuration"):
+        train.load_checkpoint(path, _state(hidden=(32, 8)))
+
+
+def test_cli_resume_and_export_without_a_run_fail_with_one_line(tmp_path):
+    runner = CliRunner()
+    result = runner.invoke(app, ["rl", "train", "--resume", str(tmp_path)])
+    assert result.exit_code != 0 and "config.json missing" in str(result.exception)
+    result = runner.invoke(app, ["rl", "export", str(tmp_path)])
+    assert result.exit_code != 0 and "config.json missing" in str(result.exception)
+    result = runner.invoke(app, ["rl", "train", "--num-envs", "3", "--out", str(tmp_path / "x")])
+    assert result.exit_code != 0 and "multiple of num_envs (3)" in str(result.exception)

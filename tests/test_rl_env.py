@@ -1,0 +1,72 @@
+"""The MJX walking environment: per-env domain randomisation, observations, and physics that keep the robot up.
+
+The physics test JIT-compiles one environment step (slow on CPU: about a minute), so it is marked ``slow``.
+"""
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("mujoco.mjx")
+jnp = jax.numpy
+
+from toddlerbot.rl.config import smoke_env_config  # noqa: E402
+from toddlerbot.rl.env import WalkEnv  # noqa: E402
+from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.robot.spec import load_spec  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def env():
+    cfg = smoke_env_config()
+    return WalkEnv(cfg, reference=standing_table(load_spec(), cfg.command, period=0.72))
+
+
+@pytest.fixture(scope="module")
+def states(env):
+    return jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 4))
+
+
+def test_each_env_gets_its_own_randomisation_draw(env, states):
+    dr = states.info["dr"]
+    cfg = env.cfg.randomization
+    for name in ("floor_friction", "torso_added_mass", "obs_noise_level"):
+        values = np.asarray(getattr(dr, name))
+        assert len(np.unique(values)) == 4, name
+    lo, hi = cfg.floor_friction
+    assert np.all((np.asarray(dr.floor_friction) >= lo) & (np.asarray(dr.floor_friction) <= hi))
+    kp = np.asarray(dr.kp_scale)  # (envs, motors): different per env and per motor
+    assert kp.shape == (4, 30) and not np.allclose(kp[0], kp[1]) and np.ptp(kp[0]) > 0
+    # the draw reaches the env's physics model
+    model = env._model(jax.tree.map(lambda x: x[1], dr))
+    assert float(model.geom_friction[env.floor_geom, 0]) == pytest.approx(float(dr.floor_friction[1]))
+    torso_mass = float(model.body_mass[env.torso_body])
+    nominal = float(env.sys.body_mass[env.torso_body])
+    expected = nominal * float(dr.mass_scale[1, env.torso_body]) + float(dr.torso_added_mass[1])
+    assert torso_mass == pytest.approx(expected, rel=1e-5)
+
+
+def test_observations_have_history_and_privileged_extras(env, states):
+    frame = env.cfg.obs.frame_size(30)
+    actor = np.asarray(states.obs["state"])
+    assert actor.shape == (4, env.cfg.obs.history * frame)
+    np.testing.assert_array_equal(actor[:, :frame], actor[:, frame:2 * frame])  # history filled with frame 0
+    assert states.obs["privileged_state"].shape[1] > actor.shape[1]
+    # command and phase sit at the start of each frame: phase (sin 0, cos 0) = (0, 1) at reset
+    np.testing.assert_allclose(actor[:, :2], np.tile([0.0, 1.0], (4, 1)), atol=1e-6)
+    np.testing.assert_allclose(actor[:, 2:5], np.asarray(states.info["command"]))
+
+
+@pytest.mark.slow
+def test_zero_actions_keep_the_robot_standing_and_rewarded(env, states):
+    step = jax.jit(jax.vmap(env.step))
+    state = states
+    for _ in range(25):  # 0.5 s with the home pose held by the actuator model
+        state = step(state, jnp.zeros((4, 12)))
+    z = np.asarray(state.pipeline_state.qpos[:, 2])
+    assert np.all(z > 0.3), z
+    assert not np.any(np.asarray(state.done))
+    assert np.all(np.asarray(state.metrics["survival"]) == 1.0)
+    np.testing.assert_array_equal(np.asarray(state.info["last_contact"]), 1.0)  # both feet on the floor
+    assert np.all(np.asarray(state.reward) > 0)
+    assert np.all(np.asarray(state.info["time"]) == pytest.approx(0.5))

@@ -1,0 +1,99 @@
+"""The numpy inference path reproduces the trained JAX policy and the environment's observation frames."""
+
+import json
+
+import numpy as np
+import pytest
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.rl_inference import (
+    LEG_MOTORS,
+    ObsConfig,
+    RLController,
+    RLPolicyFile,
+    gravity_in_frame,
+    obs_frame,
+)
+
+
+def _random_export(tmp_path, hidden=(64, 32), history=2):
+    jax = pytest.importorskip("jax")
+    from brax.training.acme import running_statistics
+
+    from toddlerbot.rl.config import EnvConfig, PPOConfig
+    from toddlerbot.rl.export import policy_arrays, write_policy
+    from toddlerbot.rl.train import make_networks
+
+    env_cfg = EnvConfig(obs=ObsConfig(history=history, gait_period=0.72))
+    n_obs = history * env_cfg.obs.frame_size(30)
+    cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=hidden, value_hidden=hidden)
+    networks = make_networks({"state": (n_obs,), "privileged_state": (7,)}, len(LEG_MOTORS), cfg)
+    params = networks.policy_network.init(jax.random.PRNGKey(1))
+    rng = np.random.default_rng(0)
+    mean = {"state": rng.normal(size=n_obs).astype(np.float32), "privileged_state": np.zeros(7, np.float32)}
+    std = {"state": rng.uniform(0.5, 2.0, n_obs).astype(np.float32), "privileged_state": np.ones(7, np.float32)}
+    normalizer = running_statistics.RunningStatisticsState(
+        count=np.ones(()), mean=mean, summed_variance=std, std=std)
+    arrays = policy_arrays(params, normalizer, True, n_obs)
+    path = write_policy(tmp_path / "p.npz", arrays, env_cfg, {"note": "test"})
+    return path, networks, params, normalizer, n_obs
+
+
+def test_numpy_actions_match_jax_to_1e5(tmp_path):
+    jax = pytest.importorskip("jax")
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    path, networks, params, normalizer, n_obs = _random_export(tmp_path)
+    policy = ppo_networks.make_inference_fn(networks)((normalizer, params, None), deterministic=True)
+    numpy_policy = RLPolicyFile(path)
+    obs = np.random.default_rng(3).normal(size=(20, n_obs)).astype(np.float32) * 2
+    jax_actions, _ = policy({"state": obs, "privileged_state": np.zeros((20, 7), np.float32)},
+                            jax.random.PRNGKey(0))
+    numpy_actions = np.stack([numpy_policy.action(o) for o in obs])
+    assert numpy_actions.shape == (20, 12)
+    np.testing.assert_allclose(numpy_actions, np.asarray(jax_actions), atol=1e-5)
+    assert np.abs(numpy_actions).max() > 0.05  # not a trivially zero network
+
+
+def test_obs_frame_is_identical_in_numpy_and_jax():
+    jnp = pytest.importorskip("jax.numpy")
+    cfg = ObsConfig(gait_period=0.72)
+    rng = np.random.default_rng(1)
+    args = (0.37, rng.normal(size=3), rng.normal(size=30), rng.normal(size=30), rng.normal(size=30),
+            rng.normal(size=12), rng.normal(size=3))
+    quat = rng.normal(size=4)
+    quat /= np.linalg.norm(quat)
+    frame_np = obs_frame(*args, gravity_in_frame(quat), cfg)
+    frame_jax = obs_frame(*(jnp.asarray(a, dtype=jnp.float32) for a in args),
+                          gravity_in_frame(jnp.asarray(quat, dtype=jnp.float32), jnp), cfg, xp=jnp)
+    assert frame_np.shape == (cfg.frame_size(30),)
+    np.testing.assert_allclose(frame_np, np.asarray(frame_jax), atol=1e-5)
+
+
+def test_gravity_of_upright_and_rolled_frames():
+    np.testing.assert_allclose(gravity_in_frame(np.array([1.0, 0, 0, 0])), [0, 0, -1], atol=1e-12)
+    half = np.pi / 4  # 90 deg roll about x: world -z is the body's -y... rotated: gravity along +-y
+    g = gravity_in_frame(np.array([np.cos(half), np.sin(half), 0, 0]))
+    np.testing.assert_allclose(np.abs(g), [0, 1, 0], atol=1e-12)
+
+
+def test_controller_keeps_history_and_maps_actions_to_leg_targets(tmp_path):
+    path = _random_export(tmp_path)[0]
+    ctrl = RLController(RLPolicyFile(path))
+    home = ctrl.policy.home_motor_pos
+    obs1 = ctrl.observation(0.0, [0.1, 0, 0], home, np.zeros(30), np.zeros(3), np.array([1.0, 0, 0, 0]))
+    frame = ctrl.cfg.frame_size(30)
+    np.testing.assert_array_equal(obs1[:frame], obs1[frame:])  # history starts as copies of the first frame
+    targets = ctrl.step(0.02, [0.1, 0, 0], home, np.zeros(30), np.zeros(3), np.array([1.0, 0, 0, 0]))
+    legs = ctrl.policy.leg_motor_index
+    others = np.setdiff1d(np.arange(30), legs)
+    np.testing.assert_array_equal(targets[others], home[others])
+    np.testing.assert_allclose(targets[legs] - home[legs], ctrl.cfg.action_scale * ctrl.last_action)
+
+
+def test_missing_or_foreign_file_is_a_clear_error(tmp_path):
+    with pytest.raises(ToddlerbotError, match="not found"):
+        RLPolicyFile(tmp_path / "nope.npz")
+    np.savez(tmp_path / "other.npz", x=np.zeros(3), meta=np.array(json.dumps({})))
+    with pytest.raises(ToddlerbotError, match="not an exported RL policy"):
+        RLPolicyFile(tmp_path / "other.npz")

@@ -1,0 +1,99 @@
+"""SMOKE TRAINING RUN (slow: a few minutes on a 2-core CPU, mostly XLA compilation).
+
+`toddlerbot rl train --smoke` runs one epoch and stops, `--resume` continues from its checkpoint (optimiser state
+included) for the second epoch, and the export of the result acts exactly like the JAX policy. Each CLI call is
+its own process (the smoke run sets its XLA flags before JAX starts); a persistent compilation cache lets the
+resumed run reuse the first run's compiled program.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("brax")
+pytest.importorskip("mujoco.mjx")
+
+from toddlerbot.policies.rl_inference import RLPolicyFile  # noqa: E402
+from toddlerbot.rl import config, export, train  # noqa: E402
+
+pytestmark = pytest.mark.slow
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+
+def _cli(*args, cache: Path) -> str:
+    env = {**os.environ, "PYTHONPATH": f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
+           "JAX_COMPILATION_CACHE_DIR": str(cache), "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0"}
+    out = subprocess.run([sys.executable, "-m", "toddlerbot.cli.main", *args], env=env, capture_output=True,
+                         text=True, timeout=900)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    return out.stdout
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("rl")
+    run = root / "run"
+    _cli("rl", "train", "--smoke", "--out", str(run), "--epochs", "1", cache=root / "xla")
+    ckpt1 = train.checkpoint_paths(run)
+    first, _ = export.restore_checkpoint(ckpt1[-1], *train.load_config(run))
+    _cli("rl", "train", "--resume", str(run), cache=root / "xla")
+    final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], *train.load_config(run))
+    return run, first, ckpt1, final, history
+
+
+def test_smoke_run_trains_two_epochs_with_sane_metrics(smoke_run):
+    run, _first, _, final, history = smoke_run
+    steps = config.SMOKE.env_steps_per_update
+    assert [h["env_steps"] for h in history] == [steps, 2 * steps]
+    assert int(final.env_steps) == 2 * steps
+    for h in history:
+        assert np.isfinite(h["step_reward"]) and h["sps"] > 0
+        assert 0.0 <= h["fall_rate"] <= 1.0
+    assert len((run / "metrics.jsonl").read_text().splitlines()) == 2
+    assert (run / "training_curve.png").stat().st_size > 10_000
+    assert json.loads((run / "config.json").read_text())["env"]["obs"]["gait_period"] > 0
+
+
+def test_resume_restores_optimizer_state_and_continues(smoke_run):
+    run, first, ckpt1, final, _ = smoke_run
+    assert len(ckpt1) == 1 and len(train.checkpoint_paths(run)) == 2
+    restored, _, hist = train.load_checkpoint(ckpt1[0], final)
+    adam = lambda s: s.optimizer_state[1][0]  # noqa: E731 - (clip, adam) chain -> adam's ScaleByAdamState
+    # the first checkpoint holds Adam's moments and step count, not just the parameters
+    assert int(adam(restored).count) == config.SMOKE.num_minibatches * config.SMOKE.num_updates_per_batch
+    mu = jax.tree.leaves(adam(restored).mu)
+    assert any(float(np.abs(m).max()) > 0 for m in mu)
+    for a, b in zip(jax.tree.leaves(restored), jax.tree.leaves(first), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # training moved the parameters on from the first checkpoint
+    moved = [not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(final.params), jax.tree.leaves(first.params),
+                                                       strict=True)]
+    assert any(moved)
+    # the resumed epoch continued from it: Adam's step count kept counting
+    assert int(adam(final).count) == 2 * int(adam(restored).count)
+    assert len(hist) == 1
+
+
+def test_export_of_the_smoke_run_matches_jax_policy(smoke_run, tmp_path):
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    run, _, _, final, _ = smoke_run
+    path = export.export_run(run, tmp_path / "walk.npz")
+    policy = RLPolicyFile(path)
+    env_cfg, ppo_cfg = train.load_config(run)
+    n_obs = policy.obs_mean.shape[0]
+    critic = int(final.normalizer_params.mean["privileged_state"].shape[0])
+    networks = train.make_networks({"state": (n_obs,), "privileged_state": (critic,)}, 12, ppo_cfg)
+    act = ppo_networks.make_inference_fn(networks)(
+        (final.normalizer_params, final.params.policy, final.params.value), deterministic=True)
+    obs = np.random.default_rng(0).normal(size=(8, n_obs)).astype(np.float32)
+    expected, _ = act({"state": obs, "privileged_state": np.zeros((8, critic), np.float32)}, jax.random.PRNGKey(0))
+    np.testing.assert_allclose(np.stack([policy.action(o) for o in obs]), np.asarray(expected), atol=1e-5)
+    assert policy.meta["env_steps"] == int(final.env_steps)
+    assert policy.obs_config == env_cfg.obs
