@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 
 from toddlerbot.cli.main import app
 from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig
-from toddlerbot.rl.tracking import evaluate_policy, tracking_errors
+from toddlerbot.runtime.tracking import evaluate_policy, tracking_errors
 
 DT = 0.02
 

@@ -16,7 +16,7 @@ app = typer.Typer(help="Evaluate policies in simulation (appendix Table 7).", no
 
 @app.command()
 def tracking(
-    policy: Annotated[str, typer.Option(help="walk-rl or walk-zmp.")] = "walk-rl",
+    policy: Annotated[str, typer.Option(help="A runtime policy, usually walk-rl or walk-zmp.")] = "walk-rl",
     commands: Annotated[str | None, typer.Option(
         help="Command schedule in the runtime syntax, e.g. '0:0.1,0,0; 5:0,0,0.3' (default: the documented "
              "evaluation schedule).")] = None,
@@ -27,8 +27,9 @@ def tracking(
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls."""
-    from toddlerbot.rl.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, POLICIES, evaluate_policy, plot_tracking
+    from toddlerbot.policies import POLICIES
     from toddlerbot.runtime.commands import CommandSchedule
+    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_tracking
 
     if policy not in POLICIES:
         raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")

@@ -10,11 +10,11 @@ import typer
 
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS
 
 app = typer.Typer(help="Reinforcement-learning locomotion (needs the \\[train] extra: jax, mujoco-mjx, brax).",
                   no_args_is_help=True)
 
-DEFAULT_EXPORT = Path(__file__).resolve().parents[1] / "policies" / "weights" / "walk_rl.npz"
 
 
 def _require_jax() -> None:
@@ -96,7 +96,7 @@ def train(
 @app.command()
 def export(
     run: Annotated[Path, typer.Argument(help="Training run directory.")],
-    out: Annotated[Path, typer.Option(help="Exported .npz.")] = DEFAULT_EXPORT,
+    out: Annotated[Path, typer.Option(help="Exported .npz.")] = DEFAULT_WEIGHTS,
 ) -> None:
     """Write the run's latest checkpoint as a numpy-only policy file for the `walk-rl` runtime policy."""
     _require_jax()

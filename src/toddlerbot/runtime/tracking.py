@@ -45,8 +45,9 @@ class TrackingResult:
                 "falls": self.falls, "duration_s": self.duration_s}
 
 
-def _yaw(quat: np.ndarray) -> np.ndarray:
-    w, x, y, z = quat.T
+def heading(quat: np.ndarray) -> np.ndarray:
+    """Yaw (rad) of w, x, y, z quaternions (..., 4)."""
+    w, x, y, z = np.moveaxis(quat, -1, 0)
     return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
@@ -54,7 +55,7 @@ def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray,
                     window_s: float = 0.72, settle_s: float = 1.0) -> TrackingResult:
     """Tracking errors of one logged run (see the module docstring); arrays are per control step."""
     dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.02
-    yaw = np.unwrap(_yaw(base_quat))
+    yaw = np.unwrap(heading(base_quat))
     # commanded path: integrate body-frame command along the commanded heading
     cmd_yaw = yaw[0] + np.concatenate([[0.0], np.cumsum(command[:-1, 2]) * dt])
     world_cmd = np.stack([np.cos(cmd_yaw) * command[:, 0] - np.sin(cmd_yaw) * command[:, 1],
@@ -67,9 +68,9 @@ def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray,
     if len(time) > 2 * half:
         mid = slice(half, len(time) - half)
         dpos = (base_pos[2 * half:, :2] - base_pos[: -2 * half, :2]) / (2 * half * dt)
-        heading = yaw[mid]
-        achieved[mid, 0] = np.cos(heading) * dpos[:, 0] + np.sin(heading) * dpos[:, 1]
-        achieved[mid, 1] = -np.sin(heading) * dpos[:, 0] + np.cos(heading) * dpos[:, 1]
+        yaw_mid = yaw[mid]
+        achieved[mid, 0] = np.cos(yaw_mid) * dpos[:, 0] + np.sin(yaw_mid) * dpos[:, 1]
+        achieved[mid, 1] = -np.sin(yaw_mid) * dpos[:, 0] + np.cos(yaw_mid) * dpos[:, 1]
         achieved[mid, 2] = (yaw[2 * half:] - yaw[: -2 * half]) / (2 * half * dt)
     changes = np.flatnonzero(np.any(np.diff(command, axis=0) != 0, axis=1)) + 1
     steady = np.ones(len(time), dtype=bool)
@@ -90,34 +91,20 @@ def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray,
 
 def evaluate_policy(policy_name: str, commands: str = DEFAULT_COMMANDS, seconds: float = DEFAULT_SECONDS,
                     weights: Path | None = None) -> TrackingResult:
-    """Run ``walk-rl`` or ``walk-zmp`` through a command schedule in the CPU simulator and score it."""
+    """Run a registered policy (e.g. ``walk-rl``, ``walk-zmp``) through a command schedule in the CPU simulator and
+    score it."""
+    from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
     schedule = CommandSchedule.parse(commands, source="--commands")
     robot = MuJoCoRobot()
-    policy = _make_policy(policy_name, robot, weights)
+    policy = make_policy(policy_name, robot, weights=weights)
     result = run_policy(robot, policy, schedule, seconds, realtime=False, stop_on_fall=True)
     log = result.log
     return tracking_errors(np.asarray(log.time), np.asarray(log.command), np.asarray(log.base_pos),
                            np.asarray(log.base_quat), result.fell)
-
-
-POLICIES = ("walk-rl", "walk-zmp")
-
-
-def _make_policy(name: str, robot, weights: Path | None):
-    """walk-rl from an exported file; every other walking policy from the runtime's registry."""
-    if name not in POLICIES:
-        raise ValueError(f"unknown policy {name!r}; expected one of {', '.join(POLICIES)}")
-    if name == "walk-rl":
-        from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy
-
-        return WalkRLPolicy(robot, weights or DEFAULT_WEIGHTS)
-    from toddlerbot.policies import make_policy
-
-    return make_policy(name, robot)
 
 
 def plot_tracking(result: TrackingResult, title: str, path: Path) -> Path:
