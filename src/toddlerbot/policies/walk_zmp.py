@@ -7,6 +7,11 @@ The generator stays a pure function of its command and time; all feedback lives 
   pitch/roll (and optionally hip roll) of the legs, turning the feet against the tilt (an ankle strategy);
 * heading hold: the commanded yaw rate is integrated into a desired heading; the yaw-rate command given to the
   generator is corrected by the heading error from the IMU (foot slip otherwise turns the robot slowly);
+* capture-point (DCM) feedback: the CoM relative to the feet in contact is estimated from the measured leg
+  joint angles (leg forward kinematics and whole-robot CoM of `LegIK`) and the IMU tilt, compared with the same
+  quantity of the planned leg angles, and the error plus its rate / omega shifts the ankle pitch/roll;
+* stance hip lift and a stiffer swing leg (`swing_kp_scale`) so that the swing foot leaves and reaches the floor
+  closer to the plan;
 * stride calibration (`StrideCalibration`): systematic stride errors are compensated in the planned command.
 """
 
@@ -17,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from toddlerbot.locomotion.config import WalkConfig
+from toddlerbot.locomotion.preview import GRAVITY
 from toddlerbot.locomotion.zmp_walk import WalkReference, ZMPWalk
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.interface import Observation, Robot
@@ -46,6 +52,16 @@ class AttitudeFeedback:
     the start minus the IMU yaw change)."""
     heading_integral: float = 0.0
     """rad/s of yaw-rate command per rad*s of integrated heading error (removes a steady yaw slip)."""
+    dcm_ankle_x: float = 3.0
+    """rad of ankle pitch per m of forward DCM error (measured minus planned capture point, relative to the feet in
+    contact, torso-heading frame): the feet push the ZMP towards the error (ankle strategy)."""
+    dcm_ankle_y: float = 1.5
+    """rad of ankle roll per m of sideways DCM error."""
+    dcm_velocity_filter: float = 0.5
+    """Low-pass weight of the newest sample in the CoM-velocity estimate (1 = raw finite difference)."""
+    stance_hip_roll: float = 0.03
+    """rad of stance-leg hip roll in single support that lifts the swing side of the pelvis (compensates the
+    stance hip's sag under the robot's weight, which otherwise makes the swing foot drag)."""
 
 
 @dataclass(frozen=True)
@@ -57,7 +73,7 @@ class StrideCalibration:
 
     vx_gain: float = 1.0
     """Planned forward speed per commanded forward speed."""
-    vy_gain: float = 1.15
+    vy_gain: float = 1.05
     """Planned sideways speed per commanded sideways speed."""
     vx_per_vy: float = 0.45
     """Planned forward speed per commanded sideways speed, either way (sideways steps to both sides slip
@@ -100,13 +116,18 @@ class WalkZMPPolicy(Policy):
         feedback: AttitudeFeedback | None = None,
         leg_kp_scale: float = 2.0,
         stride: StrideCalibration | None = None,
+        swing_kp_scale: float = 3.0,
     ) -> None:
         super().__init__(robot)
         names = list(robot.joint_names)
         legs = np.array(["hip" in j or "knee" in j or "ankle" in j for j in robot.motor_names])
         self.kp = np.where(legs, robot.default_kp * leg_kp_scale, robot.default_kp)
         """Firmware P gains: the leg motors stiffened by leg_kp_scale (the spec's gains let the stance leg sag
-        enough for the swing foot to scuff the floor; x3 over-stiffens it and the feet land short)."""
+        enough for the swing foot to scuff the floor; x3 over-stiffens it and the feet land short). The swing leg
+        gets swing_kp_scale while it swings (lift-off and touch-down closer to the plan)."""
+        sides = np.array([[m.startswith(side) for m in robot.motor_names] for side in ("left", "right")]) & legs
+        self.swing_kp = np.where(sides, robot.default_kp * swing_kp_scale, 0.0)
+        """(2, n_motors) firmware P gains of each leg's motors while that leg swings (0 elsewhere)."""
         self.walk = ZMPWalk(config or WalkConfig(dt=robot.control_dt), robot.spec)
         if abs(self.walk.config.dt - robot.control_dt) > 1e-12:
             raise ValueError(f"walk dt {self.walk.config.dt} s must equal the control period {robot.control_dt} s")
@@ -124,6 +145,8 @@ class WalkZMPPolicy(Policy):
         self._ankle_pitch, self._ankle_pitch_sign = joint("ankle_pitch", 1)
         self._ankle_roll, self._ankle_roll_sign = joint("ankle_roll", 0)
         self._hip_roll, self._hip_roll_sign = joint("hip_roll", 0)
+        self._leg = np.array([[names.index(j) for j in chain] for chain in chains])
+        self._omega = float(np.sqrt(GRAVITY / self.walk.com_height))
         self.last_reference: WalkReference | None = None
 
     def reset(self, obs: Observation) -> None:
@@ -132,6 +155,32 @@ class WalkZMPPolicy(Policy):
         self._heading_error = 0.0
         self._heading_error_sum = 0.0
         self._last_yaw = yaw(obs.imu_quat)
+        self._com_error = None
+        self._com_error_vel = np.zeros(2)
+        self.dcm_error = np.zeros(2)
+
+    def _measure_dcm_error(self, obs: Observation, roll: float, pitch: float) -> np.ndarray:
+        """DCM error (2,), m: measured minus planned CoM relative to the planned-contact feet (torso yaw frame),
+        plus its rate / omega. The measured CoM comes from the leg joint angles and the IMU tilt."""
+        ref = self.last_reference
+        if ref is None:
+            return np.zeros(2)
+        ik = self.walk.ik
+        q_meas = obs.joint_pos[self._leg]
+        q_plan = ref.joint_pos[self._leg]
+        feet_m, _ = ik.forward(q_meas)
+        com_m = ik.com(q_meas)
+        feet_p, _ = ik.forward(q_plan)
+        com_p = ik.com(q_plan)
+        rot = rotation_rp(roll, pitch)
+        legs = np.flatnonzero(ref.contact)
+        err = np.mean([rot @ (com_m - feet_m[leg]) - (com_p - feet_p[leg]) for leg in legs], axis=0)[:2]
+        key = tuple(legs)
+        if self._com_error is not None and self._com_error[0] == key:
+            a = self.feedback.dcm_velocity_filter
+            self._com_error_vel = (1 - a) * self._com_error_vel + a * (err - self._com_error[1]) / self.control_dt
+        self._com_error = (key, err)
+        return err + self._com_error_vel / self._omega
 
     def act(self, obs: Observation, command: np.ndarray) -> Action:
         fb = self.feedback
@@ -145,6 +194,7 @@ class WalkZMPPolicy(Policy):
         self._heading_error_sum += self._heading_error * self.control_dt
         walk_command = self.stride.apply(command) + np.array(
             [0.0, 0.0, fb.heading * self._heading_error + fb.heading_integral * self._heading_error_sum])
+        self.dcm_error = dcm = self._measure_dcm_error(obs, roll, pitch)
         contact = self._planned_contact
         gains = np.where(contact, fb.stance_tilt, fb.swing_tilt)
         tilts = np.array([rotation_rp(g * roll, g * pitch) for g in gains])
@@ -157,5 +207,14 @@ class WalkZMPPolicy(Policy):
         q[self._ankle_pitch] += (fb.ankle_pitch * pitch + fb.ankle_pitch_rate * pitch_rate) * self._ankle_pitch_sign
         q[self._ankle_roll] += (fb.ankle_roll * roll + fb.ankle_roll_rate * roll_rate) * self._ankle_roll_sign
         q[self._hip_roll] += fb.hip_roll * roll * self._hip_roll_sign
+        q[self._ankle_pitch] += fb.dcm_ankle_x * dcm[0] * self._ankle_pitch_sign
+        q[self._ankle_roll] -= fb.dcm_ankle_y * dcm[1] * self._ankle_roll_sign
+        swing = ~ref.contact
+        if not swing.all() and swing.any():
+            stance = int(np.flatnonzero(ref.contact)[0])
+            q[self._hip_roll[stance]] += fb.stance_hip_roll * (1 - 2 * stance) * self._hip_roll_sign[stance]
+        kp = self.kp.copy()
+        for leg in np.flatnonzero(swing):
+            kp = np.where(self.swing_kp[leg] > 0, self.swing_kp[leg], kp)
         action = self.joint_action(q)
-        return Action(action.motor_targets, action.joint_targets, kp=self.kp)
+        return Action(action.motor_targets, action.joint_targets, kp=kp)
