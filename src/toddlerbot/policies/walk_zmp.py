@@ -71,7 +71,9 @@ class VelocityTracking:
     """Closed-loop planar velocity tracking: the base velocity is estimated by leg odometry (the planned stance
     feet assumed fixed on the floor, their position from the measured leg angles and the IMU orientation),
     averaged over the last gait cycle, and a PI law on the error (commanded minus estimated, torso-heading frame)
-    corrects the (vx, vy) command given to the generator."""
+    corrects the (vx, vy) command given to the generator. The y gains default to 0: the odometry's vy is biased by
+    the gait's lateral sway and a sideways loop made sideways walking worse (docs/simulation.md). The integral is
+    kept across command changes (the bias it learns is roughly the same for every command)."""
 
     kp: tuple[float, float] = (0.5, 0.0)
     """(x, y) m/s of command correction per m/s of velocity error."""
