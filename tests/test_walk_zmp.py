@@ -8,7 +8,7 @@ import pytest
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.locomotion.preview import preview_gains, preview_step
 from toddlerbot.locomotion.zmp_walk import ZMPWalk
-from toddlerbot.policies.walk_zmp import StrideCalibration, WalkZMPPolicy
+from toddlerbot.policies.walk_zmp import VelocityTracking, WalkZMPPolicy
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.runtime.summary import summarize
@@ -91,18 +91,19 @@ def _commanded(commands, seconds, dt=0.02):
 
 SCHEDULE = "0:0.1,0,0; 3:0,0.05,0; 5.5:-0.05,0,0.2"
 # (command, achieved/commanded ratio window per axis that is asserted; axes with a small command get an
-# absolute drift bound instead). Ratios measured on 6 s walks (docs/simulation.md): within 10 % except three
-# known gaps whose windows are regression bounds around the measured value, not goals: backwards over-strides
-# (x1.23), slow forward (x0.66) and fast sideways (x0.78) under-stride.
+# absolute drift bound instead). Ratios measured on 6 s walks with the forward velocity loop (docs/simulation.md):
+# the plan itself reaches x0.89-0.93 of the command in 6 s (0.4 s standing start, acceleration), the forward
+# commands x0.86-0.94. Known gap with a regression window around the measured value, not a goal: fast sideways
+# (x0.75).
 GRID = [
-    ((-0.1, 0.0, 0.0), {0: (1.1, 1.35)}),
-    ((0.05, 0.0, 0.0), {0: (0.55, 0.8)}),
-    ((0.15, 0.0, 0.0), {0: (0.9, 1.15)}),
-    ((0.0, -0.05, 0.0), {1: (0.85, 1.15)}),
-    ((0.0, 0.08, 0.0), {1: (0.65, 0.9)}),
-    ((0.0, 0.0, -0.3), {2: (0.85, 1.15)}),
-    ((0.08, 0.03, 0.2), {0: (0.85, 1.15), 1: (0.85, 1.15), 2: (0.85, 1.15)}),
-    (SCHEDULE, {0: (0.85, 1.2), 1: (0.85, 1.15)}),
+    ((-0.1, 0.0, 0.0), {0: (0.85, 1.05)}),
+    ((0.05, 0.0, 0.0), {0: (0.75, 1.0)}),
+    ((0.15, 0.0, 0.0), {0: (0.8, 1.0)}),
+    ((0.0, -0.05, 0.0), {1: (0.85, 1.1)}),
+    ((0.0, 0.08, 0.0), {1: (0.65, 0.85)}),
+    ((0.0, 0.0, -0.3), {2: (0.85, 1.05)}),
+    ((0.08, 0.03, 0.2), {0: (0.7, 1.0), 1: (0.8, 1.0), 2: (0.85, 1.05)}),
+    (SCHEDULE, {0: (0.8, 1.0), 1: (0.95, 1.2)}),
 ]
 
 
@@ -128,7 +129,7 @@ def test_command_grid_6_s(cmd, windows):
 def test_walks_forward_0p1_mps_for_10_s():
     s = _walk([0.1, 0.0, 0.0])
     assert not s.fell
-    assert 0.9 <= s.displacement_m[0] <= 1.1  # issue window 0.8-1.2 m; 0.96 m planned after the 0.4 s start
+    assert 0.9 <= s.displacement_m[0] <= 1.05  # issue window 0.8-1.2 m; 0.94 m planned; measured 0.937 m
     assert abs(s.displacement_m[1]) < 0.08  # heading hold: no sideways drift
     assert abs(s.yaw_change_rad) < 0.1
     assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03 and s.tracking.ang_vel_radps < 0.05
@@ -148,7 +149,7 @@ def test_steps_sideways_at_0p05_mps():
     s = _walk([0.0, 0.05, 0.0])
     assert not s.fell
     assert 0.45 <= s.displacement_m[1] <= 0.55  # issue window 0.35-0.65 m; 0.48 m planned after the start
-    assert abs(s.displacement_m[0]) < 0.12  # the stride calibration cancels the backward slip
+    assert abs(s.displacement_m[0]) < 0.12  # the forward velocity loop cancels the backward slip
     assert abs(s.yaw_change_rad) < 0.1
     assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03
 
@@ -157,7 +158,7 @@ def test_steps_sideways_at_0p05_mps():
 def test_walks_fast_0p15_mps_for_10_s():
     s = _walk([0.15, 0.0, 0.0])
     assert not s.fell  # fell at 7.5 s before the capture-point feedback and the stiffer swing leg
-    assert 1.35 <= s.displacement_m[0] <= 1.75  # 1.44 m planned after the 0.4 s start; measured 1.60 m
+    assert 1.35 <= s.displacement_m[0] <= 1.6  # 1.44 m planned after the 0.4 s start; measured 1.455 m
     assert abs(s.displacement_m[1]) < 0.1 and abs(s.yaw_change_rad) < 0.1
 
 
@@ -200,7 +201,41 @@ def test_feedback_signs_come_from_the_model():
     np.testing.assert_array_equal(policy._ankle_roll_sign, [1.0, 1.0])
 
 
-def test_stride_calibration_compensates_sideways_back_slip_both_ways():
-    cal = StrideCalibration(vx_gain=1.0, vy_gain=1.2, vx_per_vy=0.5)
-    np.testing.assert_allclose(cal.apply(np.array([0.0, 0.05, 0.1])), [0.025, 0.06, 0.1])
-    np.testing.assert_allclose(cal.apply(np.array([0.1, -0.05, 0.0])), [0.125, -0.06, 0.0])
+def test_leg_odometry_tracks_the_simulated_base_velocity():
+    robot = MuJoCoRobot()
+    policy = WalkZMPPolicy(robot, velocity=VelocityTracking(kp=(0.0, 0.0), ki=(0.0, 0.0)))  # open loop
+    obs = robot.reset()
+    policy.reset(obs)
+    start, positions = robot.base_pos.copy(), []
+    for _ in range(200):  # 4 s at vx -0.1 (over-strides open loop)
+        action = policy.act(obs, np.array([-0.1, 0.0, 0.0]))
+        obs = robot.step(action.motor_targets, action.kp, action.kd)
+        positions.append(robot.base_pos.copy())
+    cycle = 2 * policy.walk.config.step_ticks
+    true_vel = (positions[-1] - positions[-1 - cycle])[:2] / (cycle * robot.control_dt)
+    assert np.linalg.norm(start - positions[-1]) > 0.2
+    assert policy.velocity_estimate[0] == pytest.approx(true_vel[0], abs=0.008)
+    assert abs(policy.velocity_estimate[1] - true_vel[1]) < 0.03  # sideways: biased by the sway (not used)
+    assert policy.velocity_estimate[0] < -0.11  # sees the over-stride the loop corrects
+
+
+def test_velocity_correction_is_bounded_held_per_step_and_waits_for_a_steady_command():
+    robot = MuJoCoRobot()
+    vt = VelocityTracking(kp=(0.5, 0.0), ki=(2.0, 0.0), limit=(0.04, 0.03), settle_steps=2)
+    policy = WalkZMPPolicy(robot, velocity=vt)
+    obs = robot.reset()
+    policy.reset(obs)
+    policy.act(obs, np.zeros(3))
+    cfg = policy.walk.config
+    policy._estimate_velocity = lambda *_: np.array([0.0, 0.0])  # a robot that does not move
+    corrections = []
+    for _ in range(cfg.start_ticks + 6 * cfg.step_ticks):
+        policy.act(obs, np.array([0.1, 0.0, 0.0]))
+        corrections.append(policy._correction.copy())
+    corrections = np.array(corrections)
+    settle = cfg.start_ticks + 2 * cfg.step_ticks - 1
+    assert np.all(corrections[:settle] == 0.0)  # the gait-cycle average lags the start: no wind-up
+    assert corrections[settle, 0] == pytest.approx(0.04)  # kp * 0.1 + ki * 0.1 * dt, bounded
+    changes = np.flatnonzero(np.any(np.diff(corrections, axis=0) != 0, axis=1)) + 1
+    assert np.all((changes - settle) % cfg.step_ticks == 0)  # only when a step starts
+    assert np.all(corrections[:, 1] == 0.0) and corrections[:, 0].max() == pytest.approx(0.04)

@@ -12,7 +12,9 @@ The generator stays a pure function of its command and time; all feedback lives 
   quantity of the planned leg angles, and the error plus its rate / omega shifts the ankle pitch/roll;
 * stance hip lift and a stiffer swing leg (`swing_kp_scale`) so that the swing foot leaves and reaches the floor
   closer to the plan;
-* stride calibration (`StrideCalibration`): systematic stride errors are compensated in the planned command.
+* velocity tracking (`VelocityTracking`): the base's forward velocity, estimated by leg odometry (stance-foot
+  kinematics and the IMU) over a gait cycle, is driven to the command by a PI correction of the generator's
+  command (removes the systematic stride errors that foot slip and stance-leg compliance cause).
 """
 
 from __future__ import annotations
@@ -65,23 +67,23 @@ class AttitudeFeedback:
 
 
 @dataclass(frozen=True)
-class StrideCalibration:
-    """Systematic stride errors of the walking robot (foot slip, stance-leg compliance), compensated by adjusting
-    the command given to the generator: planned (vx, vy) = (vx * vx_gain + |vy| * vx_per_vy, vy * vy_gain).
-    The defaults are measured on the simulated robot with the default gains (docs/simulation.md); a real robot
-    needs its own values."""
+class VelocityTracking:
+    """Closed-loop planar velocity tracking: the base velocity is estimated by leg odometry (the planned stance
+    feet assumed fixed on the floor, their position from the measured leg angles and the IMU orientation),
+    averaged over the last gait cycle, and a PI law on the error (commanded minus estimated, torso-heading frame)
+    corrects the (vx, vy) command given to the generator. The y gains default to 0: the odometry's vy is biased by
+    the gait's lateral sway and a sideways loop made sideways walking worse (docs/simulation.md). The integral is
+    kept across command changes (the bias it learns is roughly the same for every command)."""
 
-    vx_gain: float = 1.0
-    """Planned forward speed per commanded forward speed."""
-    vy_gain: float = 1.05
-    """Planned sideways speed per commanded sideways speed."""
-    vx_per_vy: float = 0.45
-    """Planned forward speed per commanded sideways speed, either way (sideways steps to both sides slip
-    backwards: > 0 compensates)."""
-
-    def apply(self, command: np.ndarray) -> np.ndarray:
-        vx, vy, wz = command
-        return np.array([vx * self.vx_gain + abs(vy) * self.vx_per_vy, vy * self.vy_gain, wz])
+    kp: tuple[float, float] = (0.5, 0.0)
+    """(x, y) m/s of command correction per m/s of velocity error."""
+    ki: tuple[float, float] = (2.0, 0.0)
+    """(x, y) m/s of command correction per m of integrated velocity error (1/s)."""
+    limit: tuple[float, float] = (0.06, 0.03)
+    """(x, y) bound on the correction, m/s (the integral stops growing there: anti-windup)."""
+    settle_steps: int = 2
+    """Steps the (clipped) command must have stayed the same (and the walk have run) before the loop acts: the
+    gait-cycle average lags a velocity change, and integrating that lag winds the correction up."""
 
 
 def tilt(quat: np.ndarray) -> tuple[float, float]:
@@ -115,8 +117,8 @@ class WalkZMPPolicy(Policy):
         config: WalkConfig | None = None,
         feedback: AttitudeFeedback | None = None,
         leg_kp_scale: float = 2.0,
-        stride: StrideCalibration | None = None,
         swing_kp_scale: float = 3.0,
+        velocity: VelocityTracking | None = None,
     ) -> None:
         super().__init__(robot)
         names = list(robot.joint_names)
@@ -132,7 +134,7 @@ class WalkZMPPolicy(Policy):
         if abs(self.walk.config.dt - robot.control_dt) > 1e-12:
             raise ValueError(f"walk dt {self.walk.config.dt} s must equal the control period {robot.control_dt} s")
         self.feedback = feedback or AttitudeFeedback()
-        self.stride = stride or StrideCalibration()
+        self.velocity = velocity or VelocityTracking()
         chains = self.walk.ik.chains.joint_names
         axes = self.walk.ik.joint_axes()
 
@@ -158,6 +160,36 @@ class WalkZMPPolicy(Policy):
         self._com_error = None
         self._com_error_vel = np.zeros(2)
         self.dcm_error = np.zeros(2)
+        self._odometry = None
+        self._odometry_steps: list[np.ndarray] = []
+        self.velocity_estimate = np.zeros(2)
+        self._velocity_error_sum = np.zeros(2)
+        self._correction = np.zeros(2)
+        self._steady_command = None
+        self._steady_since = 0
+
+    def _estimate_velocity(self, obs: Observation, roll: float, pitch: float) -> np.ndarray:
+        """Base planar velocity (2,), m/s, torso-heading frame, from leg odometry averaged over the last gait
+        cycle: the torso moves opposite to the planned stance feet's position relative to it (measured leg
+        angles, IMU orientation); ticks where the stance changes are left out."""
+        ref = self.last_reference
+        if ref is None:
+            return self.velocity_estimate
+        feet, _ = self.walk.ik.forward(obs.joint_pos[self._leg])
+        heading = yaw(obs.imu_quat)
+        c, s = np.cos(heading), np.sin(heading)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ rotation_rp(roll, pitch)
+        legs = tuple(np.flatnonzero(ref.contact))
+        torso = -np.mean([rot @ feet[leg] for leg in legs], axis=0)[:2]  # world-aligned, relative to the stance
+        if self._odometry is not None and self._odometry[0] == legs:
+            step = torso - self._odometry[1]
+            self._odometry_steps.append(np.array([c * step[0] + s * step[1], -s * step[0] + c * step[1]]))
+            self._odometry_steps = self._odometry_steps[-self.walk.config.step_ticks * 2:]
+        self._odometry = (legs, torso)
+        if self._odometry_steps:
+            n = len(self._odometry_steps)
+            self.velocity_estimate = np.sum(self._odometry_steps, axis=0) / (n * self.control_dt)
+        return self.velocity_estimate
 
     def _measure_dcm_error(self, obs: Observation, roll: float, pitch: float) -> np.ndarray:
         """DCM error (2,), m: measured minus planned CoM relative to the planned-contact feet (torso yaw frame),
@@ -182,6 +214,27 @@ class WalkZMPPolicy(Policy):
         self._com_error = (key, err)
         return err + self._com_error_vel / self._omega
 
+    def _velocity_correction(self, obs: Observation, command: np.ndarray, roll: float, pitch: float) -> np.ndarray:
+        """(vx, vy) correction of the generator's command, m/s: PI on the commanded minus the leg-odometry velocity,
+        once the command has been steady for `settle_steps` steps. It changes only when a step starts (the
+        generator fixes each footstep then; a correction changing every tick would move the previewed footsteps,
+        and the CoM plan with them, during a step)."""
+        vt, cfg = self.velocity, self.walk.config
+        velocity = self._estimate_velocity(obs, roll, pitch)
+        clipped = self.walk.clip_command(command)
+        if not np.array_equal(clipped, self._steady_command):
+            self._steady_command, self._steady_since = clipped, self._state.tick
+        tick = self._state.tick
+        if tick - max(self._steady_since, cfg.start_ticks) < vt.settle_steps * cfg.step_ticks:
+            return self._correction
+        ki, limit = np.asarray(vt.ki), np.asarray(vt.limit)
+        error = clipped[:2] - velocity
+        bound = limit / np.maximum(ki, 1e-9)
+        self._velocity_error_sum = np.clip(self._velocity_error_sum + error * self.control_dt, -bound, bound)
+        if (tick - cfg.start_ticks) % cfg.step_ticks == 0:
+            self._correction = np.clip(np.asarray(vt.kp) * error + ki * self._velocity_error_sum, -limit, limit)
+        return self._correction
+
     def act(self, obs: Observation, command: np.ndarray) -> Action:
         fb = self.feedback
         command = np.asarray(command, dtype=float)
@@ -192,8 +245,9 @@ class WalkZMPPolicy(Policy):
         self._heading_error -= (heading - self._last_yaw + np.pi) % (2 * np.pi) - np.pi
         self._last_yaw = heading
         self._heading_error_sum += self._heading_error * self.control_dt
-        walk_command = self.stride.apply(command) + np.array(
-            [0.0, 0.0, fb.heading * self._heading_error + fb.heading_integral * self._heading_error_sum])
+        correction = self._velocity_correction(obs, command, roll, pitch)
+        walk_command = command + np.array(
+            [*correction, fb.heading * self._heading_error + fb.heading_integral * self._heading_error_sum])
         self.dcm_error = dcm = self._measure_dcm_error(obs, roll, pitch)
         contact = self._planned_contact
         gains = np.where(contact, fb.stance_tilt, fb.swing_tilt)
