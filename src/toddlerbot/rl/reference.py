@@ -140,8 +140,7 @@ def zmp_table(spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, per
 
 
 def load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
-    """The ZMP walking reference when ``toddlerbot.locomotion`` is installed, else the standing reference (with the
-    generator's default gait period). Returns the table and its source name ("zmp" or "standing").
+    """The ZMP walking reference of ``toddlerbot.locomotion`` and its source name ("zmp").
 
     Tables are cached per (spec name, variant, command config) for the life of the process."""
     key = (spec.name, spec.variant, cfg)
@@ -154,14 +153,8 @@ _CACHE: dict[tuple, tuple[ReferenceTable, str]] = {}
 
 
 def _load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
-    try:
-        from toddlerbot.locomotion.zmp_walk import ZMPWalk
-    except ImportError:
-        return standing_table(spec, cfg, STANDING_PERIOD), "standing"
+    from toddlerbot.locomotion.zmp_walk import ZMPWalk
+
     walk = ZMPWalk(spec=spec)
     return zmp_table(spec, walk, cfg, walk.config.cycle_time, walk.config.start_time), "zmp"
 
-
-STANDING_PERIOD = 0.72
-"""s; gait period given to the phase observation when no walking generator is available (the generator's default
-cycle time)."""

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.runtime.log import RunLog
 from toddlerbot.runtime.tracking import heading, tracking_errors
 
@@ -41,7 +42,7 @@ class RunSummary:
         return asdict(self)
 
 
-def summarize(log: RunLog, fell: bool, fall_time: float | None, window_s: float = 0.72) -> RunSummary:
+def summarize(log: RunLog, fell: bool, fall_time: float | None, window_s: float = WalkConfig.cycle_time) -> RunSummary:
     dt = log.control_dt
     pos = log.base_pos[:, :2]
     yaw = np.unwrap(heading(log.base_quat))

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from toddlerbot.locomotion.config import WalkConfig
+
 DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.05,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,0,0.3; 20:0.1,0,0.2; 24:0,0,0"
 """The default evaluation schedule (runtime command syntax, 26 s), inside the trained command ranges: stand, walk
 forward at 0.1 then 0.05 m/s, stop, side-step, turn in place, walk on a curve, stop."""
@@ -52,7 +54,7 @@ def heading(quat: np.ndarray) -> np.ndarray:
 
 
 def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray, base_quat: np.ndarray, fell: bool,
-                    window_s: float = 0.72, settle_s: float = 1.0) -> TrackingResult:
+                    window_s: float = WalkConfig.cycle_time, settle_s: float = 1.0) -> TrackingResult:
     """Tracking errors of one logged run (see the module docstring); arrays are per control step."""
     dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.02
     yaw = np.unwrap(heading(base_quat))
