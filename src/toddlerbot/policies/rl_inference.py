@@ -23,13 +23,19 @@ from types import ModuleType
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.robot.spec import RobotSpec, load_spec
 
-LEG_MOTORS = (
-    "left_hip_pitch", "left_hip_roll", "left_hip_yaw_drive", "left_knee_drive", "left_ankle_roll",
-    "left_ankle_pitch", "right_hip_pitch", "right_hip_roll", "right_hip_yaw_drive", "right_knee_drive",
-    "right_ankle_roll", "right_ankle_pitch",
-)
-"""The 12 motors an RL walking policy commands (motor joint names of the spec)."""
+LEG_GROUP = "leg"
+"""The spec's motor group an RL walking policy commands."""
+
+
+def leg_motor_names(spec: RobotSpec) -> tuple[str, ...]:
+    """Motor joint names of the spec's leg group, in motor-id order (the policy's action order)."""
+    return tuple(m.joint for m in spec.motors_by_id if m.group == LEG_GROUP)
+
+
+LEG_MOTORS = leg_motor_names(load_spec())
+"""The leg motors of the packaged robot (12 for ToddlerBot v1)."""
 
 
 @dataclass(frozen=True)
@@ -56,7 +62,7 @@ class ObsConfig:
 
     def frame_size(self, n_motors: int) -> int:
         """Features per frame: phase 2, command 3, motor angles relative to home and motor speeds (n_motors
-        each), last action 12, gyro 3, gravity direction in the IMU frame 3."""
+        each), last action (one per leg motor), gyro 3, gravity direction in the IMU frame 3."""
         return 2 + 3 + 2 * n_motors + len(LEG_MOTORS) + 3 + 3
 
     def to_json(self) -> str:

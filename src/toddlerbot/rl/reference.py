@@ -3,7 +3,7 @@
 The walking generator is a function of a velocity command and time. Inside a jitted environment we cannot call
 it, so we tabulate it on a grid of commands x gait phase:
 
-* ``leg_motor_pos[i, j, k, p]``: the 12 leg motor angles (rad, `config.LEG_MOTORS` order) for command
+* ``leg_motor_pos[i, j, k, p]``: the leg motor angles (rad, `leg_motor_names(spec)` order) for command
   ``(vx[i], vy[j], yaw[k])`` at phase ``p / n_phase`` of the steady-state gait cycle;
 * ``contact[i, j, k, p]``: (left, right) reference stance flags (1.0 = foot on the ground).
 
@@ -19,7 +19,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.rl.config import LEG_MOTORS, CommandConfig
+from toddlerbot.policies.rl_inference import leg_motor_names
+from toddlerbot.rl.config import CommandConfig
 from toddlerbot.robot.spec import RobotSpec
 from toddlerbot.robot.transmission import build_transmission_map
 
@@ -86,12 +87,9 @@ class ReferenceTable:
 
 
 def leg_motor_indices(spec: RobotSpec) -> np.ndarray:
-    """Indices of `LEG_MOTORS` in motor-id order."""
+    """Motor indices (motor-id order) of the spec's leg motors, the policy's actions."""
     names = [m.joint for m in spec.motors_by_id]
-    missing = [n for n in LEG_MOTORS if n not in names]
-    if missing:
-        raise ValueError(f"spec {spec.name!r} lacks leg motors {missing}")
-    return np.array([names.index(n) for n in LEG_MOTORS])
+    return np.array([names.index(n) for n in leg_motor_names(spec)])
 
 
 def home_motor_pos(spec: RobotSpec) -> np.ndarray:
