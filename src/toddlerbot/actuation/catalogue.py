@@ -38,7 +38,7 @@ class ActuatorParams:
     """Damping added by the powered motor's controller, N*m*s/rad."""
     tau_brake: float
     """Braking torque limit, N*m."""
-    kp_scale: float = 150.0
+    kp_scale: float
     """Dynamixel position P gain divided by the physical stiffness in N*m/rad."""
 
     def __post_init__(self) -> None:
