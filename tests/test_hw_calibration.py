@@ -18,7 +18,8 @@ from toddlerbot.hardware.calibration import (
 )
 from toddlerbot.hardware.control_table import RAD_PER_PULSE
 from toddlerbot.hardware.driver import DynamixelBus, motors_of
-from toddlerbot.hardware.real_robot import RealRobot, home_motor_angles
+from toddlerbot.hardware.real_robot import RealRobot
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 
 SPEC = load_spec()
@@ -106,7 +107,7 @@ def test_real_robot_applies_offsets_and_recovers_multi_turn_positions():
             for m in emu.motors:
                 emu._power_up(m)
         assert all(0 <= m.get("present_position") < 4096 for m in emu.motors)
-        with RealRobot(SPEC, path, cal, control_dt=0.01) as robot:
+        with RealRobot(RobotDescription(SPEC), path, cal, control_dt=0.01) as robot:
             robot.bus.open()
             robot.bus.scan()
             state = robot.bus.read_state()
@@ -120,9 +121,9 @@ def test_real_robot_applies_offsets_and_recovers_multi_turn_positions():
 def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
     with emulated(SPEC, offsets_seed=4) as (emu, path):
         cal = Calibration("tb", "toddlerbot_v1", {m.name: m.mounting_offset for m in emu.motors})
-        with RealRobot(SPEC, path, cal, control_dt=0.01, reset_duration=0.3) as robot:
+        with RealRobot(RobotDescription(SPEC), path, cal, control_dt=0.01, reset_duration=0.3) as robot:
             obs = robot.reset()
-            home = home_motor_angles(SPEC, robot)
+            home = robot.description.home_motor_pos
             for _ in range(30):
                 obs = robot.step(home)
             assert np.abs(obs.motor_pos - home).max() < 0.05
@@ -132,8 +133,14 @@ def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
             assert [m.get("position_p_gain") for m in emu.motors] == [int(k) for k in kp]
             assert {m.get("position_d_gain") for m in emu.motors} == {7}
             wild = home.copy()
-            wild[0] = 10.0  # beyond neck yaw's joint range: the goal is clipped to the range
-            robot.step(wild)
-            goal = emu.motor(0).get("goal_position")
-            assert robot._angles(np.array([goal]))[0] == pytest.approx(robot.upper[0], abs=RAD_PER_PULSE)
+            wild[0] = 10.0  # beyond neck yaw's joint range: slew-limited, then clipped to the range
+            step = robot.guard.max_step[0]
+            assert step == pytest.approx(6.5 * 0.01)  # XC330 no-load speed x control period
+            goals = []
+            for _ in range(80):
+                robot.step(wild)
+                goals.append(robot._angles(np.array([emu.motor(0).get("goal_position")]))[0])
+            assert goals[0] == pytest.approx(home[0] + step, abs=RAD_PER_PULSE)
+            assert np.diff(goals).max() <= step + RAD_PER_PULSE
+            assert goals[-1] == pytest.approx(robot.upper[0], abs=RAD_PER_PULSE)
         assert not any(m.torque_on for m in emu.motors)

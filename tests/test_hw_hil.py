@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from toddlerbot.hardware.calibration import load_calibration
-from toddlerbot.hardware.real_robot import RealRobot, home_motor_angles
+from toddlerbot.hardware.real_robot import RealRobot
 from toddlerbot.policies import make_policy
 from toddlerbot.robot.builder import build_model
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
@@ -46,8 +47,8 @@ def test_stand_policy_through_driver_emulator_and_simulation(tmp_path, monkeypat
     proc, path = _start_emulator("--hil", "--write-calibration", str(cal_file))
     try:
         cal = load_calibration(cal_file, spec)
-        with RealRobot(spec, path, cal, control_dt=0.02, reset_duration=0.4, retries=5) as robot:
-            home = home_motor_angles(spec, robot)
+        with RealRobot(RobotDescription(spec), path, cal, control_dt=0.02, reset_duration=0.4, retries=5) as robot:
+            home = robot.description.home_motor_pos
             result = run_policy(robot, make_policy("stand", robot), CommandSchedule.parse("0:0,0,0"), 3.0)
         errors = np.abs(result.log.motor_pos - home).max(axis=1)
     finally:

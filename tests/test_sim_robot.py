@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimulationError
-from toddlerbot.sysid.params import catalogue_with_params
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.safety import UnsafeCommandError
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
 
 @pytest.fixture(scope="module")
@@ -23,18 +24,45 @@ def test_reset_observation_is_standing_on_both_feet(robot):
     np.testing.assert_allclose(obs.joint_pos, robot.transmission.motor_to_joint(obs.motor_pos))
 
 
-def test_targets_are_clamped_to_joint_limits(robot):
-    targets = np.full(len(robot.motor_names), 100.0)
-    clamped = robot.clamp_targets(targets)
-    joint = robot.transmission.motor_to_joint(clamped)
-    assert np.all(joint <= robot._joint_range[:, 1] + 1e-9)
-    assert np.all(clamped <= robot._motor_range[:, 1] + 1e-9)
-
-
-def test_non_finite_target_stops_with_a_clear_error(robot):
+@pytest.mark.parametrize("value", [100.0, -100.0])
+def test_targets_are_clamped_to_both_joint_limits(robot, value):
+    description = robot.description
     robot.reset()
-    with pytest.raises(SimulationError, match="non-finite"):
-        robot.step(np.full(len(robot.motor_names), np.nan))
+    robot.step(np.full(len(robot.motor_names), value))
+    sent = robot.last_targets
+    joint = robot.transmission.motor_to_joint(sent)
+    lower, upper = description.joint_range.T
+    assert np.all(joint <= upper + 1e-9) and np.all(joint >= lower - 1e-9)
+    assert np.all(sent <= description.motor_range[:, 1] + 1e-9)
+    assert np.all(sent >= description.motor_range[:, 0] - 1e-9)
+    # each motor sits at one of its own or its output joint's limits, not somewhere inside
+    at_limit = np.isclose(sent, description.motor_range[:, 1 if value > 0 else 0]) | np.isclose(
+        robot.transmission.inverse @ joint, sent)
+    assert at_limit.all()
+    ankle = robot.motor_names.index("left_ankle_pitch")
+    assert sent[ankle] == pytest.approx(description.motor_range[ankle, 1 if value > 0 else 0])
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_target_is_refused_and_nothing_is_applied(robot, bad):
+    robot.reset()
+    before = robot._targets.copy()
+    targets = robot.observe().motor_pos.copy()
+    targets[3] = bad
+    with pytest.raises(UnsafeCommandError, match=r"non-finite motor target for 1 motor\(s\) \(waist_drive_2\)"):
+        robot.step(targets)
+    np.testing.assert_array_equal(robot._targets, before)
+
+
+def test_non_finite_or_out_of_range_gains_are_refused(robot):
+    robot.reset()
+    kp = robot.default_kp.copy()
+    kp[0] = np.nan
+    with pytest.raises(UnsafeCommandError, match="non-finite kp"):
+        robot.step(robot.observe().motor_pos, kp=kp)
+    kp[0] = 1e6
+    with pytest.raises(UnsafeCommandError, match=r"kp for neck_yaw_drive is 1e\+06; expected 0..16383"):
+        robot.step(robot.observe().motor_pos, kp=kp)
 
 
 def test_fall_detector_fires_when_the_robot_goes_limp(robot):
@@ -51,8 +79,8 @@ def test_fall_detector_fires_when_the_robot_goes_limp(robot):
 def test_fitted_motor_params_reach_the_simulated_joints_and_actuator_model(tmp_path):
     params = tmp_path / "xm430.json"
     params.write_text('{"motor": "XM430", "actuator": {"armature": 0.0031, "tau_max": 1.23}}')
-    fitted = MuJoCoRobot(catalogue=catalogue_with_params([params]))
+    fitted = MuJoCoRobot(RobotDescription.load(motor_params=[params]))
     knee = fitted.model.joint("left_knee_drive")
     assert fitted.model.dof_armature[knee.dofadr[0]] == pytest.approx(0.0031)
     knee_motor = fitted.motor_names.index("left_knee_drive")
-    assert fitted.actuator_params[knee_motor].tau_max == pytest.approx(1.23)
+    assert fitted.description.actuator_params[knee_motor].tau_max == pytest.approx(1.23)

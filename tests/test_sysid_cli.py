@@ -10,11 +10,12 @@ import pytest
 from typer.testing import CliRunner
 
 from toddlerbot.actuation.catalogue import default_catalogue
+from toddlerbot.actuation.params_file import catalogue_with_params, load_params
 from toddlerbot.cli.main import app
+from toddlerbot.errors import ParamsError
 from toddlerbot.robot.builder import build_mjspec
 from toddlerbot.robot.spec import load_spec
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.params import catalogue_with_params, load_params
 
 runner = CliRunner()
 
@@ -71,7 +72,7 @@ def test_params_load_into_catalogue_and_model(tmp_path: Path) -> None:
     assert model.dof_armature[knee] == pytest.approx(0.0031) and model.dof_damping[knee] == pytest.approx(0.007)
     assert default_catalogue()["XM430"].actuator.armature == 0.0022  # the packaged catalogue is untouched
     path.write_text(json.dumps({"motor": "XM430", "actuator": {"armature": -1}}))
-    with pytest.raises(SysIDError, match=r"xm.json: armature must be a finite number >= 0"):
+    with pytest.raises(ParamsError, match=r"xm.json: armature must be a finite number >= 0"):
         load_params(path)
 
 

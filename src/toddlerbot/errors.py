@@ -7,3 +7,7 @@ class ToddlerbotError(Exception):
 
 class SpecError(ToddlerbotError):
     """A robot spec, motor catalogue or variant is malformed or inconsistent."""
+
+
+class ParamsError(ToddlerbotError):
+    """A fitted actuator-parameter file (params.json) is malformed or names an unknown motor."""

@@ -13,6 +13,7 @@ import typer
 from rich.table import Table
 
 from toddlerbot.cli.output import console
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import RobotSpec, load_spec
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
@@ -165,7 +166,9 @@ def run(
     spec = _spec(spec_path, gripper)
     cal = load_calibration(calibration, spec)
     schedule = CommandSchedule.parse(command)
-    with RealRobot(spec, port, cal, control_dt=control_dt, baudrate=baud, calibration_source=str(calibration)) as robot:
+    description = RobotDescription(spec)
+    with RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
+                   calibration_source=str(calibration)) as robot:
         result = run_policy(robot, make_policy(policy, robot, motion), schedule, seconds)
     steps = result.log.time.size
     error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)

@@ -10,11 +10,11 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
+from toddlerbot.actuation.params_file import catalogue_with_params
 from toddlerbot.cli.output import console
 from toddlerbot.robot.builder import VARIANTS, build_mjspec, variant_spec
 from toddlerbot.robot.spec import load_spec
 from toddlerbot.robot.summary import summarize
-from toddlerbot.sysid.params import catalogue_with_params
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
 

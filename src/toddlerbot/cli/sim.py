@@ -45,12 +45,12 @@ def run(
     from rich.progress import Progress
 
     from toddlerbot.policies import make_policy
+    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
     from toddlerbot.runtime.summary import summarize
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
     from toddlerbot.sim.render import Recorder, has_display
-    from toddlerbot.sysid.params import catalogue_with_params
 
     if policy not in POLICIES:
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
@@ -59,8 +59,8 @@ def run(
     if command is None:
         command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
     schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)
-    catalogue = catalogue_with_params(motor_params or [])
-    robot = MuJoCoRobot(config=SimConfig(control_dt=1.0 / control_hz), catalogue=catalogue)
+    description = RobotDescription.load(motor_params=motor_params or [])
+    robot = MuJoCoRobot(description, SimConfig(control_dt=1.0 / control_hz))
     pol = make_policy(policy, robot, motion)
     recorder = None
     if video or snapshot:

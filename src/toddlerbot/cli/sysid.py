@@ -12,6 +12,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from toddlerbot.actuation.catalogue import default_catalogue
+from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.output import console
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
@@ -20,7 +21,7 @@ from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.logs import read_columns
 from toddlerbot.sysid.manifest import load_manifest
-from toddlerbot.sysid.params import load_params, save_params
+from toddlerbot.sysid.params import save_params
 from toddlerbot.sysid.rigs import parse_rig
 from toddlerbot.sysid.synthetic import synthesize, write_runs
 from toddlerbot.sysid.testbed import armature_from_spindown, fit_friction

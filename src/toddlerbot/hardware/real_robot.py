@@ -16,14 +16,8 @@ from toddlerbot.hardware.calibration import Calibration
 from toddlerbot.hardware.control_table import PULSES_PER_REV, pulses_to_rad, rad_to_pulses
 from toddlerbot.hardware.driver import DEFAULT_BAUDRATE, DEFAULT_RETRIES, DynamixelBus, MotorState, motors_of
 from toddlerbot.hardware.imu import Imu, StaticImu
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
-from toddlerbot.robot.spec import RobotSpec
-
-
-def home_motor_angles(spec: RobotSpec, robot: Robot) -> np.ndarray:
-    """Motor angles (rad) of the spec's home pose."""
-    q_joint = np.array([spec.home.get(j, 0.0) for j in robot.joint_names])
-    return robot.transmission.joint_to_motor(q_joint)
 
 
 class RealRobot(Robot):
@@ -31,7 +25,7 @@ class RealRobot(Robot):
 
     def __init__(
         self,
-        spec: RobotSpec,
+        description: RobotDescription,
         port: str,
         calibration: Calibration,
         control_dt: float = 0.02,
@@ -41,16 +35,15 @@ class RealRobot(Robot):
         calibration_source: str = "calibration",
         retries: int = DEFAULT_RETRIES,
     ) -> None:
-        super().__init__(spec, control_dt)
+        # slew limit: no target moves faster than the motor's no-load speed
+        super().__init__(description, control_dt, max_step=description.max_motor_speed * control_dt)
+        spec = description.spec
         self.offsets = calibration.offsets_for(spec, calibration_source)
         self.bus = DynamixelBus(port, motors_of(spec), baudrate=baudrate, retries=retries)
         self.imu = imu or StaticImu()
         self.reset_duration = reset_duration
         self.turns = np.zeros(len(self.offsets), dtype=np.int64)
-        joints = spec.joints
-        ranges = [joints[m.joint].range or (-np.inf, np.inf) for m in spec.motors_by_id]
-        self.lower, self.upper = np.array(ranges).T
-        """Motor joint limits from the spec, rad: goals are clipped to them (extended position mode has none)."""
+        self.lower, self.upper = description.motor_range.T
         self.range_mid = np.where(np.isfinite(self.lower + self.upper), (self.lower + self.upper) / 2, 0.0)
         self._gains: tuple[np.ndarray, np.ndarray] | None = None
         self._t0 = 0.0
@@ -97,7 +90,8 @@ class RealRobot(Robot):
             bus.enable_torque(state.position)
             self._gains = (self.default_kp.copy(), self.default_kd.copy())
             self._t0 = self._deadline = time.perf_counter()
-            start, home = self._angles(state.position), home_motor_angles(self.spec, self)
+            start, home = self._angles(state.position), self.description.home_motor_pos
+            self.last_targets = start
             steps = max(1, round(self.reset_duration / self.control_dt))
             obs = None
             for k in range(1, steps + 1):
@@ -113,9 +107,7 @@ class RealRobot(Robot):
             raise RuntimeError("call reset() first")
         return self._last
 
-    def step(
-        self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
-    ) -> Observation:
+    def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
         bus = self.bus
         try:
             if kp is not None or kd is not None:
@@ -124,7 +116,7 @@ class RealRobot(Robot):
                 if self._gains is None or not all(np.array_equal(a, b) for a, b in zip(new, self._gains, strict=True)):
                     bus.write_gains(*new)
                     self._gains = (new[0].copy(), new[1].copy())
-            bus.write_goal_positions(self._pulses(np.clip(motor_targets, self.lower, self.upper)))
+            bus.write_goal_positions(self._pulses(motor_targets))
             self._deadline += self.control_dt
             delay = self._deadline - time.perf_counter()
             if delay > 0:

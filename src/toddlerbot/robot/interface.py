@@ -12,8 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.safety import CommandGuard
 from toddlerbot.robot.spec import RobotSpec
-from toddlerbot.robot.transmission import TransmissionMap, build_transmission_map
+from toddlerbot.robot.transmission import TransmissionMap
 
 
 @dataclass(frozen=True)
@@ -40,16 +42,30 @@ class Observation:
 
 
 class Robot(ABC):
-    """A robot a policy can drive: read observations, command motor position targets."""
+    """A robot a policy can drive: read observations, command motor position targets.
 
-    def __init__(self, spec: RobotSpec, control_dt: float) -> None:
-        if control_dt <= 0:
-            raise ValueError(f"control_dt must be positive, got {control_dt}")
-        self.spec = spec
+    `step` is the same for every backend: the command passes the shared `CommandGuard` (finite, in range,
+    optionally slew-limited) before the backend's `_apply` sees it, so no backend can skip the checks.
+    """
+
+    def __init__(self, description: RobotDescription, control_dt: float, max_step: np.ndarray | None = None) -> None:
+        if not control_dt > 0 or not np.isfinite(control_dt):
+            raise ValueError(f"control_dt must be a positive number of seconds, got {control_dt}")
+        self.description = description
         self.control_dt = control_dt
-        self.transmission: TransmissionMap = build_transmission_map(spec)
-        self.default_kp = np.array([m.kp for m in spec.motors_by_id], dtype=float)
-        self.default_kd = np.array([m.kd for m in spec.motors_by_id], dtype=float)
+        self.transmission: TransmissionMap = description.transmission
+        self.default_kp = description.default_kp
+        self.default_kd = description.default_kd
+        self.guard = CommandGuard(
+            description.motor_names, description.motor_range, description.joint_range,
+            self.transmission.matrix, self.transmission.inverse, max_step,
+        )
+        self.last_targets: np.ndarray | None = None
+        """The last motor targets sent (after the guard), rad; None before `reset`."""
+
+    @property
+    def spec(self) -> RobotSpec:
+        return self.description.spec
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -67,12 +83,21 @@ class Robot(ABC):
     def observe(self) -> Observation:
         """The latest observation, without advancing time."""
 
-    @abstractmethod
     def step(
         self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
     ) -> Observation:
         """Command motor position targets (rad) with optional per-motor firmware gains, advance one control
-        period (control_dt) and return the new observation."""
+        period (control_dt) and return the new observation. Raises `UnsafeCommandError` (nothing sent) for a
+        non-finite or malformed command."""
+        targets = self.guard.targets(motor_targets, self.last_targets)
+        kp = None if kp is None else self.guard.gains(kp, "kp")
+        kd = None if kd is None else self.guard.gains(kd, "kd")
+        self.last_targets = targets
+        return self._apply(targets, kp, kd)
+
+    @abstractmethod
+    def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
+        """Send already-checked targets and gains to the backend and advance one control period."""
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release resources; hardware backends disable torque here."""

@@ -7,8 +7,8 @@ one control period (``control_dt``, 20 ms at 50 Hz).
 
 Safety in the loop:
 
-* targets are clamped to the motor joints' ranges and, through the transmission map, to the output joints'
-  ranges (so a waist-roll command never asks the differential for more than its limit);
+* targets and gains pass the shared `CommandGuard` of `Robot.step` (finite, clamped to the motor and output
+  joint ranges) before the backend applies them;
 * non-finite or runaway state raises `SimulationError` naming the simulated time;
 * a fall detector (`MuJoCoRobot.fallen`): torso tilted beyond ``fall_tilt_rad`` or its height below
   ``fall_height_fraction`` of the standing height.
@@ -21,14 +21,12 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.catalogue import Catalogue, default_catalogue
-from toddlerbot.actuation.model import actuator_arrays, motor_torque
+from toddlerbot.actuation.model import motor_torque
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.robot.builder import FREEJOINT, build_model
+from toddlerbot.robot.builder import FREEJOINT
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
-from toddlerbot.robot.spec import RobotSpec, load_spec
 
-FOOT_GEOMS = ("left_foot_collision", "right_foot_collision")
 MAX_JOINT_SPEED = 200.0
 """rad/s; any faster and the simulation has blown up."""
 
@@ -56,16 +54,14 @@ class MuJoCoRobot(Robot):
 
     def __init__(
         self,
-        spec: RobotSpec | None = None,
+        description: RobotDescription | None = None,
         config: SimConfig | None = None,
-        catalogue: Catalogue | None = None,
         model: mujoco.MjModel | None = None,
     ) -> None:
-        spec = spec or load_spec()
+        description = description or RobotDescription.load()
         self.config = config or SimConfig()
-        super().__init__(spec, self.config.control_dt)
-        catalogue = catalogue or default_catalogue()
-        self.model = model if model is not None else build_model(spec, "floating", scene=True, catalogue=catalogue)
+        super().__init__(description, self.config.control_dt)
+        self.model = model if model is not None else description.model("floating", scene=True)
         self.data = mujoco.MjData(self.model)
         physics_dt = self.model.opt.timestep
         self.n_substeps = round(self.config.control_dt / physics_dt)
@@ -73,21 +69,18 @@ class MuJoCoRobot(Robot):
             raise ValueError(
                 f"control_dt {self.config.control_dt} s must be a multiple of the physics timestep {physics_dt} s"
             )
-        self.actuator_params = [catalogue[m.model].actuator for m in spec.motors_by_id]
         m = self.model
         joints = [m.joint(name) for name in self.motor_names]
         self._qadr = np.array([j.qposadr[0] for j in joints])
         self._dadr = np.array([j.dofadr[0] for j in joints])
         self._act = np.array([m.actuator(name).id for name in self.motor_names])
-        self._motor_range = np.array([j.range for j in joints])
-        self._joint_range = np.array([m.joint(name).range for name in self.joint_names])
         self._A = self.transmission.matrix
-        self._A_inv = self.transmission.inverse
         self._imu = {name: slice(m.sensor(name).adr[0], m.sensor(name).adr[0] + m.sensor(name).dim[0])
                      for name in ("imu_quat", "imu_gyro", "imu_accel")}
-        self._foot_geoms = np.array([m.geom(g).id for g in FOOT_GEOMS])
+        handles = description.handles
+        self._foot_geoms = np.array([m.geom(g).id for g in handles.feet_geoms])
         self._floor = m.geom("floor").id
-        self._torso = m.body(spec.bodies[0].name).id
+        self._torso = m.body(handles.torso).id
         self._base_qadr = m.joint(FREEJOINT).qposadr[0]
         self._home_key = m.key("home").id
         self._targets = np.zeros(len(self.motor_names))
@@ -101,6 +94,7 @@ class MuJoCoRobot(Robot):
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._home_key)
         mujoco.mj_forward(self.model, self.data)
         self._targets = self.data.qpos[self._qadr].copy()
+        self.last_targets = None
         self._torque[:] = 0.0
         self.set_gains(self.default_kp, self.default_kd)
         return self.observe()
@@ -121,12 +115,10 @@ class MuJoCoRobot(Robot):
             foot_contact=self.foot_contact(),
         )
 
-    def step(
-        self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
-    ) -> Observation:
+    def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
         if kp is not None or kd is not None:
             self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
-        self._targets = self.clamp_targets(motor_targets)
+        self._targets = motor_targets
         m, d, p = self.model, self.data, self._params
         for _ in range(self.n_substeps):
             tau = motor_torque(self._targets, d.qpos[self._qadr], d.qvel[self._dadr], p)
@@ -139,18 +131,7 @@ class MuJoCoRobot(Robot):
     # -- helpers ---------------------------------------------------------------------------------------------
     def set_gains(self, kp: np.ndarray, kd: np.ndarray) -> None:
         """Firmware gains (Dynamixel units) used by the actuator model from now on."""
-        self._params = actuator_arrays(self.actuator_params, np.asarray(kp, float), np.asarray(kd, float))
-
-    def clamp_targets(self, motor_targets: np.ndarray) -> np.ndarray:
-        """Motor targets limited to the motor ranges and, through the transmissions, to the output-joint ranges."""
-        q = np.clip(np.asarray(motor_targets, dtype=float), self._motor_range[:, 0], self._motor_range[:, 1])
-        if not np.all(np.isfinite(q)):
-            raise SimulationError(f"non-finite motor target at t={self.data.time:.3f} s: {motor_targets}")
-        joint = self._A @ q
-        clipped = np.clip(joint, self._joint_range[:, 0], self._joint_range[:, 1])
-        if np.any(clipped != joint):
-            q = self._A_inv @ clipped
-        return q
+        self._params = self.description.actuator_arrays(kp, kd)
 
     def foot_contact(self) -> np.ndarray:
         """(left, right): does each foot's collision geom touch the floor?"""

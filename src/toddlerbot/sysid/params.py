@@ -16,9 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, default_catalogue
-from toddlerbot.errors import SpecError
-from toddlerbot.sysid.errors import SysIDError
+from toddlerbot.actuation.catalogue import ActuatorParams
 from toddlerbot.sysid.io import atomic_write_text
 
 MODEL_PARAMETERS = (
@@ -95,39 +93,3 @@ def save_params(path: str | Path, motor: str, params: ActuatorParams, fitted: It
     """Write a params.json atomically."""
     body = {"motor": motor, "actuator": dataclasses.asdict(params), "fitted": list(fitted), "fit": fit}
     return atomic_write_text(path, json.dumps(body, indent=2) + "\n")
-
-
-def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[str, ActuatorParams]:
-    """(catalogue motor name, ActuatorParams) of a params.json; raise `SysIDError` naming the file."""
-    path = Path(path)
-    catalogue = catalogue or default_catalogue()
-    try:
-        raw = json.loads(path.read_text())
-    except OSError as exc:
-        raise SysIDError(f"{path}: cannot read parameters ({exc.strerror or exc})") from None
-    except json.JSONDecodeError as exc:
-        raise SysIDError(f"{path}: not valid JSON: {exc}") from None
-    if not isinstance(raw, dict) or not isinstance(raw.get("actuator"), dict) or "motor" not in raw:
-        raise SysIDError(f"{path}: expected {{'motor': name, 'actuator': {{...}}}}")
-    try:
-        name = catalogue[str(raw["motor"])].name
-    except SpecError:
-        raise SysIDError(f"{path}: unknown motor model {raw['motor']!r}") from None
-    known = {f.name for f in dataclasses.fields(ActuatorParams)}
-    unknown = sorted(set(raw["actuator"]) - known)
-    if unknown:
-        raise SysIDError(f"{path}: unknown actuator field(s) {', '.join(unknown)}; expected {', '.join(sorted(known))}")
-    try:
-        params = dataclasses.replace(catalogue[name].actuator, **raw["actuator"])
-    except (TypeError, ValueError) as exc:
-        raise SysIDError(f"{path}: {exc}") from None
-    return name, params
-
-
-def catalogue_with_params(paths: Iterable[str | Path], catalogue: Catalogue | None = None) -> Catalogue:
-    """The motor catalogue with each params.json applied to its motor model (later files win)."""
-    catalogue = catalogue or default_catalogue()
-    for path in paths:
-        name, params = load_params(path, catalogue)
-        catalogue = catalogue.with_actuator(name, params)
-    return catalogue

@@ -1,0 +1,64 @@
+"""Reading fitted actuator parameters (``params.json``, written by ``toddlerbot sysid fit``) into a catalogue.
+
+A ``params.json`` holds ``{"motor": <catalogue name>, "actuator": {ActuatorParams fields}, "fitted": [names],
+"fit": {...provenance...}}``. Fields it leaves out keep the catalogue's value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Iterable
+from pathlib import Path
+
+from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, default_catalogue
+from toddlerbot.errors import ParamsError, SpecError
+
+MAX_PARAMS_BYTES = 1 << 20
+"""A params.json is a few hundred bytes; anything over 1 MiB is not one."""
+
+
+def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[str, ActuatorParams]:
+    """(catalogue motor name, ActuatorParams) of a params.json; raise `ParamsError` naming the file."""
+    path = Path(path)
+    catalogue = catalogue or default_catalogue()
+    try:
+        if path.stat().st_size > MAX_PARAMS_BYTES:
+            raise ParamsError(f"{path}: {path.stat().st_size} bytes is too large for a params.json (max 1 MiB)")
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ParamsError(f"{path}: cannot read parameters ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise ParamsError(f"{path}: not a text file (expected UTF-8 JSON)") from None
+    except json.JSONDecodeError as exc:
+        raise ParamsError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(raw, dict) or not isinstance(raw.get("actuator"), dict) or "motor" not in raw:
+        raise ParamsError(f"{path}: expected {{'motor': name, 'actuator': {{...}}}}")
+    try:
+        name = catalogue[str(raw["motor"])].name
+    except SpecError:
+        raise ParamsError(f"{path}: unknown motor model {raw['motor']!r}") from None
+    known = {f.name for f in dataclasses.fields(ActuatorParams)}
+    unknown = sorted(set(raw["actuator"]) - known)
+    if unknown:
+        raise ParamsError(
+            f"{path}: unknown actuator field(s) {', '.join(unknown)}; expected {', '.join(sorted(known))}"
+        )
+    for field, value in raw["actuator"].items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ParamsError(f"{path}: actuator.{field} must be a finite number, got {value!r}")
+    try:
+        params = dataclasses.replace(catalogue[name].actuator, **raw["actuator"])
+    except (TypeError, ValueError) as exc:
+        raise ParamsError(f"{path}: {exc}") from None
+    return name, params
+
+
+def catalogue_with_params(paths: Iterable[str | Path], catalogue: Catalogue | None = None) -> Catalogue:
+    """The motor catalogue with each params.json applied to its motor model (later files win)."""
+    catalogue = catalogue or default_catalogue()
+    for path in paths:
+        name, params = load_params(path, catalogue)
+        catalogue = catalogue.with_actuator(name, params)
+    return catalogue
