@@ -5,12 +5,19 @@ import pytest
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.model import actuator_arrays, motor_torque
 from toddlerbot.robot.builder import build_model
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 
 
 @pytest.fixture(scope="session")
 def spec():
     return load_spec()
+
+
+@pytest.fixture(scope="session")
+def description(spec):
+    """The packaged robot's description, shared by the session (its derived objects are built once)."""
+    return RobotDescription(spec)
 
 
 @pytest.fixture(scope="session")

@@ -3,7 +3,6 @@ import json
 import pytest
 from typer.testing import CliRunner
 
-from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.cli.main import app
 from toddlerbot.design.budget import PowerInputs, power_budget, weight_estimate
 from toddlerbot.design.power_factor import power_factor_of, reference_humanoids, robot_power_factor
@@ -21,8 +20,8 @@ def test_eq5_reproduces_the_appendix_torques():
     assert round(tau["hip_pitch"], 2) == 1.77
 
 
-def test_power_factor_from_stall_torques(spec):
-    pf = robot_power_factor(spec, default_catalogue(), height_m=0.56, mass_kg=3.4)
+def test_power_factor_from_stall_torques(description):
+    pf = robot_power_factor(description, height_m=0.56, mass_kg=3.4)
     assert pf.sum_torque_nm == pytest.approx(50.8)  # Table 2 x motor assignment
     assert pf.total == pytest.approx(50.8 / (0.56 * 3.4 * 9.81))
     assert pf.upper + pf.lower == pytest.approx(pf.total)
@@ -37,18 +36,17 @@ def test_reference_humanoids_have_sources_and_plausible_power_factors():
     assert all(0.5 < h.power_factor < 6 for h in robots.values())
 
 
-def test_joints_below_requirement_are_flagged(spec):
-    catalogue = default_catalogue()
-    at_design_size = check_joints(spec, catalogue, 0.5, 3.1)
+def test_joints_below_requirement_are_flagged(description):
+    at_design_size = check_joints(description, 0.5, 3.1)
     assert all(c.sufficient for c in at_design_size)  # XM430 3.0 >= 2.66, 2XC430 1.8 >= 1.77
-    heavier = {c.joint: c for c in check_joints(spec, catalogue, 0.5, 3.5)}
+    heavier = {c.joint: c for c in check_joints(description, 0.5, 3.5)}
     assert not heavier["left_hip_pitch"].sufficient and not heavier["right_hip_pitch"].sufficient
     assert heavier["left_knee"].sufficient
     assert heavier["left_knee"].available_nm == pytest.approx(3.0)
 
 
-def test_weight_estimate_and_power_budget(spec):
-    weight = weight_estimate(spec, default_catalogue())
+def test_weight_estimate_and_power_budget(description):
+    weight = weight_estimate(description)
     assert weight.estimate_kg == pytest.approx(3.1)  # appendix: 30 x 50 g + 600 g + 1000 g
     assert weight.error_fraction == pytest.approx((3.1 - 3.358) / 3.358, abs=0.01)
     budget = power_budget(PowerInputs())
@@ -60,8 +58,8 @@ def test_weight_estimate_and_power_budget(spec):
         PowerInputs(duty_cycle=1.5)
 
 
-def test_range_of_motion_compares_every_joint_with_human_values(spec):
-    rows = {r.joint: r for r in range_of_motion(spec)}
+def test_range_of_motion_compares_every_joint_with_human_values(description):
+    rows = {r.joint: r for r in range_of_motion(description)}
     assert rows["left_knee"].robot_span_deg == pytest.approx(120.0, abs=0.01)
     assert rows["left_knee"].human_joint == "knee_pitch"
     assert rows["left_knee"].human_span_deg == pytest.approx(130.0)
@@ -80,12 +78,12 @@ def test_design_report_json_from_cli():
     assert pf["total"] == pytest.approx(power_factor_of(50.8, 0.5, 3.1))
 
 
-def test_design_report_defaults_to_the_models_size(spec):
+def test_design_report_defaults_to_the_models_size(spec, description):
     result = runner.invoke(app, ["design", "report", "--json"])
     assert result.exit_code == 0, result.output
     assert json.loads(result.output)["insufficient_joints"] == [
         "left_ankle_pitch", "right_ankle_pitch", "left_hip_pitch", "right_hip_pitch"]
-    report = design_report(spec)
+    report = design_report(description)
     assert report.height_m == pytest.approx(0.553, abs=0.005)
     assert report.mass_kg == pytest.approx(3.358, rel=0.001)
     assert {c.joint for c in report.insufficient_joints} == {

@@ -53,8 +53,8 @@ def _zero_policy(path):
     return write_policy(path, arrays, EnvConfig(obs=obs), {"ctrl_dt": 0.02})
 
 
-def test_walk_rl_holding_home_stands_and_tracks_a_zero_command(tmp_path):
-    r = evaluate_policy("walk-rl", "0:0,0,0", seconds=3.0, weights=_zero_policy(tmp_path / "zero.npz"))
+def test_walk_rl_holding_home_stands_and_tracks_a_zero_command(tmp_path, description):
+    r = evaluate_policy(description, "walk-rl", "0:0,0,0", seconds=3.0, weights=_zero_policy(tmp_path / "zero.npz"))
     assert r.falls == 0
     assert r.duration_s == pytest.approx(3.0)
     assert r.position_m < 0.01 and r.lin_vel_mps < 0.01 and r.ang_vel_radps < 0.02

@@ -10,7 +10,6 @@ from toddlerbot.cli.main import app
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies import make_policy
 from toddlerbot.policies.motions import MotionError, builtin_motions, load_motion
-from toddlerbot.robot.spec import load_spec
 from toddlerbot.runtime.commands import CommandError, CommandSchedule
 from toddlerbot.runtime.log import RunLog
 from toddlerbot.runtime.runner import run_policy
@@ -69,17 +68,17 @@ def _write(tmp_path, text):
     return str(p)
 
 
-def test_motion_with_missing_joint_is_rejected(tmp_path):
+def test_motion_with_missing_joint_is_rejected(tmp_path, description):
     path = _write(tmp_path, "joints: [neck_yaw, neck_pitch]\nkeyframes:\n - {t: 0, neck_yaw: 0, neck_pitch: 0}\n"
                             " - {t: 1, neck_yaw: 10}\n")
     with pytest.raises(MotionError, match=r"keyframe 1: missing joint.*neck_pitch"):
-        load_motion(path, load_spec())
+        load_motion(path, description)
 
 
-def test_motion_with_out_of_range_angle_is_rejected(tmp_path):
+def test_motion_with_out_of_range_angle_is_rejected(tmp_path, description):
     path = _write(tmp_path, "joints: [left_knee]\nkeyframes:\n - {t: 0, left_knee: 0}\n - {t: 1, left_knee: 45}\n")
     with pytest.raises(MotionError, match="left_knee = 45 deg is out of range"):
-        load_motion(path, load_spec())
+        load_motion(path, description)
 
 
 def test_unknown_policy_is_a_clear_error(robot):

@@ -9,6 +9,7 @@ from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.locomotion.preview import preview_gains, preview_step
 from toddlerbot.locomotion.zmp_walk import ZMPWalk
 from toddlerbot.policies.walk_zmp import VelocityTracking, WalkZMPPolicy
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.runtime.summary import summarize
@@ -16,8 +17,8 @@ from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
 
 @pytest.fixture(scope="module")
-def walk():
-    return ZMPWalk()
+def walk(description):
+    return ZMPWalk(description)
 
 
 def test_preview_control_tracks_a_zmp_step():
@@ -31,10 +32,10 @@ def test_preview_control_tracks_a_zmp_step():
     assert abs(zmp[1] - 0.04) < 1e-3
 
 
-def test_reference_is_deterministic_and_matches_online_stepping(walk):
+def test_reference_is_deterministic_and_matches_online_stepping(walk, spec):
     cmd = np.array([0.1, 0.0, 0.2])
     traj = walk.trajectory(cmd, 2.0)
-    again = ZMPWalk().trajectory(cmd, 2.0)
+    again = ZMPWalk(RobotDescription(spec)).trajectory(cmd, 2.0)  # a fresh robot description and generator
     np.testing.assert_array_equal(traj.joint_pos, again.joint_pos)
     ref = walk.reference(cmd, 1.5)
     np.testing.assert_allclose(ref.joint_pos, traj.joint_pos[75], atol=1e-12)
@@ -61,14 +62,14 @@ def test_gait_config_is_validated():
         WalkConfig(double_support_ratio=1.2)
 
 
-def test_leg_mass_correction_puts_the_whole_robot_com_on_the_plan():
-    walk = ZMPWalk(WalkConfig(leg_mass_correction=True))
+def test_leg_mass_correction_puts_the_whole_robot_com_on_the_plan(description):
+    walk = ZMPWalk(description, WalkConfig(leg_mass_correction=True))
     traj = walk.trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
     for i in (30, 40, 47):  # standing, double support, single support (swing leg moving)
         com = traj.torso_pos[i] + walk.ik.com(traj.joint_pos[i][walk._leg_index])  # torso upright, yaw ~0
         np.testing.assert_allclose(com[:2], traj.com_pos[i, :2], atol=2e-3)
     # without it the home-pose CoM offset is kept and the swing leg moves the real CoM off the plan
-    home = ZMPWalk().trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
+    home = ZMPWalk(description).trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
     i = 47
     com = home.torso_pos[i] + walk.ik.com(home.joint_pos[i][walk._leg_index])
     assert np.linalg.norm(com[:2] - home.com_pos[i, :2]) > 2e-3

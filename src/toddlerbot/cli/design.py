@@ -13,8 +13,8 @@ from toddlerbot.cli.output import console
 from toddlerbot.design.budget import PowerInputs
 from toddlerbot.design.report import DesignReport, design_report
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.robot.builder import VARIANTS, variant_spec
-from toddlerbot.robot.spec import load_spec
+from toddlerbot.robot.builder import VARIANTS
+from toddlerbot.robot.description import load_variant
 
 app = typer.Typer(help="Design metrics of the appendix (sections 8.2, 8.4-8.6).", no_args_is_help=True)
 
@@ -36,12 +36,12 @@ def report(
             raise typer.BadParameter(f"must be positive, got {value}", param_hint=name)
     if variant not in VARIANTS:
         raise typer.BadParameter(f"{variant!r} is not one of {', '.join(VARIANTS)}", param_hint="--variant")
-    spec, _ = variant_spec(variant, load_spec(spec_path))
+    description, _ = load_variant(variant, spec_path)
     try:
         power = PowerInputs(duty_cycle=duty_cycle, battery_capacity_ah=battery_ah)
     except ValueError as exc:
         raise ToddlerbotError(str(exc)) from None
-    result = design_report(spec, height, mass, power_inputs=power)
+    result = design_report(description, height, mass, power_inputs=power)
     if plot is not None:
         from toddlerbot.design.plots import write_plots
 

@@ -25,9 +25,12 @@ def tracking(
     weights: Annotated[Path | None, typer.Option(help="Exported RL policy (.npz) for walk-rl.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Where to save the commanded-vs-achieved velocity plot.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
+    motor_params: Annotated[list[Path] | None, typer.Option(
+        "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")] = None,
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls."""
     from toddlerbot.policies import POLICIES
+    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_tracking
 
@@ -38,8 +41,9 @@ def tracking(
         seconds = DEFAULT_SECONDS if commands is None else CommandSchedule.parse(commands, "--commands").times[-1] + 5
     if seconds <= 0:
         raise ToddlerbotError(f"--seconds must be > 0, got {seconds}")
+    description = RobotDescription.load(motor_params=motor_params or [])
     with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not as_json else _null():
-        result = evaluate_policy(policy, schedule_text, seconds, weights)
+        result = evaluate_policy(description, policy, schedule_text, seconds, weights)
     summary = result.summary()
     if plot is not None:
         plot_tracking(result, policy, plot)

@@ -10,11 +10,8 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from toddlerbot.actuation.params_file import catalogue_with_params
 from toddlerbot.cli.output import console
-from toddlerbot.robot.builder import VARIANTS, build_mjspec, variant_spec
-from toddlerbot.robot.spec import load_spec
-from toddlerbot.robot.summary import summarize
+from toddlerbot.robot.builder import VARIANTS
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
 
@@ -42,12 +39,14 @@ def build(
     motor_params: MotorParamsOption = None,
 ) -> None:
     """Write the MJCF of the robot (deterministic: same spec, same bytes)."""
-    spec, base = variant_spec(_check_variant(variant), load_spec(spec_path))
-    mjspec = build_mjspec(spec, base, scene, catalogue=catalogue_with_params(motor_params or []))
+    from toddlerbot.robot.description import load_variant
+
+    description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
+    mjspec = description.mjspec(base, scene)
     mjspec.compile()  # refuse to write a model MuJoCo cannot compile
     output.parent.mkdir(parents=True, exist_ok=True)
     output.write_text(mjspec.to_xml())
-    console.print(f"wrote {output} ({spec.name}, {variant}{', scene' if scene else ''})")
+    console.print(f"wrote {output} ({description.spec.name}, {variant}{', scene' if scene else ''})")
 
 
 @app.command()
@@ -55,10 +54,14 @@ def info(
     variant: VariantOption = "floating",
     spec_path: SpecOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False,
+    motor_params: MotorParamsOption = None,
 ) -> None:
-    """Print counts, total mass, standing height and the motor table."""
-    spec, base = variant_spec(_check_variant(variant), load_spec(spec_path))
-    summary = summarize(spec, build_mjspec(spec, base, scene=False).compile())
+    """Print counts, total mass, standing height and the motor table (tau_max from the fitted motors if given)."""
+    from toddlerbot.robot.description import load_variant
+    from toddlerbot.robot.summary import summarize
+
+    description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
+    summary = summarize(description, description.model(base, scene=False))
     if as_json:
         typer.echo(json.dumps(asdict(summary), indent=2))
         return

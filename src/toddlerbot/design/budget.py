@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from toddlerbot.actuation.catalogue import Catalogue
-from toddlerbot.robot.spec import RobotSpec
+from toddlerbot.robot.description import RobotDescription
 
 
 @dataclass(frozen=True)
@@ -32,13 +31,13 @@ class WeightEstimate:
         return (self.estimate_kg - self.spec_mass_kg) / self.spec_mass_kg
 
 
-def weight_estimate(spec: RobotSpec, catalogue: Catalogue, inputs: WeightInputs = WeightInputs()) -> WeightEstimate:
-    n = len(spec.motors)
+def weight_estimate(description: RobotDescription, inputs: WeightInputs = WeightInputs()) -> WeightEstimate:
+    n = description.n_motors
     return WeightEstimate(
         motors=n,
         estimate_kg=n * inputs.motor_mass_kg + inputs.electronics_mass_kg + inputs.structure_mass_kg,
-        catalogue_motor_mass_kg=sum(catalogue[m.model].mass_per_axis_kg for m in spec.motors),
-        spec_mass_kg=spec.total_mass,
+        catalogue_motor_mass_kg=sum(model.mass_per_axis_kg for model in description.motor_models),
+        spec_mass_kg=description.spec.total_mass,
     )
 
 

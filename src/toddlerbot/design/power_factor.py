@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from toddlerbot.actuation.catalogue import Catalogue
 from toddlerbot.design.data import load
-from toddlerbot.robot.spec import RobotSpec
+from toddlerbot.robot.description import RobotDescription
 
 GRAVITY = 9.81
 LOWER_BODY_GROUPS = frozenset({"leg"})
@@ -42,11 +41,12 @@ def power_factor_of(sum_torque_nm: float, height_m: float, mass_kg: float) -> fl
     return sum_torque_nm / (height_m * mass_kg * GRAVITY)
 
 
-def robot_power_factor(spec: RobotSpec, catalogue: Catalogue, height_m: float, mass_kg: float) -> PowerFactor:
-    """Power factor of a robot from its motors' stall torques; lower body = motors of the leg group."""
-    torque = {m.joint: catalogue[m.model].stall_torque_nm for m in spec.motors}
-    lower = sum(t for m in spec.motors if m.group in LOWER_BODY_GROUPS for t in [torque[m.joint]])
-    total = sum(torque.values())
+def robot_power_factor(description: RobotDescription, height_m: float, mass_kg: float) -> PowerFactor:
+    """Power factor of a robot from its motors' stall torques (catalogue of the description); lower body = motors of
+    the leg group."""
+    torque = [model.stall_torque_nm for model in description.motor_models]
+    lower = sum(torque[i] for group in LOWER_BODY_GROUPS for i in description.groups.get(group, ()))
+    total = sum(torque)
     return PowerFactor(
         total=power_factor_of(total, height_m, mass_kg),
         upper=power_factor_of(total - lower, height_m, mass_kg),

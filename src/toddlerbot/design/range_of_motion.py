@@ -6,8 +6,7 @@ import math
 from dataclasses import dataclass
 
 from toddlerbot.design.data import load
-from toddlerbot.robot.spec import RobotSpec
-from toddlerbot.robot.transmission import build_transmission_map
+from toddlerbot.robot.description import RobotDescription
 
 # Human joint (data/human_rom.yaml key) compared with each robot output joint (side prefix removed).
 HUMAN_JOINT = {
@@ -37,12 +36,12 @@ class RangeRow:
         return None if self.human_deg is None else self.human_deg[1] - self.human_deg[0]
 
 
-def range_of_motion(spec: RobotSpec) -> list[RangeRow]:
+def range_of_motion(description: RobotDescription) -> list[RangeRow]:
     """One row per output joint of the left side and the midline (the right side mirrors the left)."""
     human = load("human_rom")["joints"]
-    joints = spec.joints
+    joints = description.spec.joints
     rows = []
-    for name in build_transmission_map(spec).joint_names:
+    for name in description.joint_names:
         if name.startswith("right_") or joints[name].range is None or joints[name].type != "hinge":
             continue
         key = HUMAN_JOINT.get(name.removeprefix("left_"))

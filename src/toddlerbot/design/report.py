@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from toddlerbot.actuation.catalogue import Catalogue, default_catalogue
 from toddlerbot.design.budget import (
     PowerBudget,
     PowerInputs,
@@ -16,8 +15,7 @@ from toddlerbot.design.budget import (
 from toddlerbot.design.power_factor import Humanoid, PowerFactor, reference_humanoids, robot_power_factor
 from toddlerbot.design.range_of_motion import RangeRow, range_of_motion
 from toddlerbot.design.torque_requirement import JointCheck, check_joints, human_reference, required_torques
-from toddlerbot.robot.builder import build_model
-from toddlerbot.robot.spec import RobotSpec
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.summary import standing_height
 
 REQUIREMENT_JOINTS = ("knee", "ankle_pitch", "hip_pitch")
@@ -66,16 +64,16 @@ class DesignReport:
 
 
 def design_report(
-    spec: RobotSpec,
+    description: RobotDescription,
     height_m: float | None = None,
     mass_kg: float | None = None,
-    catalogue: Catalogue | None = None,
     weight_inputs: WeightInputs = WeightInputs(),
     power_inputs: PowerInputs = PowerInputs(),
 ) -> DesignReport:
-    """All design metrics; height and mass default to the spec's (standing height of the built model, total mass)."""
-    catalogue = catalogue or default_catalogue()
-    height = float(height_m if height_m is not None else standing_height(build_model(spec, "floating")))
+    """All design metrics from the description's spec and motor catalogue; height and mass default to the robot's
+    (standing height of its floating-base model, total mass of the spec)."""
+    spec = description.spec
+    height = float(height_m if height_m is not None else standing_height(description.model("floating", scene=False)))
     mass = float(mass_kg if mass_kg is not None else spec.total_mass)
     if height <= 0 or mass <= 0:
         raise ValueError(f"height and mass must be positive, got {height} m and {mass} kg")
@@ -83,12 +81,12 @@ def design_report(
         robot=spec.name if spec.variant is None else f"{spec.name} ({spec.variant})",
         height_m=height,
         mass_kg=mass,
-        active_dof=len(spec.motors),
-        power_factor=robot_power_factor(spec, catalogue, height, mass),
+        active_dof=description.n_motors,
+        power_factor=robot_power_factor(description, height, mass),
         humanoids=reference_humanoids(),
         torque_requirement_nm=required_torques(height, mass),
-        joint_checks=check_joints(spec, catalogue, height, mass),
-        weight=weight_estimate(spec, catalogue, weight_inputs),
+        joint_checks=check_joints(description, height, mass),
+        weight=weight_estimate(description, weight_inputs),
         power=power_budget(power_inputs),
-        range_of_motion=range_of_motion(spec),
+        range_of_motion=range_of_motion(description),
     )

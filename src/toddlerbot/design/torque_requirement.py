@@ -9,10 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import Catalogue
 from toddlerbot.design.data import load
-from toddlerbot.robot.spec import RobotSpec
-from toddlerbot.robot.transmission import build_transmission_map
+from toddlerbot.robot.description import RobotDescription
 
 
 @dataclass(frozen=True)
@@ -38,14 +36,14 @@ def required_torques(height_m: float, mass_kg: float) -> dict[str, float]:
     return {joint: scale * tau for joint, tau in human["peak_torque_nm"].items()}
 
 
-def check_joints(spec: RobotSpec, catalogue: Catalogue, height_m: float, mass_kg: float) -> list[JointCheck]:
+def check_joints(description: RobotDescription, height_m: float, mass_kg: float) -> list[JointCheck]:
     """Compare each required torque with the stall torque available at every robot joint of that kind.
 
     A joint of kind ``knee`` is every output joint named ``*knee`` (left and right). The torque available at a
     joint is the smallest stall torque / |transmission coefficient| over the motors that drive it.
     """
-    tmap = build_transmission_map(spec)
-    stall = np.array([catalogue[m.model].stall_torque_nm for m in spec.motors_by_id])
+    tmap = description.transmission
+    stall = np.array([model.stall_torque_nm for model in description.motor_models])
     checks = []
     for kind, required in required_torques(height_m, mass_kg).items():
         for row, joint in zip(tmap.matrix, tmap.joint_names):

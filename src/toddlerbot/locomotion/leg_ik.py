@@ -1,10 +1,10 @@
-"""Leg inverse kinematics on the compiled fixed-base model of the spec (no link lengths retyped anywhere).
+"""Leg inverse kinematics on the description's compiled fixed-base model (no link lengths retyped anywhere).
 
 Each leg's chain (hip pitch, hip roll, hip yaw, knee, ankle pitch, ankle roll on ToddlerBot) is found from the
-spec's body tree: the joints between the foot site's body and the bodies both legs share. Foot poses are the
-``left_foot_center`` / ``right_foot_center`` sites, expressed in the torso frame (x forward, y left, z up), with
-the waist at zero. The solver is damped Gauss-Newton on MuJoCo's site Jacobians, warm-started from the last
-solution, so it is deterministic for a given sequence of targets.
+model's body tree: the joints between the foot site's body and the bodies both legs share. Foot poses are the
+description's foot sites (``handles.feet_sites``), expressed in the torso frame (x forward, y left, z up), with
+every non-leg joint at the home pose. The solver is damped Gauss-Newton on MuJoCo's site Jacobians, warm-started
+from the last solution, so it is deterministic for a given sequence of targets.
 """
 
 from __future__ import annotations
@@ -14,10 +14,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.robot.builder import build_model, home_qpos
-from toddlerbot.robot.spec import RobotSpec
-
-FOOT_SITES = ("left_foot_center", "right_foot_center")
+from toddlerbot.robot.builder import home_qpos
+from toddlerbot.robot.description import RobotDescription
 
 
 @dataclass(frozen=True)
@@ -37,13 +35,15 @@ def _body_path(model: mujoco.MjModel, body: int) -> list[int]:
 class LegIK:
     """Foot-site poses <-> leg joint angles (rad) for both legs, relative to the torso."""
 
-    def __init__(self, spec: RobotSpec, tolerance: float = 1e-6, max_iterations: int = 30) -> None:
-        self.model = build_model(spec, "fixed")
+    def __init__(self, description: RobotDescription, tolerance: float = 1e-6, max_iterations: int = 30) -> None:
+        self.model = description.model("fixed", scene=False)
+        """The description's shared fixed-base model (read-only; the solver writes only its own `data`)."""
         self.data = mujoco.MjData(self.model)
         self.tolerance = tolerance
         self.max_iterations = max_iterations
         m, d = self.model, self.data
-        self._sites = [m.site(s).id for s in FOOT_SITES]
+        handles = description.handles
+        self._sites = [m.site(s).id for s in handles.feet_sites]
         paths = [_body_path(m, m.site_bodyid[s]) for s in self._sites]
         shared = set(paths[0]) & set(paths[1])
         chains = []
@@ -55,10 +55,10 @@ class LegIK:
         self._qadr = np.array([[m.jnt_qposadr[j] for j in c] for c in chains])
         self._dadr = np.array([[m.jnt_dofadr[j] for j in c] for c in chains])
         self._range = np.array([[m.jnt_range[j] for j in c] for c in chains])
-        self._torso = m.body(spec.bodies[0].name).id
+        self._torso = m.body(handles.torso).id
         self._jacp = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
-        d.qpos[:] = home_qpos(m, spec)
+        d.qpos[:] = home_qpos(m, description.transmission, description.home_joint_pos)
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         self.home_q = d.qpos[self._qadr].copy()

@@ -28,8 +28,7 @@ from toddlerbot.locomotion.footsteps import LEFT, RIGHT, advance, foot_pose, sta
 from toddlerbot.locomotion.leg_ik import LegIK
 from toddlerbot.locomotion.preview import preview_gains, preview_step
 from toddlerbot.locomotion.swing import swing_pose
-from toddlerbot.robot.spec import RobotSpec, load_spec
-from toddlerbot.robot.transmission import build_transmission_map
+from toddlerbot.robot.description import RobotDescription
 
 
 @dataclass(frozen=True)
@@ -111,16 +110,15 @@ class WalkState:
 
 
 class ZMPWalk:
-    """The ZMP walking pattern generator of one robot spec."""
+    """The ZMP walking pattern generator of one robot (its description: leg kinematics, home pose, joint order)."""
 
-    def __init__(self, config: WalkConfig | None = None, spec: RobotSpec | None = None) -> None:
+    def __init__(self, description: RobotDescription, config: WalkConfig | None = None) -> None:
         self.config = config or WalkConfig()
-        self.spec = spec or load_spec()
-        self.ik = LegIK(self.spec)
-        tmap = build_transmission_map(self.spec)
-        self.joint_names = tmap.joint_names
-        self.home_joint_pos = np.array([self.spec.home.get(j, 0.0) for j in tmap.joint_names])
-        self._leg_index = np.array([[tmap.joint_names.index(j) for j in leg] for leg in self.ik.chains.joint_names])
+        self.description = description
+        self.ik = LegIK(description)
+        self.joint_names = description.joint_names
+        self.home_joint_pos = description.home_joint_pos
+        self._leg_index = np.array([[self.joint_names.index(j) for j in leg] for leg in self.ik.chains.joint_names])
         feet = self.ik.home_foot_pos
         self._mid = feet[:, :2].mean(axis=0)
         """Torso-frame xy of the walk-frame origin at the home pose."""

@@ -26,7 +26,7 @@ def make_policy(name: str, robot: Robot, motion: str | None = None, weights: str
 
         if motion is None:
             raise ToddlerbotError("policy 'replay' needs --motion (squat, wave, look_around or a motion file)")
-        return ReplayPolicy(robot, load_motion(motion, robot.spec))
+        return ReplayPolicy(robot, load_motion(motion, robot.description))
     if name == "walk-zmp":
         from toddlerbot.policies.walk_zmp import WalkZMPPolicy
 

@@ -30,8 +30,8 @@ class Policy(ABC):
         self.robot = robot
         self.transmission = robot.transmission
         self.control_dt = robot.control_dt
-        spec = robot.spec
-        self.home_joint_pos = np.array([spec.home.get(j, 0.0) for j in robot.joint_names])
+        self.home_joint_pos = robot.description.home_joint_pos
+        """Output-joint positions of the home pose (read-only; copy before changing)."""
 
     @abstractmethod
     def reset(self, obs: Observation) -> None:

@@ -1,4 +1,4 @@
-"""Keyframe motions: a human-editable YAML format, validated against the robot spec, interpolated in time.
+"""Keyframe motions: a human-editable YAML format, validated against the robot description, interpolated in time.
 
 Format (angles in degrees, times in seconds; see ``motions/*.yaml``)::
 
@@ -11,7 +11,7 @@ Format (angles in degrees, times in seconds; see ``motions/*.yaml``)::
       - {t: 1.0, right_shoulder_roll: -150, right_elbow_roll: 30}
 
 Every keyframe gives every listed joint; times start at 0 and increase; every angle lies within the joint's
-range in the spec. Joint names are the output joints of `TransmissionMap.joint_names` (e.g. ``left_knee``,
+range in the spec. Joint names are the output joints of `RobotDescription.joint_names` (e.g. ``left_knee``,
 ``waist_yaw``), so motions do not depend on gear ratios.
 """
 
@@ -26,8 +26,7 @@ import numpy as np
 import yaml
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.robot.spec import RobotSpec
-from toddlerbot.robot.transmission import build_transmission_map
+from toddlerbot.robot.description import RobotDescription
 
 MOTIONS_DIR = resources.files("toddlerbot.policies") / "motions"
 INTERPOLATIONS = ("smooth", "linear")
@@ -77,22 +76,22 @@ def motion_path(name_or_path: str) -> Path:
     return path
 
 
-def load_motion(name_or_path: str, spec: RobotSpec) -> Motion:
+def load_motion(name_or_path: str, description: RobotDescription) -> Motion:
     path = motion_path(name_or_path)
     try:
         raw = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise MotionError(f"{path}: not valid YAML ({exc})") from None
-    return parse_motion(raw, spec, str(path))
+    return parse_motion(raw, description, str(path))
 
 
-def parse_motion(raw: object, spec: RobotSpec, source: str) -> Motion:
+def parse_motion(raw: object, description: RobotDescription, source: str) -> Motion:
     if not isinstance(raw, dict):
         raise MotionError(f"{source}: expected a mapping with name, joints and keyframes")
     for key in ("joints", "keyframes"):
         if key not in raw:
             raise MotionError(f"{source}: missing '{key}'")
-    valid = build_transmission_map(spec).joint_names
+    valid = description.joint_names
     joints = raw["joints"]
     if not isinstance(joints, list) or not joints:
         raise MotionError(f"{source}: 'joints' must be a non-empty list of joint names")
@@ -122,7 +121,7 @@ def parse_motion(raw: object, spec: RobotSpec, source: str) -> Motion:
             value = frame[j]
             if not isinstance(value, (int, float)) or not np.isfinite(value):
                 raise MotionError(f"{where}: {j} must be a number of degrees, got {value!r}")
-            lo, hi = spec.joints[j].range or (-np.inf, np.inf)
+            lo, hi = description.joint_range[valid.index(j)]
             rad = np.deg2rad(value)
             if not lo - 1e-9 <= rad <= hi + 1e-9:
                 raise MotionError(f"{where}: {j} = {value} deg is out of range "

@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, fields
+from functools import cache
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.robot.spec import RobotSpec, load_spec
+from toddlerbot.robot.spec import RobotSpec
 
 LEG_GROUP = "leg"
 """The spec's motor group an RL walking policy commands."""
@@ -34,8 +35,19 @@ def leg_motor_names(spec: RobotSpec) -> tuple[str, ...]:
     return tuple(m.joint for m in spec.motors_by_id if m.group == LEG_GROUP)
 
 
-LEG_MOTORS = leg_motor_names(load_spec())
-"""The leg motors of the packaged robot (12 for ToddlerBot v1)."""
+@cache
+def _packaged_leg_motors() -> tuple[str, ...]:
+    from toddlerbot.robot.description import RobotDescription
+
+    return RobotDescription.load().group_names(LEG_GROUP)
+
+
+def __getattr__(name: str) -> tuple[str, ...]:
+    """``LEG_MOTORS``: the leg motors of the packaged robot (12 for ToddlerBot v1), read from the spec on first
+    use rather than at import (importing this module must not load the spec)."""
+    if name == "LEG_MOTORS":
+        return _packaged_leg_motors()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
@@ -60,10 +72,13 @@ class ObsConfig:
     noise_gyro: float = 0.1
     noise_gravity: float = 0.05
 
-    def frame_size(self, n_motors: int) -> int:
+    def frame_size(self, n_motors: int, n_actions: int | None = None) -> int:
         """Features per frame: phase 2, command 3, motor angles relative to home and motor speeds (n_motors
-        each), last action (one per leg motor), gyro 3, gravity direction in the IMU frame 3."""
-        return 2 + 3 + 2 * n_motors + len(LEG_MOTORS) + 3 + 3
+        each), last action (n_actions, one per commanded leg motor; default: the packaged robot's leg motors),
+        gyro 3, gravity direction in the IMU frame 3."""
+        if n_actions is None:
+            n_actions = len(_packaged_leg_motors())
+        return 2 + 3 + 2 * n_motors + n_actions + 3 + 3
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -119,7 +134,8 @@ class RLPolicyFile:
             except KeyError as exc:
                 raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from exc
         self.path = path
-        expected = self.obs_config.history * self.obs_config.frame_size(len(self.home_motor_pos))
+        frame = self.obs_config.frame_size(len(self.home_motor_pos), len(self.leg_motor_index))
+        expected = self.obs_config.history * frame
         if self.kernels[0].shape[0] != expected or self.obs_mean.shape != (expected,):
             raise ToddlerbotError(f"{path}: network input {self.kernels[0].shape[0]} does not match the observation "
                                   f"config ({expected} = {self.obs_config.history} frames)")

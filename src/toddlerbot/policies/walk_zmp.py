@@ -122,20 +122,23 @@ class WalkZMPPolicy(Policy):
     ) -> None:
         super().__init__(robot)
         names = list(robot.joint_names)
-        legs = np.array(["hip" in j or "knee" in j or "ankle" in j for j in robot.motor_names])
+        self.walk = ZMPWalk(robot.description, config or WalkConfig(dt=robot.control_dt))
+        if abs(self.walk.config.dt - robot.control_dt) > 1e-12:
+            raise ValueError(f"walk dt {self.walk.config.dt} s must equal the control period {robot.control_dt} s")
+        chains = self.walk.ik.chains.joint_names
+        legs = np.zeros(len(robot.motor_names), dtype=bool)
+        legs[robot.description.groups["leg"]] = True
         self.kp = np.where(legs, robot.default_kp * leg_kp_scale, robot.default_kp)
         """Firmware P gains: the leg motors stiffened by leg_kp_scale (the spec's gains let the stance leg sag
         enough for the swing foot to scuff the floor; x3 over-stiffens it and the feet land short). The swing leg
         gets swing_kp_scale while it swings (lift-off and touch-down closer to the plan)."""
-        sides = np.array([[m.startswith(side) for m in robot.motor_names] for side in ("left", "right")]) & legs
+        matrix = robot.transmission.matrix
+        sides = np.array([np.abs(matrix[[names.index(j) for j in chain]]).sum(axis=0) > 0 for chain in chains]) & legs
         self.swing_kp = np.where(sides, robot.default_kp * swing_kp_scale, 0.0)
-        """(2, n_motors) firmware P gains of each leg's motors while that leg swings (0 elsewhere)."""
-        self.walk = ZMPWalk(config or WalkConfig(dt=robot.control_dt), robot.spec)
-        if abs(self.walk.config.dt - robot.control_dt) > 1e-12:
-            raise ValueError(f"walk dt {self.walk.config.dt} s must equal the control period {robot.control_dt} s")
+        """(2, n_motors) firmware P gains of each leg's motors (those driving its IK chain) while that leg swings
+        (0 elsewhere)."""
         self.feedback = feedback or AttitudeFeedback()
         self.velocity = velocity or VelocityTracking()
-        chains = self.walk.ik.chains.joint_names
         axes = self.walk.ik.joint_axes()
 
         def joint(suffix: str, axis: int) -> tuple[np.ndarray, np.ndarray]:

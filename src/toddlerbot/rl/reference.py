@@ -152,7 +152,8 @@ _CACHE: dict[tuple, tuple[ReferenceTable, str]] = {}
 
 def _load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
     from toddlerbot.locomotion.zmp_walk import ZMPWalk
+    from toddlerbot.robot.description import RobotDescription
 
-    walk = ZMPWalk(spec=spec)
+    walk = ZMPWalk(RobotDescription(spec))
     return zmp_table(spec, walk, cfg, walk.config.cycle_time, walk.config.start_time), "zmp"
 

@@ -30,7 +30,7 @@ from toddlerbot.robot.spec import (
     SpurGear,
     load_spec,
 )
-from toddlerbot.robot.transmission import build_transmission_map
+from toddlerbot.robot.transmission import TransmissionMap, build_transmission_map
 
 Base = Literal["floating", "fixed"]
 VARIANTS = ("floating", "fixed", "gripper")
@@ -81,10 +81,18 @@ def variant_spec(variant: str, spec: RobotSpec | None = None) -> tuple[RobotSpec
 
 
 def build_mjspec(
-    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
+    spec: RobotSpec,
+    base: Base = "floating",
+    scene: bool = False,
+    catalogue: Catalogue | None = None,
+    transmission: TransmissionMap | None = None,
 ) -> mujoco.MjSpec:
-    """An MjSpec of the robot (compile it with ``.compile()``, write it with ``.to_xml()``)."""
+    """An MjSpec of the robot (compile it with ``.compile()``, write it with ``.to_xml()``).
+
+    `RobotDescription.mjspec` passes its catalogue and transmission map; standalone callers get the packaged
+    catalogue and a map built from `spec`."""
     catalogue = catalogue or default_catalogue()
+    transmission = transmission or build_transmission_map(spec)
     mj = mujoco.MjSpec()
     mj.modelname = spec.name if spec.variant is None else f"{spec.name}_{spec.variant}"
     mj.compiler.degree = False
@@ -138,13 +146,14 @@ def build_mjspec(
         _add_imu_sensors(mj)
     if scene:
         _add_scene(mj)
-    _add_home_key(mj, spec, base)
+    _add_home_key(mj, spec, base, transmission)
     return mj
 
 
 def build_model(
     spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
 ) -> mujoco.MjModel:
+    """Compile the robot's model; consumers that have a `RobotDescription` use its cached `model()` instead."""
     return build_mjspec(spec, base, scene, catalogue).compile()
 
 
@@ -249,14 +258,19 @@ def _add_scene(mj: mujoco.MjSpec) -> None:
     mj.visual.global_.offheight = 720
 
 
-def home_qpos(model: mujoco.MjModel, spec: RobotSpec) -> np.ndarray:
-    """qpos of the home pose with the base at the spec's zero-pose height (before dropping to the floor)."""
-    tmap = build_transmission_map(spec)
-    q_joint = np.array([spec.home.get(j, 0.0) for j in tmap.joint_names])
+def home_qpos(model: mujoco.MjModel, transmission: TransmissionMap, home_joint_pos: np.ndarray) -> np.ndarray:
+    """qpos of a home pose (output-joint positions in ``transmission.joint_names`` order, rad or m) with the base at
+    the spec's zero-pose height (before dropping to the floor); motors and linkage rods follow the transmissions."""
     qpos = model.qpos0.copy()
-    for name, value in tmap.motor_to_model(tmap.joint_to_motor(q_joint)).items():
+    motor_pos = transmission.joint_to_motor(np.asarray(home_joint_pos, dtype=float))
+    for name, value in transmission.motor_to_model(motor_pos).items():
         qpos[model.joint(name).qposadr[0]] = value
     return qpos
+
+
+def home_joint_pos(spec: RobotSpec, transmission: TransmissionMap) -> np.ndarray:
+    """The spec's home pose in output-joint space (``transmission.joint_names`` order; unlisted joints at 0)."""
+    return np.array([spec.home.get(name, 0.0) for name in transmission.joint_names])
 
 
 def lowest_point(model: mujoco.MjModel, data: mujoco.MjData) -> float:
@@ -287,10 +301,10 @@ def geom_z_extent(model: mujoco.MjModel, data: mujoco.MjData, geom: int) -> tupl
     return z - half, z + half
 
 
-def _add_home_key(mj: mujoco.MjSpec, spec: RobotSpec, base: Base) -> None:
+def _add_home_key(mj: mujoco.MjSpec, spec: RobotSpec, base: Base, transmission: TransmissionMap) -> None:
     model = mj.compile()
     data = mujoco.MjData(model)
-    data.qpos[:] = home_qpos(model, spec)
+    data.qpos[:] = home_qpos(model, transmission, home_joint_pos(spec, transmission))
     if base == "floating":
         mujoco.mj_kinematics(model, data)
         data.qpos[2] -= lowest_point(model, data)

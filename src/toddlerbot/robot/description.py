@@ -22,11 +22,10 @@ import numpy as np
 from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, MotorModel, default_catalogue
 from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays
 from toddlerbot.actuation.params_file import catalogue_with_params
+from toddlerbot.robot.builder import IMU_SITE, VARIANTS, Base, build_mjspec, home_joint_pos
 from toddlerbot.robot.spec import MotorSpec, RobotSpec, load_spec
 from toddlerbot.robot.transmission import TransmissionMap, build_transmission_map
 
-TORSO_BODY = "torso"
-IMU_SITE = "imu"
 HEAD_CAMERA = "head_camera"
 FOOT_SITES = ("left_foot_center", "right_foot_center")
 FOOT_GEOMS = ("left_foot_collision", "right_foot_collision")
@@ -71,8 +70,6 @@ class RobotDescription:
         catalogue: Catalogue | None = None,
     ) -> RobotDescription:
         """Load the spec (and `variant`), apply fitted actuator parameters (sysID ``params.json`` files)."""
-        # Imported here: sysid sits above robot; only the file format is shared.
-
         paths = tuple(str(p) for p in motor_params)
         cat = catalogue or default_catalogue()
         if paths:
@@ -155,7 +152,7 @@ class RobotDescription:
     @cached_property
     def home_joint_pos(self) -> np.ndarray:
         """Output-joint positions of the spec's home pose (joint_names order)."""
-        return _frozen([self.spec.home.get(name, 0.0) for name in self.joint_names])
+        return _frozen(home_joint_pos(self.spec, self.transmission))
 
     @cached_property
     def home_motor_pos(self) -> np.ndarray:
@@ -183,15 +180,30 @@ class RobotDescription:
         )
 
     # ---- compiled models -------------------------------------------------------------------------------
-    def model(self, base: str = "floating", scene: bool = True) -> mujoco.MjModel:
+    def mjspec(self, base: Base = "floating", scene: bool = True) -> mujoco.MjSpec:
+        """A fresh, editable MjSpec of this robot (catalogue and fitted parameters applied); for writing MJCF."""
+        return build_mjspec(self.spec, base, scene=scene, catalogue=self.catalogue, transmission=self.transmission)
+
+    def model(self, base: Base = "floating", scene: bool = True) -> mujoco.MjModel:
         """The compiled MuJoCo model for a base (``floating`` or ``fixed``), with or without the scene; built
         once per (base, scene). Treat it as read-only: copy it (``copy.copy``) before changing options."""
         key = (base, scene)
         if key not in self._models:
-            from toddlerbot.robot.builder import build_model
-
-            self._models[key] = build_model(self.spec, base, scene=scene, catalogue=self.catalogue)  # type: ignore[arg-type]
+            self._models[key] = self.mjspec(base, scene).compile()
         return self._models[key]
+
+
+def load_variant(
+    variant: str, spec_path: str | Path | None = None, motor_params: Iterable[str | Path] = ()
+) -> tuple[RobotDescription, Base]:
+    """The description and base of a model variant name as the CLI spells it: ``floating``, ``fixed`` (the
+    packaged robot on either base) or ``gripper`` (the gripper variant, floating)."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; expected one of {', '.join(VARIANTS)}")
+    description = RobotDescription.load(spec_path, motor_params=motor_params)
+    if variant == "gripper":
+        return description.with_variant("gripper"), "floating"
+    return description, variant  # type: ignore[return-value]
 
 
 def _frozen(values: Sequence | np.ndarray, dtype: type = float) -> np.ndarray:

@@ -6,10 +6,8 @@ from dataclasses import dataclass
 
 import mujoco
 
-from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.robot.builder import highest_point, lowest_point
-from toddlerbot.robot.spec import RobotSpec
-from toddlerbot.robot.transmission import build_transmission_map
+from toddlerbot.robot.description import RobotDescription
 
 
 @dataclass(frozen=True)
@@ -50,17 +48,16 @@ def standing_height(model: mujoco.MjModel) -> float:
     return highest_point(model, data) - lowest_point(model, data)
 
 
-def summarize(spec: RobotSpec, model: mujoco.MjModel) -> ModelSummary:
-    catalogue = default_catalogue()
-    tmap = build_transmission_map(spec)
+def summarize(description: RobotDescription, model: mujoco.MjModel) -> ModelSummary:
+    """Counts and figures of `model` (one of the description's compiled models) and the description's motor table."""
     rows = []
-    for motor, joint in zip(spec.motors_by_id, tmap.joint_names):
-        limits = spec.joints[motor.joint].range or (float("-inf"), float("inf"))
-        rows.append(MotorRow(motor.id, motor.joint, catalogue[motor.model].name, joint, motor.group, motor.kp,
-                             motor.kd, limits, catalogue[motor.model].actuator.tau_max))
+    for motor, joint, catalogue_entry, limits in zip(description.motors, description.joint_names,
+                                                     description.motor_models, description.motor_range, strict=True):
+        rows.append(MotorRow(motor.id, motor.joint, catalogue_entry.name, joint, motor.group, motor.kp, motor.kd,
+                             (float(limits[0]), float(limits[1])), catalogue_entry.actuator.tau_max))
     key = model.key("home")
     return ModelSummary(
-        name=model.names[: model.names.index(b"\0")].decode() if model.names else spec.name,
+        name=model.names[: model.names.index(b"\0")].decode() if model.names else description.spec.name,
         bodies=model.nbody - 1, joints=model.njnt, nq=model.nq, nv=model.nv, actuators=model.nu,
         equalities=model.neq, tendons=model.ntendon, geoms=model.ngeom,
         total_mass_kg=float(model.body_subtreemass[0]),

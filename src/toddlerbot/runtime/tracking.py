@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.locomotion.config import WalkConfig
+from toddlerbot.robot.description import RobotDescription
 
 DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.05,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,0,0.3; 20:0.1,0,0.2; 24:0,0,0"
 """The default evaluation schedule (runtime command syntax, 26 s), inside the trained command ranges: stand, walk
@@ -91,17 +92,17 @@ def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray,
                           time, command, achieved)
 
 
-def evaluate_policy(policy_name: str, commands: str = DEFAULT_COMMANDS, seconds: float = DEFAULT_SECONDS,
-                    weights: Path | None = None) -> TrackingResult:
-    """Run a registered policy (e.g. ``walk-rl``, ``walk-zmp``) through a command schedule in the CPU simulator and
-    score it."""
+def evaluate_policy(description: RobotDescription, policy_name: str, commands: str = DEFAULT_COMMANDS,
+                    seconds: float = DEFAULT_SECONDS, weights: Path | None = None) -> TrackingResult:
+    """Run a registered policy (e.g. ``walk-rl``, ``walk-zmp``) through a command schedule on the simulated robot of
+    `description` (its fitted motor parameters included) and score it."""
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
     schedule = CommandSchedule.parse(commands, source="--commands")
-    robot = MuJoCoRobot()
+    robot = MuJoCoRobot(description)
     policy = make_policy(policy_name, robot, weights=weights)
     result = run_policy(robot, policy, schedule, seconds, realtime=False, stop_on_fall=True)
     log = result.log
