@@ -42,8 +42,7 @@ def build(
     from toddlerbot.robot.description import load_variant
 
     description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
-    mjspec = description.mjspec(base, scene)
-    mjspec.compile()  # refuse to write a model MuJoCo cannot compile
+    mjspec = description.mjspec(base, scene)  # compiled: a model MuJoCo cannot compile is never written
     output.parent.mkdir(parents=True, exist_ok=True)
     output.write_text(mjspec.to_xml())
     console.print(f"wrote {output} ({description.spec.name}, {variant}{', scene' if scene else ''})")

@@ -87,10 +87,28 @@ def build_mjspec(
     catalogue: Catalogue | None = None,
     transmission: TransmissionMap | None = None,
 ) -> mujoco.MjSpec:
-    """An MjSpec of the robot (compile it with ``.compile()``, write it with ``.to_xml()``).
+    """An MjSpec of the robot, already compiled once (write it with ``.to_xml()``)."""
+    return compile_robot(spec, base, scene, catalogue, transmission)[0]
 
-    `RobotDescription.mjspec` passes its catalogue and transmission map; standalone callers get the packaged
-    catalogue and a map built from `spec`."""
+
+def build_model(
+    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
+) -> mujoco.MjModel:
+    """Compile the robot's model; consumers that have a `RobotDescription` use its cached `model()` instead."""
+    return compile_robot(spec, base, scene, catalogue)[1]
+
+
+def compile_robot(
+    spec: RobotSpec,
+    base: Base = "floating",
+    scene: bool = False,
+    catalogue: Catalogue | None = None,
+    transmission: TransmissionMap | None = None,
+) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
+    """The robot's MjSpec and its model, compiled once (the home keyframe is filled in on both).
+
+    `RobotDescription` passes its catalogue and transmission map; standalone callers get the packaged catalogue
+    and a map built from `spec`."""
     catalogue = catalogue or default_catalogue()
     transmission = transmission or build_transmission_map(spec)
     mj = mujoco.MjSpec()
@@ -146,15 +164,8 @@ def build_mjspec(
         _add_imu_sensors(mj)
     if scene:
         _add_scene(mj)
-    _add_home_key(mj, spec, base, transmission)
-    return mj
-
-
-def build_model(
-    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
-) -> mujoco.MjModel:
-    """Compile the robot's model; consumers that have a `RobotDescription` use its cached `model()` instead."""
-    return build_mjspec(spec, base, scene, catalogue).compile()
+    model = _compile_with_home_key(mj, base, transmission, home_joint_pos(spec, transmission))
+    return mj, model
 
 
 def build_xml(spec: RobotSpec, base: Base = "floating", scene: bool = False) -> str:
@@ -301,11 +312,18 @@ def geom_z_extent(model: mujoco.MjModel, data: mujoco.MjData, geom: int) -> tupl
     return z - half, z + half
 
 
-def _add_home_key(mj: mujoco.MjSpec, spec: RobotSpec, base: Base, transmission: TransmissionMap) -> None:
+def _compile_with_home_key(
+    mj: mujoco.MjSpec, base: Base, transmission: TransmissionMap, joint_pos: np.ndarray
+) -> mujoco.MjModel:
+    """Compile once with a placeholder ``home`` key, then write the home qpos (it needs the compiled qpos0 and, on a
+    floating base, the lowest sole point) into both the model and the spec."""
+    key = mj.add_key(name="home")
     model = mj.compile()
     data = mujoco.MjData(model)
-    data.qpos[:] = home_qpos(model, transmission, home_joint_pos(spec, transmission))
+    data.qpos[:] = home_qpos(model, transmission, joint_pos)
     if base == "floating":
         mujoco.mj_kinematics(model, data)
         data.qpos[2] -= lowest_point(model, data)
-    mj.add_key(name="home", qpos=data.qpos.tolist())
+    key.qpos = data.qpos.tolist()
+    model.key_qpos[model.key("home").id] = data.qpos
+    return model

@@ -22,7 +22,7 @@ import numpy as np
 from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, MotorModel, default_catalogue
 from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays
 from toddlerbot.actuation.params_file import catalogue_with_params
-from toddlerbot.robot.builder import IMU_SITE, VARIANTS, Base, build_mjspec, home_joint_pos
+from toddlerbot.robot.builder import IMU_SITE, VARIANTS, Base, compile_robot, home_joint_pos
 from toddlerbot.robot.spec import MotorSpec, RobotSpec, load_spec
 from toddlerbot.robot.transmission import TransmissionMap, build_transmission_map
 
@@ -181,15 +181,18 @@ class RobotDescription:
 
     # ---- compiled models -------------------------------------------------------------------------------
     def mjspec(self, base: Base = "floating", scene: bool = True) -> mujoco.MjSpec:
-        """A fresh, editable MjSpec of this robot (catalogue and fitted parameters applied); for writing MJCF."""
-        return build_mjspec(self.spec, base, scene=scene, catalogue=self.catalogue, transmission=self.transmission)
+        """A fresh MjSpec of this robot (catalogue and fitted parameters applied), for writing MJCF; the compiled
+        model is cached as `model(base, scene)`."""
+        mjspec, model = compile_robot(self.spec, base, scene, self.catalogue, self.transmission)
+        self._models.setdefault((base, scene), model)
+        return mjspec
 
     def model(self, base: Base = "floating", scene: bool = True) -> mujoco.MjModel:
         """The compiled MuJoCo model for a base (``floating`` or ``fixed``), with or without the scene; built
         once per (base, scene). Treat it as read-only: copy it (``copy.copy``) before changing options."""
         key = (base, scene)
         if key not in self._models:
-            self._models[key] = self.mjspec(base, scene).compile()
+            self.mjspec(base, scene)
         return self._models[key]
 
 
