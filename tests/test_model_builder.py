@@ -3,18 +3,20 @@ import numpy as np
 import pytest
 
 from conftest import MotorPD
-from toddlerbot.robot.builder import build_model, build_xml, variant_spec
+from toddlerbot.robot.builder import build_model, build_xml
+from toddlerbot.robot.description import RobotDescription, load_variant
 from toddlerbot.robot.summary import standing_height
 
 
 def test_same_spec_gives_byte_identical_mjcf(spec):
     assert build_xml(spec, "floating", scene=True) == build_xml(spec, "floating", scene=True)
+    assert RobotDescription(spec).mjspec("floating", scene=True).to_xml() == build_xml(spec, "floating", scene=True)
 
 
 @pytest.mark.parametrize("variant,actuators", [("floating", 30), ("fixed", 30), ("gripper", 32)])
 def test_generated_mjcf_loads_with_one_actuator_per_motor(variant, actuators):
-    spec, base = variant_spec(variant)
-    model = mujoco.MjModel.from_xml_string(build_xml(spec, base, scene=True))
+    description, base = load_variant(variant)
+    model = mujoco.MjModel.from_xml_string(description.mjspec(base, scene=True).to_xml())
     assert model.nu == actuators
     assert model.nkey == 1
     assert (model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE) == (base == "floating")
@@ -42,8 +44,8 @@ def test_home_keyframe_puts_soles_on_the_floor(spec):
 def test_models_load_in_mjx(variant):
     pytest.importorskip("jax")
     mjx = pytest.importorskip("mujoco.mjx")
-    spec, base = variant_spec(variant)
-    mx = mjx.put_model(build_model(spec, base, scene=True))
+    description, base = load_variant(variant)
+    mx = mjx.put_model(description.model(base, scene=True))
     assert mx.nu == (32 if variant == "gripper" else 30)
 
 

@@ -28,7 +28,6 @@ from toddlerbot.robot.spec import (
     RackAndPinion,
     RobotSpec,
     SpurGear,
-    load_spec,
 )
 from toddlerbot.robot.transmission import TransmissionMap, build_transmission_map
 
@@ -68,16 +67,6 @@ _SCENE_CAMERAS = {
 class BuildOptions:
     base: Base = "floating"
     scene: bool = False
-
-
-def variant_spec(variant: str, spec: RobotSpec | None = None) -> tuple[RobotSpec, Base]:
-    """Resolve a CLI variant name (floating, fixed, gripper) into a spec and a base type."""
-    if variant not in VARIANTS:
-        raise ValueError(f"unknown variant {variant!r}; expected one of {', '.join(VARIANTS)}")
-    spec = spec or load_spec()
-    if variant == "gripper":
-        return spec.with_variant("gripper"), "floating"
-    return spec, variant  # type: ignore[return-value]
 
 
 def build_mjspec(
