@@ -81,6 +81,22 @@ def test_motor_params_reach_the_simulated_robot(monkeypatch, tmp_path, command):
     assert robot.description.motor_params_files == (str(params),)
 
 
+def test_model_info_and_build_use_the_fitted_motor_params(tmp_path):
+    params = tmp_path / "xm430.json"
+    params.write_text('{"motor": "XM430", "actuator": {"armature": 0.0031, "tau_max": 1.23}}')
+    info = CliRunner().invoke(app, ["model", "info", "--json", "--motor-params", str(params)])
+    assert info.exit_code == 0, info.output
+    rows = json.loads(info.output)["motors"]
+    fitted = [r["tau_max"] for r in rows if r["model"] == "XM430-W210"]
+    assert fitted == pytest.approx([1.23] * 4)  # knees and ankle pitch
+    assert all(r["tau_max"] != pytest.approx(1.23) for r in rows if r["model"] != "XM430-W210")
+    xml = tmp_path / "robot.xml"
+    built = CliRunner().invoke(app, ["model", "build", "-o", str(xml), "--motor-params", str(params)])
+    assert built.exit_code == 0, built.output
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    assert model.dof_armature[model.joint("left_knee_drive").dofadr[0]] == pytest.approx(0.0031)
+
+
 HELP_PROBE = """
 import toddlerbot.robot.spec as spec_module
 calls = []
