@@ -35,6 +35,7 @@ from brax.training.agents.ppo import networks as ppo_networks
 from flax import serialization
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write_bytes
 from toddlerbot.rl.config import (
     CommandConfig,
     EnvConfig,
@@ -112,10 +113,7 @@ def save_checkpoint(run_dir: Path, state: TrainingState, key: jax.Array, history
     payload = {"state": serialization.to_state_dict(jax.device_get(state)), "key": np.asarray(jax.device_get(key)),
                "history": json.dumps(history)}
     path = folder / f"step_{int(state.env_steps):012d}.msgpack"
-    tmp = path.with_suffix(".tmp")
-    tmp.write_bytes(serialization.msgpack_serialize(payload))
-    tmp.replace(path)
-    return path
+    return atomic_write_bytes(path, serialization.msgpack_serialize(payload))
 
 
 def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState, jax.Array, list[dict]]:

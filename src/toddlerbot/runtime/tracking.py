@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from toddlerbot.files import save_figure
 from toddlerbot.locomotion.config import WalkConfig
 
 DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.05,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,0,0.3; 20:0.1,0,0.2; 24:0,0,0"
@@ -126,9 +127,4 @@ def plot_tracking(result: TrackingResult, title: str, path: Path) -> Path:
     axes[0].set_title(f"{title}: position {result.position_m:.3f} m, lin vel {result.lin_vel_mps:.3f} m/s, "
                       f"ang vel {result.ang_vel_radps:.3f} rad/s, falls {result.falls}")
     axes[-1].set_xlabel("time [s]")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

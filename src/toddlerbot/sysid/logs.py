@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.io import atomic_write_text
 
 REQUIRED_COLUMNS = ("time", "goal_position", "position")
 OPTIONAL_COLUMNS = ("velocity", "current")

@@ -18,8 +18,8 @@ import yaml
 
 from toddlerbot.actuation.catalogue import Catalogue, MotorModel, default_catalogue
 from toddlerbot.errors import SpecError
+from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.io import atomic_write_text
 from toddlerbot.sysid.logs import RunLog, read_log
 from toddlerbot.sysid.rigs import Rig, RobotJointRig, parse_rig, rig_to_dict
 from toddlerbot.sysid.robot_joint import rig_motor
