@@ -37,6 +37,7 @@ from toddlerbot.policies.walk_feedback import (
     LegOdometry,
     VelocityLoop,
     VelocityTracking,
+    attitude,
     tilt_rotation,
 )
 from toddlerbot.robot.interface import Observation, Robot
@@ -76,20 +77,6 @@ class AttitudeFeedback:
     stance_hip_roll: float = 0.03
     """rad of stance-leg hip roll in single support that lifts the swing side of the pelvis (compensates the
     stance hip's sag under the robot's weight, which otherwise makes the swing foot drag)."""
-
-
-def tilt(quat: np.ndarray) -> tuple[float, float]:
-    """(roll, pitch) of a w, x, y, z quaternion, rad (ZYX Euler angles)."""
-    w, x, y, z = quat
-    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
-    return float(roll), float(pitch)
-
-
-def yaw(quat: np.ndarray) -> float:
-    """Heading (rad) of a w, x, y, z quaternion (ZYX Euler angles)."""
-    w, x, y, z = quat
-    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 class WalkZMPPolicy(Policy):
@@ -137,7 +124,7 @@ class WalkZMPPolicy(Policy):
         """The generator's state (None until the first `act`)."""
         self.last_reference: WalkReference | None = None
         """The generator's latest output (planned joints, contact, feet)."""
-        self.heading = HeadingHold(last_yaw=yaw(obs.imu_quat))
+        self.heading = HeadingHold(last_yaw=attitude(obs.imu_quat)[2])
         self.odometry = LegOdometry(self.walk.ik, self.leg_index, window=cfg.step_ticks * 2, dt=dt)
         self.capture_point = CapturePointEstimator(self.walk.ik, self.leg_index, self.omega,
                                                    self.feedback.dcm_velocity_filter, dt)
@@ -148,8 +135,7 @@ class WalkZMPPolicy(Policy):
         command = np.asarray(command, dtype=float)
         if self.walk_state is None:
             self.walk_state = self.walk.start(command)
-        roll, pitch = tilt(obs.imu_quat)
-        heading = yaw(obs.imu_quat)
+        roll, pitch, heading = attitude(obs.imu_quat)
         self.heading.measure(heading, self.control_dt)
         ref = self.last_reference
         if ref is not None:  # estimators compare the measurement with the plan of the previous tick

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from toddlerbot.files import save_figure
 from toddlerbot.locomotion.config import WalkConfig
@@ -49,9 +50,15 @@ class TrackingResult:
 
 
 def heading(quat: np.ndarray) -> np.ndarray:
-    """Yaw (rad) of w, x, y, z quaternions (..., 4)."""
-    w, x, y, z = np.moveaxis(quat, -1, 0)
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    """Yaw (rad, ZYX Euler angles) of w, x, y, z quaternions (..., 4); NaN where a quaternion is not finite (the
+    base pose of hardware logs)."""
+    quat = np.asarray(quat, dtype=float)
+    rows = quat.reshape(-1, 4)
+    yaw = np.full(len(rows), np.nan)
+    finite = np.isfinite(rows).all(axis=1)
+    if finite.any():
+        yaw[finite] = Rotation.from_quat(rows[finite], scalar_first=True).as_euler("ZYX")[:, 0]
+    return yaw.reshape(quat.shape[:-1])
 
 
 def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray, base_quat: np.ndarray, fell: bool,
