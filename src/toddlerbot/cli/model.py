@@ -14,7 +14,7 @@ from toddlerbot.actuation.params_file import catalogue_with_params
 from toddlerbot.cli.output import console
 from toddlerbot.robot.builder import VARIANTS, build_mjspec, variant_spec
 from toddlerbot.robot.spec import load_spec
-from toddlerbot.robot.summary import summarize
+from toddlerbot.robot.summary import summarize_model
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
 
@@ -58,7 +58,7 @@ def info(
 ) -> None:
     """Print counts, total mass, standing height and the motor table."""
     spec, base = variant_spec(_check_variant(variant), load_spec(spec_path))
-    summary = summarize(spec, build_mjspec(spec, base, scene=False).compile())
+    summary = summarize_model(spec, build_mjspec(spec, base, scene=False).compile())
     if as_json:
         typer.echo(json.dumps(asdict(summary), indent=2))
         return

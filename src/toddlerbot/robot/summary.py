@@ -50,7 +50,7 @@ def standing_height(model: mujoco.MjModel) -> float:
     return highest_point(model, data) - lowest_point(model, data)
 
 
-def summarize(spec: RobotSpec, model: mujoco.MjModel) -> ModelSummary:
+def summarize_model(spec: RobotSpec, model: mujoco.MjModel) -> ModelSummary:
     catalogue = default_catalogue()
     tmap = build_transmission_map(spec)
     rows = []

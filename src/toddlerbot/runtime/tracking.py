@@ -117,7 +117,7 @@ def evaluate_policy(policy_name: str, commands: str = DEFAULT_COMMANDS, seconds:
                            np.asarray(log.base_quat), result.fell)
 
 
-def plot_tracking(result: TrackingResult, title: str, path: Path) -> Path:
+def plot_velocity_tracking(result: TrackingResult, title: str, path: Path) -> Path:
     """Commanded versus achieved vx, vy and yaw rate over time."""
     import matplotlib
 
