@@ -12,6 +12,7 @@ from rich.table import Table
 
 from toddlerbot.actuation.params_file import catalogue_with_params
 from toddlerbot.cli.output import console
+from toddlerbot.files import atomic_write_text
 from toddlerbot.robot.builder import VARIANTS, build_mjspec, variant_spec
 from toddlerbot.robot.spec import load_spec
 from toddlerbot.robot.summary import summarize_model
@@ -45,8 +46,7 @@ def build(
     spec, base = variant_spec(_check_variant(variant), load_spec(spec_path))
     mjspec = build_mjspec(spec, base, scene, catalogue=catalogue_with_params(motor_params or []))
     mjspec.compile()  # refuse to write a model MuJoCo cannot compile
-    output.parent.mkdir(parents=True, exist_ok=True)
-    output.write_text(mjspec.to_xml())
+    atomic_write_text(output, mjspec.to_xml())
     console.print(f"wrote {output} ({spec.name}, {variant}{', scene' if scene else ''})")
 
 

@@ -10,6 +10,7 @@ import typer
 
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write_text
 from toddlerbot.policies import POLICIES
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
@@ -107,8 +108,7 @@ def run(
         result.log.save(log)
         console.print(f"wrote {log}")
     if summary_json:
-        summary_json.parent.mkdir(parents=True, exist_ok=True)
-        summary_json.write_text(json.dumps(summary.to_dict(), indent=2))
+        atomic_write_text(summary_json, json.dumps(summary.to_dict(), indent=2))
     t = summary.tracking
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
     console.print(

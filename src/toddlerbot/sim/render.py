@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write
 
 GL_LIBRARY = {"osmesa": "OSMesa", "egl": "EGL"}
 """Shared library (``lib<name>.so*``) each headless MUJOCO_GL backend loads."""
@@ -124,19 +125,14 @@ class Recorder:
         """Write the captured frames as an H.264 MP4 at ``fps`` frames per second."""
         import imageio.v2 as imageio
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        imageio.mimwrite(path, self.frames, fps=fps, codec="libx264", macro_block_size=8)
-        return path
+        return atomic_write(path, lambda tmp: imageio.mimwrite(tmp, self.frames, fps=fps, codec="libx264",
+                                                               macro_block_size=8))
 
     def write_png(self, path: str | Path, frame: np.ndarray | None = None) -> Path:
         """Write ``frame`` (default: the last captured one) as a PNG."""
         import imageio.v2 as imageio
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        imageio.imwrite(path, self.frames[-1] if frame is None else frame)
-        return path
+        return atomic_write(path, lambda tmp: imageio.imwrite(tmp, self.frames[-1] if frame is None else frame))
 
     def close(self) -> None:
         self.renderer.close()
