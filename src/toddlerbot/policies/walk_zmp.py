@@ -117,13 +117,16 @@ class WalkZMPPolicy(Policy):
         self.leg_index = self.walk.leg_index
         self.omega = float(np.sqrt(GRAVITY / self.walk.com_height))
         """Natural frequency of the walk's linear inverted pendulum, 1/s."""
-
-    def reset(self, obs: Observation) -> None:
-        cfg, dt = self.walk.config, self.control_dt
         self.walk_state: WalkState | None = None
-        """The generator's state (None until the first `act`)."""
+        """The generator's state (None until the first `act` after `reset`)."""
         self.last_reference: WalkReference | None = None
         """The generator's latest output (planned joints, contact, feet)."""
+
+    def reset(self, obs: Observation) -> None:
+        """Start a new walk: the generator restarts and every estimator and loop forgets its state."""
+        cfg, dt = self.walk.config, self.control_dt
+        self.walk_state = None
+        self.last_reference = None
         self.heading = HeadingHold(last_yaw=attitude(obs.imu_quat)[2])
         self.odometry = LegOdometry(self.walk.ik, self.leg_index, window=cfg.step_ticks * 2, dt=dt)
         self.capture_point = CapturePointEstimator(self.walk.ik, self.leg_index, self.omega,
