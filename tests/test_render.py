@@ -17,6 +17,12 @@ needs_osmesa = pytest.mark.skipif(
     reason="offscreen rendering tests need OSMesa (apt-get install libosmesa6; CI installs it)",
 )
 
+MISSING = {
+    "osmesa": "MUJOCO_GL=osmesa needs libOSMesa, which cannot be loaded; to enable rendering, install OSMesa: "
+              "sudo apt-get install libosmesa6",
+    "egl": "MUJOCO_GL=egl needs libEGL, which cannot be loaded; to enable rendering, install EGL and a GPU driver "
+           "(sudo apt-get install libegl1), or use MUJOCO_GL=osmesa with libosmesa6",
+}
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 # Makes every dlopen of OSMesa or EGL fail the way it does on a machine without them, then runs the CLI.
 HIDE_GL_AND_RUN_CLI = """
@@ -32,7 +38,8 @@ runpy.run_module("toddlerbot.cli.main", run_name="__main__")
 """
 
 
-@pytest.mark.parametrize("mujoco_gl", [None, "osmesa"], ids=["MUJOCO_GL unset", "MUJOCO_GL=osmesa"])
+@pytest.mark.parametrize("mujoco_gl", [None, "osmesa", "egl"], ids=["MUJOCO_GL unset", "MUJOCO_GL=osmesa",
+                                                                    "MUJOCO_GL=egl"])
 def test_main_command_without_gl_library_simulates_and_says_how_to_enable_video(tmp_path, mujoco_gl):
     env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
     env["PYTHONPATH"] = SRC
@@ -49,8 +56,8 @@ def test_main_command_without_gl_library_simulates_and_says_how_to_enable_video(
     lines = [line for line in proc.stdout.splitlines() if line.strip()]
     assert lines[0].startswith("walk-zmp 1.00 s: no fall; displacement")  # the summary comes first
     skipped = [line for line in lines if "skipped" in line]
-    assert skipped == [f"video {video} skipped: MUJOCO_GL=osmesa needs libOSMesa, which cannot be loaded; "
-                       "to enable rendering, install OSMesa: sudo apt-get install libosmesa6"]
+    backend = mujoco_gl or ("egl" if Path("/dev/nvidia0").exists() else "osmesa")  # the default with a GPU is EGL
+    assert skipped == [f"video {video} skipped: {MISSING[backend]}"]
     assert lines[-1] == skipped[0]
     assert not video.exists()
     assert (tmp_path / "s.json").read_text().count("displacement_m") == 1  # the run itself completed
