@@ -1,5 +1,6 @@
 import json
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -90,12 +91,34 @@ def test_design_report_defaults_to_the_models_size(spec, description):
         "left_ankle_pitch", "right_ankle_pitch", "left_hip_pitch", "right_hip_pitch"}
 
 
-def test_design_plots_are_written(tmp_path):
+TAB_RED, TAB_ORANGE = (214, 39, 40), (255, 127, 14)
+
+
+def _bars(image: np.ndarray, rgb: tuple[int, int, int], axis: int) -> int:
+    """Separate bars of one colour across an RGB image: runs of columns (axis 0) or rows (axis 1) holding it."""
+    holds = (np.abs(image - np.array(rgb)).max(axis=2) < 40).sum(axis=axis) > 5
+    return int(np.sum(np.diff(np.concatenate([[0], holds.astype(int), [0]])) == 1))
+
+
+def test_design_plots_show_the_report(tmp_path, spec):
+    from PIL import Image
+
     result = runner.invoke(app, ["design", "report", "--plot", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    for name in ("power_factor", "range_of_motion", "torque_requirement"):
-        png = (tmp_path / f"{name}.png").read_bytes()
-        assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+    report = design_report(spec)
+    images = {name: np.asarray(Image.open(tmp_path / f"{name}.png").convert("RGB")).astype(int)
+              for name in ("power_factor", "range_of_motion", "torque_requirement")}
+    rows = len(report.range_of_motion)
+    # the figure sizes at 120 dpi: 7 x 4.5 in, 7 x (0.35 per joint + 1.5) in, 7 x 3.5 in
+    assert images["power_factor"].shape == (540, 840, 3)
+    assert images["range_of_motion"].shape == (round((0.35 * rows + 1.5) * 120), 840, 3)
+    assert images["torque_requirement"].shape == (420, 840, 3)
+    # one red bar per joint whose stall torque is below Eq. 5's requirement (4 at the model's size)
+    assert _bars(images["torque_requirement"], TAB_RED, axis=0) == len(report.insufficient_joints) == 4
+    # one orange ToddlerBot bar per joint in the range-of-motion chart, plus its legend patch
+    assert _bars(images["range_of_motion"], TAB_ORANGE, axis=1) == rows + 1
+    # the power-factor chart is drawn (measured: 4.8 % of its pixels are not white)
+    assert (images["power_factor"].min(axis=2) < 200).mean() > 0.02
 
 
 def test_negative_height_is_refused():

@@ -72,9 +72,20 @@ def test_cli_prints_json_and_saves_plot(tmp_path):
     assert (tmp_path / "track.png").stat().st_size > 10_000
 
 
-def test_cli_rejects_unknown_policy_and_bad_commands():
-    runner = CliRunner()
-    result = runner.invoke(app, ["eval", "tracking", "--policy", "dance"])
-    assert result.exit_code != 0 and "unknown policy 'dance'" in str(result.exception or result.output)
-    result = runner.invoke(app, ["eval", "tracking", "--policy", "walk-zmp", "--commands", "0:0.1,0"])
-    assert result.exit_code != 0
+@pytest.mark.parametrize("args,message", [
+    (["--policy", "dance"],
+     "error: --policy: unknown policy 'dance'; expected one of stand, replay, walk-zmp, walk-rl"),
+    (["--policy", "walk-zmp", "--commands", "0:0.1,0"],
+     "error: --commands: malformed command '0:0.1,0'; expected 'time: vx,vy,yaw_rate' like '0:0.1,0,0' with time >= 0"),
+])
+def test_cli_rejects_unknown_policy_and_bad_commands(args, message, capsys, monkeypatch):
+    import sys
+
+    from toddlerbot.cli import main as cli_main
+
+    monkeypatch.setattr(sys, "argv", ["toddlerbot", "eval", "tracking", *args])
+    with pytest.raises(SystemExit) as exc:
+        cli_main.main()
+    assert exc.value.code == 2  # a user error (1 would be a failed evaluation), before anything is simulated
+    out, err = capsys.readouterr()
+    assert err.strip() == message and out == ""

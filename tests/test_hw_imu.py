@@ -31,6 +31,15 @@ def test_bno08x_reading_is_rotated_into_the_imu_site_frame():
     assert reading.lin_acc == pytest.approx([0.0, 0.0, GRAVITY])
 
 
-def test_static_imu_is_upright_at_rest():
-    reading = StaticImu().read()
-    assert np.array_equal(reading.quat, [1, 0, 0, 0]) and reading.lin_acc[2] == GRAVITY
+def test_static_imu_reads_what_a_mounted_bno08x_reads_on_an_upright_robot_at_rest():
+    mount = Rotation.from_euler("xz", [180, 90], degrees=True)  # sensor upside down and turned in the torso
+    x, y, z, w = mount.as_quat()
+    # upright torso at rest: the sensor's orientation is the mount itself, no rotation rate, and the accelerometer
+    # measures gravity's reaction (+g up in the world) in the sensor's axes
+    at_rest = _FakeBno(mount, (0.0, 0.0, 0.0), mount.inv().apply([0.0, 0.0, GRAVITY]))
+    real = Bno08xImu(mount_quat=(w, x, y, z), device=at_rest).read()
+    stand_in = StaticImu().read()
+    np.testing.assert_allclose(stand_in.quat, real.quat, atol=1e-12)
+    np.testing.assert_allclose(stand_in.ang_vel, real.ang_vel, atol=1e-12)
+    np.testing.assert_allclose(stand_in.lin_acc, real.lin_acc, atol=1e-12)
+    assert stand_in.lin_acc[2] == pytest.approx(GRAVITY)  # +9.81 up at rest, like the simulated accelerometer

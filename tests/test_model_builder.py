@@ -55,9 +55,12 @@ def test_robot_held_at_home_by_joint_pd_stands_for_ten_seconds(spec):
     mujoco.mj_resetDataKeyframe(model, data, 0)
     pd = MotorPD(model, spec)
     targets = data.qpos[pd.qadr].copy()
-    start_height = data.qpos[2]
+    start = data.qpos[:3].copy()
     for _ in range(round(10.0 / model.opt.timestep)):
         pd.apply(data, targets)
         mujoco.mj_step(model, data)
     assert np.all(np.isfinite(data.qpos))
-    assert abs(data.qpos[2] - start_height) < 0.02
+    # README: torso height within 2 mm after 10 s (measured 1.8 mm lower, 6 mm horizontal drift, 2.6 deg tilt)
+    assert abs(data.qpos[2] - start[2]) < 0.002
+    assert np.linalg.norm(data.qpos[:2] - start[:2]) < 0.01
+    assert 2 * np.arccos(min(1.0, abs(data.qpos[3]))) < np.radians(4)

@@ -58,8 +58,16 @@ def test_each_shipped_motion_completes_without_falling(robot, motion):
     assert np.all(reached > 0.5 * wanted)
 
 
-def test_builtin_motions_shipped():
-    assert {"squat", "wave", "look_around"} <= set(builtin_motions())
+@pytest.mark.parametrize("name", ["look_around", "squat", "wave"])
+def test_each_shipped_motion_starts_and_ends_at_the_home_pose(name, description):
+    assert name in builtin_motions()
+    motion = load_motion(name, description)
+    joint_home = dict(zip(description.joint_names, description.home_joint_pos, strict=True))
+    home = np.array([joint_home[j] for j in motion.joints])
+    # a replay starts from standing without a jump and hands back a standing robot (keyframes are whole degrees)
+    np.testing.assert_allclose(motion.at(0.0), home, atol=np.radians(0.1))
+    np.testing.assert_allclose(motion.at(motion.duration), home, atol=np.radians(0.1))
+    assert np.abs(motion.poses - home).max() > 0.3  # and moves in between (rad)
 
 
 def _write(tmp_path, text):
@@ -86,16 +94,23 @@ def test_unknown_policy_is_a_clear_error(robot):
         make_policy("fly", robot)
 
 
-def test_cli_bad_input_is_one_line_without_traceback(tmp_path):
+@pytest.mark.parametrize("args,message", [
+    (["sim", "run", "--policy", "fly"], "error: unknown policy 'fly'; expected one of "),
+    (["sim", "run", "--command", "0:oops"], "error: --command: malformed command '0:oops'; expected "),
+])
+def test_cli_bad_input_is_one_line_without_traceback(args, message, capsys, monkeypatch):
+    import sys
+
     from toddlerbot.cli import main as cli_main
 
-    for args in (["sim", "run", "--policy", "fly"], ["sim", "run", "--command", "0:oops"]):
-        with pytest.raises(SystemExit) as exc:
-            import sys
-
-            sys.argv = ["toddlerbot", *args]
-            cli_main.main()
-        assert exc.value.code == 2
+    monkeypatch.setattr(sys, "argv", ["toddlerbot", *args])
+    with pytest.raises(SystemExit) as exc:
+        cli_main.main()
+    assert exc.value.code == 2
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(message), err
+    assert "Traceback" not in out + err
 
 
 def test_cli_stand_writes_summary_json(tmp_path):

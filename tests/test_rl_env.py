@@ -12,14 +12,22 @@ jnp = jax.numpy
 
 from toddlerbot.rl.config import smoke_env_config  # noqa: E402
 from toddlerbot.rl.env import WalkEnv  # noqa: E402
-from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.rl.reference import CommandGrid, ReferenceTable, home_motor_pos, leg_motor_indices  # noqa: E402
 from toddlerbot.robot.spec import load_spec  # noqa: E402
+
+
+def _standing_reference(cfg, period: float = 0.72, n_phase: int = 40) -> ReferenceTable:
+    """Home pose with both feet down for every command: a reference that needs no ZMP tabulation."""
+    spec, grid = load_spec(), CommandGrid.from_config(cfg.command)
+    legs = home_motor_pos(spec)[leg_motor_indices(spec)]
+    shape = (*grid.shape, n_phase)
+    return ReferenceTable(grid, period, np.broadcast_to(legs, (*shape, len(legs))).copy(), np.ones((*shape, 2)))
 
 
 @pytest.fixture(scope="module")
 def env():
     cfg = smoke_env_config()
-    return WalkEnv(cfg, reference=standing_table(load_spec(), cfg.command, period=0.72))
+    return WalkEnv(cfg, reference=_standing_reference(cfg))
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,6 @@ from toddlerbot.rl.reference import (
     CommandGrid,
     home_motor_pos,
     leg_motor_indices,
-    standing_table,
     zmp_table,
 )
 from toddlerbot.robot.spec import load_spec
@@ -67,10 +66,3 @@ def test_zmp_table_tabulates_steady_state_cycle_in_motor_space():
     zero = tuple(table.grid.snap(np.zeros(3)))  # standing still: home pose, both feet down
     np.testing.assert_allclose(table.leg_motor_pos[zero], np.tile(home_motor_pos(spec)[legs], (8, 1)))
     assert table.contact[zero].min() == 1.0
-
-
-def test_standing_table_is_home_with_both_feet_down():
-    spec = load_spec()
-    table = standing_table(spec, CommandConfig(grid=(3, 3, 3)), period=0.72, n_phase=4)
-    np.testing.assert_allclose(table.leg_motor_pos[1, 2, 0, 3], home_motor_pos(spec)[leg_motor_indices(spec)])
-    assert table.contact.min() == 1.0

@@ -41,7 +41,7 @@ def test_weights_are_table_6_and_cover_every_term():
 
 def test_perfect_standing_earns_every_imitation_term_and_no_penalty():
     cfg = RewardConfig()
-    total, terms = rewards.evaluate(quantities(), cfg, dt=0.02)
+    total, terms = rewards.total_reward(quantities(), cfg, dt=0.02)
     imitation = ("torso_quat", "lin_vel_xy", "lin_vel_z", "ang_vel_xy", "ang_vel_z", "leg_motor_pos", "feet_contact")
     for name in imitation:
         assert float(terms[name]) == pytest.approx(1.0)

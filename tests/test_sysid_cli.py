@@ -87,7 +87,14 @@ def test_testbed_cli(tmp_path: Path) -> None:
 
 
 def test_actuator_plot_and_show(tmp_path: Path) -> None:
+    from PIL import Image
+
     _ok(["actuator", "plot", "--motor", "XC330", "-o", str(tmp_path / "fig12.png")])
-    assert (tmp_path / "fig12.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    image = np.asarray(Image.open(tmp_path / "fig12.png").convert("RGB")).astype(int)
+    assert image.shape == (504, 1320, 3)  # 11 x 4.2 in at 120 dpi
+    curve = np.abs(image - np.array([31, 119, 180])).max(axis=2) < 30  # matplotlib's C0 blue
+    # both panels draw their blue curve: tau_limit over speed (left) and the envelope's bounds (right);
+    # measured 1307 and 2192 pixels
+    assert curve[:, :660].sum() > 500 and curve[:, 660:].sum() > 500
     out = json.loads(_ok(["actuator", "show", "--motor", "2XL430", "--json"]))
     assert out["motor"] == "2XL430-W250" and out["actuator"]["tau_brake"] == 1.40

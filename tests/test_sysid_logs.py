@@ -8,7 +8,6 @@ from pathlib import Path
 import pytest
 
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.io import atomic_write
 from toddlerbot.sysid.manifest import load_manifest
 from toddlerbot.sysid.rigs import PendulumRig
 from toddlerbot.sysid.rigs import TestBedRig as BedRig
@@ -69,15 +68,3 @@ def test_missing_file_and_unknown_motor(tmp_path: Path) -> None:
     path = _manifest(tmp_path, rig={"type": "pendulum", "mass": 0.49})
     with pytest.raises(SysIDError, match=r"manifest.json: rig 'pendulum' is missing 'length'"):
         load_manifest(path)
-
-
-def test_atomic_write_leaves_nothing_on_error(tmp_path: Path) -> None:
-    target = tmp_path / "out" / "params.json"
-
-    def fail(tmp: Path) -> None:
-        tmp.write_text("half")
-        raise RuntimeError("boom")
-
-    with pytest.raises(RuntimeError):
-        atomic_write(target, fail)
-    assert list((tmp_path / "out").iterdir()) == []

@@ -1,14 +1,13 @@
 """ZMP walking: the generator is deterministic and consistent; the simulated robot walks the commanded distances."""
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.locomotion.preview import preview_gains, preview_step
 from toddlerbot.locomotion.zmp_walk import ZMPWalk
-from toddlerbot.policies.walk_zmp import VelocityTracking, WalkZMPPolicy
+from toddlerbot.policies.walk_feedback import VelocityLoop, VelocityTracking
+from toddlerbot.policies.walk_zmp import WalkZMPPolicy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
@@ -50,7 +49,7 @@ def test_planned_feet_follow_the_command(walk):
     assert np.max(np.abs(traj.zmp - traj.zmp_ref)) < 0.04
     # the legs' forward kinematics put the feet where the plan says (relative to the torso)
     i = 300
-    pos, _ = walk.ik.forward(traj.joint_pos[i][walk._leg_index])
+    pos, _ = walk.ik.forward(traj.joint_pos[i][walk.leg_index])
     yaw = traj.torso_yaw[i]
     c, s = np.cos(yaw), np.sin(yaw)
     rel = (traj.foot_pos[i] - traj.torso_pos[i]) @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
@@ -66,12 +65,12 @@ def test_leg_mass_correction_puts_the_whole_robot_com_on_the_plan(description):
     walk = ZMPWalk(description, WalkConfig(leg_mass_correction=True))
     traj = walk.trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
     for i in (30, 40, 47):  # standing, double support, single support (swing leg moving)
-        com = traj.torso_pos[i] + walk.ik.com(traj.joint_pos[i][walk._leg_index])  # torso upright, yaw ~0
+        com = traj.torso_pos[i] + walk.ik.com(traj.joint_pos[i][walk.leg_index])  # torso upright, yaw ~0
         np.testing.assert_allclose(com[:2], traj.com_pos[i, :2], atol=2e-3)
     # without it the home-pose CoM offset is kept and the swing leg moves the real CoM off the plan
     home = ZMPWalk(description).trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
     i = 47
-    com = home.torso_pos[i] + walk.ik.com(home.joint_pos[i][walk._leg_index])
+    com = home.torso_pos[i] + walk.ik.com(home.joint_pos[i][walk.leg_index])
     assert np.linalg.norm(com[:2] - home.com_pos[i, :2]) > 2e-3
 
 
@@ -169,15 +168,19 @@ def test_dcm_error_from_leg_kinematics_and_imu_tilt():
     obs = robot.reset()
     policy.reset(obs)
     policy.act(obs, np.zeros(3))
-    planned = replace(obs, joint_pos=policy.last_reference.joint_pos.copy())
-    policy._com_error = None
-    np.testing.assert_allclose(policy._measure_dcm_error(planned, 0.0, 0.0), 0.0, atol=1e-9)  # on the plan
+    ref = policy.last_reference
+    estimator = policy.capture_point
+    assert estimator.stance is None  # the first tick has no plan to compare with
+    dcm = estimator.update(ref.joint_pos, ref.joint_pos, ref.contact, 0.0, 0.0)
+    np.testing.assert_allclose(dcm, 0.0, atol=1e-9)  # on the plan
     # a torso pitched forward by 0.05 rad at the planned leg angles: the CoM is ~0.05 * CoM height ahead of the
-    # feet, and the velocity estimate (filter 0.5, one 20 ms tick) adds 0.5 / (0.02 * omega) times that
-    dcm = policy._measure_dcm_error(planned, 0.0, 0.05)
+    # feet, and the rate estimate (filter 0.5, one 20 ms tick) adds 0.5 / (0.02 * omega) times that
+    dcm = estimator.update(ref.joint_pos, ref.joint_pos, ref.contact, 0.0, 0.05)
     ahead = 0.05 * policy.walk.com_height
-    assert dcm[0] == pytest.approx(ahead * (1 + 0.5 / (0.02 * policy._omega)), rel=0.1)
+    assert estimator.omega == pytest.approx(np.sqrt(9.81 / policy.walk.com_height), rel=1e-3)
+    assert dcm[0] == pytest.approx(ahead * (1 + 0.5 / (0.02 * estimator.omega)), rel=0.1)
     assert abs(dcm[1]) < 1e-3
+    np.testing.assert_array_equal(estimator.dcm_error, dcm)
 
 
 def test_swing_leg_is_stiffer_than_the_stance_leg():
@@ -197,9 +200,12 @@ def test_feedback_signs_come_from_the_model():
     robot = MuJoCoRobot()
     policy = WalkZMPPolicy(robot)
     # mirrored joints (hip roll, ankle pitch) get opposite signs on the two legs; ankle roll is not mirrored
-    np.testing.assert_array_equal(policy._ankle_pitch_sign, [1.0, -1.0])
-    np.testing.assert_array_equal(policy._hip_roll_sign, [-1.0, 1.0])
-    np.testing.assert_array_equal(policy._ankle_roll_sign, [1.0, 1.0])
+    np.testing.assert_array_equal(policy.ankle_pitch.sign, [1.0, -1.0])
+    np.testing.assert_array_equal(policy.hip_roll.sign, [-1.0, 1.0])
+    np.testing.assert_array_equal(policy.ankle_roll.sign, [1.0, 1.0])
+    left, right = policy.leg_index
+    assert [robot.joint_names[i] for i in policy.ankle_pitch.index] == [robot.joint_names[left[-2]],
+                                                                         robot.joint_names[right[-2]]]
 
 
 def test_leg_odometry_tracks_the_simulated_base_velocity():
@@ -215,24 +221,20 @@ def test_leg_odometry_tracks_the_simulated_base_velocity():
     cycle = 2 * policy.walk.config.step_ticks
     true_vel = (positions[-1] - positions[-1 - cycle])[:2] / (cycle * robot.control_dt)
     assert np.linalg.norm(start - positions[-1]) > 0.2
-    assert policy.velocity_estimate[0] == pytest.approx(true_vel[0], abs=0.008)
-    assert abs(policy.velocity_estimate[1] - true_vel[1]) < 0.03  # sideways: biased by the sway (not used)
-    assert policy.velocity_estimate[0] < -0.11  # sees the over-stride the loop corrects
+    assert policy.odometry.velocity[0] == pytest.approx(true_vel[0], abs=0.008)
+    assert abs(policy.odometry.velocity[1] - true_vel[1]) < 0.03  # sideways: biased by the sway (not used)
+    assert policy.odometry.velocity[0] < -0.11  # sees the over-stride the loop corrects
 
 
 def test_velocity_correction_is_bounded_held_per_step_and_waits_for_a_steady_command():
-    robot = MuJoCoRobot()
+    cfg = WalkConfig()
     vt = VelocityTracking(kp=(0.5, 0.0), ki=(2.0, 0.0), limit=(0.04, 0.03), settle_steps=2)
-    policy = WalkZMPPolicy(robot, velocity=vt)
-    obs = robot.reset()
-    policy.reset(obs)
-    policy.act(obs, np.zeros(3))
-    cfg = policy.walk.config
-    policy._estimate_velocity = lambda *_: np.array([0.0, 0.0])  # a robot that does not move
+    loop = VelocityLoop(vt, cfg.start_ticks, cfg.step_ticks, cfg.dt)
+    standing = np.zeros(2)  # a robot that does not move
+    loop.update(0, np.zeros(3), standing)
     corrections = []
-    for _ in range(cfg.start_ticks + 6 * cfg.step_ticks):
-        policy.act(obs, np.array([0.1, 0.0, 0.0]))
-        corrections.append(policy._correction.copy())
+    for tick in range(1, 1 + cfg.start_ticks + 6 * cfg.step_ticks):
+        corrections.append(loop.update(tick, np.array([0.1, 0.0, 0.0]), standing).copy())
     corrections = np.array(corrections)
     settle = cfg.start_ticks + 2 * cfg.step_ticks - 1
     assert np.all(corrections[:settle] == 0.0)  # the gait-cycle average lags the start: no wind-up
@@ -240,3 +242,4 @@ def test_velocity_correction_is_bounded_held_per_step_and_waits_for_a_steady_com
     changes = np.flatnonzero(np.any(np.diff(corrections, axis=0) != 0, axis=1)) + 1
     assert np.all((changes - settle) % cfg.step_ticks == 0)  # only when a step starts
     assert np.all(corrections[:, 1] == 0.0) and corrections[:, 0].max() == pytest.approx(0.04)
+    assert abs(loop.error_sum[0]) <= vt.limit[0] / vt.ki[0] + 1e-12  # anti-windup: the integral stops growing

@@ -9,6 +9,7 @@ import numpy as np
 
 from toddlerbot.actuation.catalogue import ActuatorParams
 from toddlerbot.actuation.model import acceleration_limit, actuator_arrays, torque_bounds
+from toddlerbot.files import save_figure
 
 
 def plot_torque_envelope(params: ActuatorParams, title: str, path: str | Path, points: int = 801) -> None:
@@ -38,8 +39,4 @@ def plot_torque_envelope(params: ActuatorParams, title: str, path: str | Path, p
     right.axvline(0, color="0.3", lw=0.6)
     right.set(xlabel=r"$\dot q$ (rad/s)", ylabel=r"$\tau$ (N m)", title="torque-speed envelope (Eq. 9-10)")
     right.legend(fontsize=8, loc="upper right")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)

@@ -32,7 +32,7 @@ def tracking(
     from toddlerbot.policies import POLICIES
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.commands import CommandSchedule
-    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_tracking
+    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_velocity_tracking
 
     if policy not in POLICIES:
         raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
@@ -46,7 +46,7 @@ def tracking(
         result = evaluate_policy(description, policy, schedule_text, seconds, weights)
     summary = result.summary()
     if plot is not None:
-        plot_tracking(result, policy, plot)
+        plot_velocity_tracking(result, policy, plot)
     if as_json:
         print(json.dumps(summary))
         return

@@ -32,7 +32,8 @@ def main() -> None:
     try:
         app()
     except ToddlerbotError as exc:
-        Console(stderr=True).print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
+        # soft_wrap: one line whatever the terminal width (rich wraps at 80 columns when not on a terminal)
+        Console(stderr=True, soft_wrap=True).print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
         sys.exit(2)
 
 

@@ -11,6 +11,7 @@ import typer
 from rich.table import Table
 
 from toddlerbot.cli.output import console
+from toddlerbot.files import atomic_write_text
 from toddlerbot.robot.builder import VARIANTS
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
@@ -43,8 +44,7 @@ def build(
 
     description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
     mjspec = description.mjspec(base, scene)  # compiled: a model MuJoCo cannot compile is never written
-    output.parent.mkdir(parents=True, exist_ok=True)
-    output.write_text(mjspec.to_xml())
+    atomic_write_text(output, mjspec.to_xml())
     console.print(f"wrote {output} ({description.spec.name}, {variant}{', scene' if scene else ''})")
 
 
@@ -57,10 +57,10 @@ def info(
 ) -> None:
     """Print counts, total mass, standing height and the motor table (tau_max from the fitted motors if given)."""
     from toddlerbot.robot.description import load_variant
-    from toddlerbot.robot.summary import summarize
+    from toddlerbot.robot.summary import summarize_model
 
     description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
-    summary = summarize(description, description.model(base, scene=False))
+    summary = summarize_model(description, description.model(base, scene=False))
     if as_json:
         typer.echo(json.dumps(asdict(summary), indent=2))
         return

@@ -10,6 +10,7 @@ import typer
 
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write_text
 from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS
 
 app = typer.Typer(help="Reinforcement-learning locomotion (needs the \\[train] extra: jax, mujoco-mjx, brax).",
@@ -74,7 +75,7 @@ def train(
     console.print(f"run directory: {run_dir}")
     if smoke and resume is None:
         run_dir.mkdir(parents=True, exist_ok=True)
-        (run_dir / "smoke").write_text("this run uses the --smoke configuration\n")
+        atomic_write_text(run_dir / "smoke", "this run uses the --smoke configuration\n")
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
                   TimeElapsedColumn(), console=console) as bar:
         task = bar.add_task("compiling + training", total=None, info="")

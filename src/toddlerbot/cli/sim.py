@@ -10,6 +10,7 @@ import typer
 
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write_text
 from toddlerbot.policies import POLICIES
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
@@ -50,7 +51,7 @@ def run(
     from toddlerbot.runtime.runner import run_policy
     from toddlerbot.runtime.summary import summarize
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-    from toddlerbot.sim.render import Recorder, has_display
+    from toddlerbot.sim.render import Recorder, RenderError, has_display
 
     if policy not in POLICIES:
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
@@ -62,9 +63,13 @@ def run(
     description = RobotDescription.load(motor_params=motor_params or [])
     robot = MuJoCoRobot(description, SimConfig(control_dt=1.0 / control_hz))
     pol = make_policy(policy, robot, motion)
-    recorder = None
+    recorder, render_skipped = None, None
     if video or snapshot:
-        recorder = Recorder(robot.model, robot.data, camera)
+        try:
+            recorder = Recorder(robot.model, robot.data, camera)
+        except RenderError as exc:  # simulate anyway; say after the summary what was skipped and why
+            wanted = [f"{kind} {path}" for kind, path in (("video", video), ("snapshot", snapshot)) if path]
+            render_skipped = f"{' and '.join(wanted)} skipped: {exc}"
     frame_every = max(1, round(1.0 / 30.0 / robot.control_dt))
     handle = None
     if viewer:
@@ -103,8 +108,7 @@ def run(
         result.log.save(log)
         console.print(f"wrote {log}")
     if summary_json:
-        summary_json.parent.mkdir(parents=True, exist_ok=True)
-        summary_json.write_text(json.dumps(summary.to_dict(), indent=2))
+        atomic_write_text(summary_json, json.dumps(summary.to_dict(), indent=2))
     t = summary.tracking
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
     console.print(
@@ -114,6 +118,8 @@ def run(
         f"tracking errors: position {t.position_m:.3f} m, linear velocity {t.lin_vel_mps:.3f} m/s, "
         f"angular velocity {t.ang_vel_radps:.3f} rad/s; compute {summary.mean_compute_ms:.2f} ms/step"
     )
+    if render_skipped:
+        console.print(render_skipped, highlight=False, markup=False, soft_wrap=True)
     if summary.fell:
         raise typer.Exit(1)
 

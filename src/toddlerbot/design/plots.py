@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from toddlerbot.design.report import DesignReport
+from toddlerbot.files import save_figure
 
 
 def plot_power_factor(report: DesignReport, path: Path) -> None:
@@ -34,7 +35,7 @@ def plot_power_factor(report: DesignReport, path: Path) -> None:
     ax.set_ylim(0, 1.15 * max([pf.total] + [h.power_factor for h in report.humanoids]))
     ax.legend(loc="lower left", fontsize=8)
     ax.grid(alpha=0.3)
-    _save(fig, path)
+    save_figure(fig, path, dpi=120)
 
 
 def plot_range_of_motion(report: DesignReport, path: Path) -> None:
@@ -51,7 +52,7 @@ def plot_range_of_motion(report: DesignReport, path: Path) -> None:
     ax.set_xlabel("degrees")
     ax.set_title("Range of motion (appendix Fig. 6)")
     ax.legend(fontsize=8)
-    _save(fig, path)
+    save_figure(fig, path, dpi=120)
 
 
 def plot_torque_requirement(report: DesignReport, path: Path) -> None:
@@ -66,7 +67,7 @@ def plot_torque_requirement(report: DesignReport, path: Path) -> None:
     ax.set_ylabel("N·m")
     ax.set_title(f"Torque requirement for h={report.height_m:.2f} m, m={report.mass_kg:.2f} kg")
     ax.legend(fontsize=8)
-    _save(fig, path)
+    save_figure(fig, path, dpi=120)
 
 
 def write_plots(report: DesignReport, directory: Path) -> list[Path]:
@@ -78,9 +79,3 @@ def write_plots(report: DesignReport, directory: Path) -> list[Path]:
         plot(report, path)
         paths.append(path)
     return paths
-
-
-def _save(fig: plt.Figure, path: Path) -> None:
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)

@@ -17,8 +17,6 @@ spec's motor groups: arm = the spec's ``arm`` and ``gripper`` motors, neck = ``n
 from __future__ import annotations
 
 import datetime as _dt
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +25,7 @@ import numpy as np
 import yaml
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write_text
 from toddlerbot.hardware.control_table import PULSES_PER_REV, RAD_PER_PULSE
 from toddlerbot.hardware.driver import DynamixelBus
 from toddlerbot.robot.spec import MotorSpec, RobotSpec
@@ -119,16 +118,11 @@ def load_calibration(path: str | Path, spec: RobotSpec | None = None, robot: str
 
 def save_calibration(cal: Calibration, path: str | Path) -> None:
     """Write atomically (temporary file + rename): a crash never leaves a half-written file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     text = yaml.safe_dump(
         {"robot": cal.robot, "spec": cal.spec, "offsets": dict(cal.offsets), "groups": dict(cal.groups)},
         sort_keys=False,
     )
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    atomic_write_text(path, text)
 
 
 def measure_offsets(bus: DynamixelBus, samples: int = SAMPLES, interval: float = 0.02) -> dict[str, int]:

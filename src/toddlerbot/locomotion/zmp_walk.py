@@ -134,6 +134,11 @@ class ZMPWalk:
         self._cache: dict[tuple[float, float, float], list[WalkReference]] = {}
 
     # -- public API -------------------------------------------------------------------------------------------
+    @property
+    def leg_index(self) -> np.ndarray:
+        """(2, n_leg_joints) joint-vector indices of the left and right leg chains (`LegIK` chain order)."""
+        return self._leg_index
+
     def clip_command(self, command: np.ndarray) -> np.ndarray:
         return np.clip(np.asarray(command, dtype=float).reshape(3), -self._limits, self._limits)
 

@@ -187,7 +187,7 @@ class WalkEnv(Env):
             last_last_action=info["last_last_action"], motor_torque=taus[-1],
             motor_vel=data.qvel[self.motor_dadr], alive=1.0 - fallen.astype(jnp.float32),
         )
-        reward, terms = rewards.evaluate(q, cfg.reward, cfg.ctrl_dt)
+        reward, terms = rewards.total_reward(q, cfg.reward, cfg.ctrl_dt)
 
         info["air_time"] = air_time * (1 - contact)
         info["last_contact"] = contact

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_savez
 from toddlerbot.policies.rl_inference import LEG_MOTORS, leg_motor_names
 from toddlerbot.rl.config import EnvConfig, PPOConfig
 from toddlerbot.rl.reference import home_motor_pos, leg_motor_indices
@@ -36,16 +37,11 @@ def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, 
     spec = spec or load_spec()
     if env_cfg.obs.gait_period is None:
         raise ValueError("the observation config to export has no gait period (resolve it with WalkEnv first)")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(
-        tmp, **arrays, home_motor_pos=home_motor_pos(spec), leg_motor_index=leg_motor_indices(spec),
+    return atomic_savez(path, dict(
+        **arrays, home_motor_pos=home_motor_pos(spec), leg_motor_index=leg_motor_indices(spec),
         motor_names=np.array([m.joint for m in spec.motors_by_id]), leg_motors=np.array(leg_motor_names(spec)),
         obs_config=np.array(env_cfg.obs.to_json()), meta=np.array(json.dumps(meta)),
-    )
-    tmp.replace(path)
-    return path
+    ))
 
 
 def export_run(run_dir: Path, out: Path) -> Path:

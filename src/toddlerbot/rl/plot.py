@@ -9,6 +9,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from toddlerbot.files import save_figure
+
 
 def training_curve(history: list[dict], path: Path) -> Path:
     """Reward per step, episode reward and fall rate against environment steps."""
@@ -27,9 +29,4 @@ def training_curve(history: list[dict], path: Path) -> Path:
         axes[1].plot(steps, [h.get("eval/episode_reward", float("nan")) for h in history], marker="s", ms=3,
                      label="evaluation")
         axes[1].legend()
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

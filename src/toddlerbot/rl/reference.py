@@ -98,17 +98,6 @@ def home_motor_pos(spec: RobotSpec) -> np.ndarray:
     return tmap.joint_to_motor(np.array([spec.home.get(j, 0.0) for j in tmap.joint_names]))
 
 
-def standing_table(spec: RobotSpec, cfg: CommandConfig, period: float, n_phase: int = 40) -> ReferenceTable:
-    """A reference that stands in the home pose with both feet down for every command.
-
-    Used when the ZMP generator is not installed; only the standing command is then imitated faithfully.
-    """
-    grid = CommandGrid.from_config(cfg)
-    legs = home_motor_pos(spec)[leg_motor_indices(spec)]
-    shape = (*grid.shape, n_phase)
-    return ReferenceTable(grid, period, np.broadcast_to(legs, (*shape, len(legs))).copy(), np.ones((*shape, 2)))
-
-
 def zmp_table(spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, period: float, start_time: float,
               n_phase: int = 36, warmup_cycles: int = 2) -> ReferenceTable:
     """Tabulate a walking generator: for each grid command, one steady-state gait cycle, sampled ``warmup_cycles``

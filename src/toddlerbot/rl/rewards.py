@@ -187,7 +187,7 @@ def check_weights(cfg: RewardConfig) -> None:
         raise ValueError(f"reward weights: missing {sorted(missing)}, unknown {sorted(extra)}")
 
 
-def evaluate(q: StepQuantities, cfg: RewardConfig, dt: float) -> tuple[jax.Array, dict[str, jax.Array]]:
+def total_reward(q: StepQuantities, cfg: RewardConfig, dt: float) -> tuple[jax.Array, dict[str, jax.Array]]:
     """(total reward of the step, unweighted value of each term)."""
     terms = {name: fn(q, cfg) for name, fn in TERMS.items()}
     total = sum(cfg.weights[name] * value for name, value in terms.items()) * dt

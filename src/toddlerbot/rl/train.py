@@ -35,6 +35,7 @@ from brax.training.agents.ppo import networks as ppo_networks
 from flax import serialization
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write_bytes, atomic_write_text
 from toddlerbot.rl.config import (
     CommandConfig,
     EnvConfig,
@@ -82,7 +83,7 @@ def _initial_state(networks: ppo_networks.PPONetworks, optimizer: optax.Gradient
 
 # configuration files -------------------------------------------------------------------------------------------
 def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig) -> None:
-    (run_dir / "config.json").write_text(json.dumps({"env": asdict(env_cfg), "ppo": asdict(ppo_cfg)}, indent=1))
+    atomic_write_text(run_dir / "config.json", json.dumps({"env": asdict(env_cfg), "ppo": asdict(ppo_cfg)}, indent=1))
 
 
 def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
@@ -112,10 +113,7 @@ def save_checkpoint(run_dir: Path, state: TrainingState, key: jax.Array, history
     payload = {"state": serialization.to_state_dict(jax.device_get(state)), "key": np.asarray(jax.device_get(key)),
                "history": json.dumps(history)}
     path = folder / f"step_{int(state.env_steps):012d}.msgpack"
-    tmp = path.with_suffix(".tmp")
-    tmp.write_bytes(serialization.msgpack_serialize(payload))
-    tmp.replace(path)
-    return path
+    return atomic_write_bytes(path, serialization.msgpack_serialize(payload))
 
 
 def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState, jax.Array, list[dict]]:
@@ -151,7 +149,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     if not resume:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, env.cfg, ppo_cfg)
-        (run_dir / "reference.txt").write_text(env.reference_source + "\n")
+        atomic_write_text(run_dir / "reference.txt", env.reference_source + "\n")
     n_dev = jax.local_device_count()
     if cfg.num_envs % n_dev:
         raise ToddlerbotError(f"num_envs {cfg.num_envs} is not divisible by the {n_dev} JAX devices")

@@ -48,7 +48,7 @@ def standing_height(model: mujoco.MjModel) -> float:
     return highest_point(model, data) - lowest_point(model, data)
 
 
-def summarize(description: RobotDescription, model: mujoco.MjModel) -> ModelSummary:
+def summarize_model(description: RobotDescription, model: mujoco.MjModel) -> ModelSummary:
     """Counts and figures of `model` (one of the description's compiled models) and the description's motor table."""
     rows = []
     for motor, joint, catalogue_entry, limits in zip(description.motors, description.joint_names,

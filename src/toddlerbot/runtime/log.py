@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_savez
 
 STEP_KEYS = (
     "time", "command", "motor_pos", "motor_vel", "motor_torque", "joint_pos", "joint_vel", "motor_target",
@@ -66,13 +67,9 @@ class RunLog:
     policy: str
 
     def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        """Write the log as a compressed ``.npz`` atomically (concurrent saves of one path never mix)."""
         arrays = {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(tmp, **arrays)
-        tmp.replace(path)
-        return path
+        return atomic_savez(path, arrays, compressed=True)
 
     @classmethod
     def load(cls, path: str | Path) -> RunLog:

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from toddlerbot.files import save_figure
 from toddlerbot.runtime.log import RunLog
 
 
@@ -33,10 +34,7 @@ def plot_log(log: RunLog, out_dir: str | Path) -> list[Path]:
         ax.tick_params(labelsize=7)
     axes.flat[0].legend(fontsize=7)
     fig.suptitle(f"joint tracking ({log.policy}), rad")
-    fig.tight_layout()
-    paths.append(out / "tracking.png")
-    fig.savefig(paths[-1], dpi=80)
-    plt.close(fig)
+    paths.append(save_figure(fig, out / "tracking.png", dpi=80))
 
     fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
     for ax, key, unit in zip(axes, ("imu_quat", "imu_ang_vel", "imu_lin_acc"), ("", "rad/s", "m/s^2"), strict=False):
@@ -47,10 +45,7 @@ def plot_log(log: RunLog, out_dir: str | Path) -> list[Path]:
         ax.set_ylabel(f"{key} {unit}")
         ax.legend(fontsize=7, ncol=4)
     axes[-1].set_xlabel("time (s)")
-    fig.tight_layout()
-    paths.append(out / "imu.png")
-    fig.savefig(paths[-1], dpi=80)
-    plt.close(fig)
+    paths.append(save_figure(fig, out / "imu.png", dpi=80))
 
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.hist(log.compute_time * 1e3, bins=50, alpha=0.7, label="compute (policy + step)")
@@ -58,8 +53,5 @@ def plot_log(log: RunLog, out_dir: str | Path) -> list[Path]:
     ax.axvline(log.control_dt * 1e3, color="k", ls="--", label="control period")
     ax.set_xlabel("ms")
     ax.legend()
-    fig.tight_layout()
-    paths.append(out / "loop_time.png")
-    fig.savefig(paths[-1], dpi=80)
-    plt.close(fig)
+    paths.append(save_figure(fig, out / "loop_time.png", dpi=80))
     return paths

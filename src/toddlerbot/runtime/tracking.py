@@ -19,7 +19,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from toddlerbot.files import save_figure
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.robot.description import RobotDescription
 
@@ -49,9 +51,15 @@ class TrackingResult:
 
 
 def heading(quat: np.ndarray) -> np.ndarray:
-    """Yaw (rad) of w, x, y, z quaternions (..., 4)."""
-    w, x, y, z = np.moveaxis(quat, -1, 0)
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    """Yaw (rad, ZYX Euler angles) of w, x, y, z quaternions (..., 4); NaN where a quaternion is not finite (the
+    base pose of hardware logs)."""
+    quat = np.asarray(quat, dtype=float)
+    rows = quat.reshape(-1, 4)
+    yaw = np.full(len(rows), np.nan)
+    finite = np.isfinite(rows).all(axis=1)
+    if finite.any():
+        yaw[finite] = Rotation.from_quat(rows[finite], scalar_first=True).as_euler("ZYX")[:, 0]
+    return yaw.reshape(quat.shape[:-1])
 
 
 def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray, base_quat: np.ndarray, fell: bool,
@@ -110,7 +118,7 @@ def evaluate_policy(description: RobotDescription, policy_name: str, commands: s
                            np.asarray(log.base_quat), result.fell)
 
 
-def plot_tracking(result: TrackingResult, title: str, path: Path) -> Path:
+def plot_velocity_tracking(result: TrackingResult, title: str, path: Path) -> Path:
     """Commanded versus achieved vx, vy and yaw rate over time."""
     import matplotlib
 
@@ -127,9 +135,4 @@ def plot_tracking(result: TrackingResult, title: str, path: Path) -> Path:
     axes[0].set_title(f"{title}: position {result.position_m:.3f} m, lin vel {result.lin_vel_mps:.3f} m/s, "
                       f"ang vel {result.ang_vel_radps:.3f} rad/s, falls {result.falls}")
     axes[-1].set_xlabel("time [s]")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.actuation.catalogue import ActuatorParams
-from toddlerbot.sysid.io import atomic_write
+from toddlerbot.files import save_figure
 from toddlerbot.sysid.manifest import Manifest
 from toddlerbot.sysid.simulate import DT, RunBatch, simulate
 
@@ -71,8 +71,6 @@ def plot_tracking(manifest: Manifest, evaluation: Evaluation, folder: str | Path
         bottom.plot(t, np.degrees(sim - run.position), color="C3", lw=1)
         bottom.set_ylabel("sim - meas (deg)")
         bottom.set_xlabel("time (s)")
-        fig.tight_layout()
         target = Path(folder) / f"{Path(err.file).stem}.png"
-        written.append(atomic_write(target, lambda tmp, fig=fig: fig.savefig(tmp, dpi=100, format="png")))
-        plt.close(fig)
+        written.append(save_figure(fig, target, dpi=100))
     return written

@@ -10,16 +10,16 @@ from pathlib import Path
 
 import numpy as np
 
+from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.io import atomic_write_text
 
 REQUIRED_COLUMNS = ("time", "goal_position", "position")
 OPTIONAL_COLUMNS = ("velocity", "current")
 
 
 @dataclass(frozen=True)
-class RunLog:
-    """One logged run at fixed firmware gains."""
+class MotorLog:
+    """One logged run of a motor on a sysID rig at fixed firmware gains."""
 
     file: Path
     time: np.ndarray
@@ -89,12 +89,12 @@ def read_columns(path: str | Path, required: tuple[str, ...], optional: tuple[st
     return data
 
 
-def read_log(path: str | Path, kp: float, kd: float) -> RunLog:
+def read_log(path: str | Path, kp: float, kd: float) -> MotorLog:
     """Read and validate one run CSV; raise `SysIDError` naming the file and the problem."""
     data = read_columns(path, REQUIRED_COLUMNS, OPTIONAL_COLUMNS)
     if not (np.isfinite(kp) and kp >= 0 and np.isfinite(kd) and kd >= 0):
         raise SysIDError(f"{path}: firmware gains must be finite and >= 0, got kp={kp}, kd={kd}")
-    return RunLog(
+    return MotorLog(
         file=Path(path), time=data["time"], goal_position=data["goal_position"], position=data["position"],
         kp=float(kp), kd=float(kd), velocity=data.get("velocity"), current=data.get("current"),
     )

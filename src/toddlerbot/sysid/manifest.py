@@ -18,9 +18,9 @@ import yaml
 
 from toddlerbot.actuation.catalogue import Catalogue, MotorModel, default_catalogue
 from toddlerbot.errors import SpecError
+from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.io import atomic_write_text
-from toddlerbot.sysid.logs import RunLog, read_log
+from toddlerbot.sysid.logs import MotorLog, read_log
 from toddlerbot.sysid.rigs import Rig, RobotJointRig, parse_rig, rig_to_dict
 from toddlerbot.sysid.robot_joint import rig_motor
 
@@ -30,7 +30,7 @@ class Manifest:
     path: Path
     motor: MotorModel
     rig: Rig
-    runs: tuple[RunLog, ...]
+    runs: tuple[MotorLog, ...]
 
 
 def load_manifest(path: str | Path, catalogue: Catalogue | None = None) -> Manifest:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from toddlerbot.actuation.catalogue import ActuatorParams
-from toddlerbot.sysid.io import atomic_write_text
+from toddlerbot.files import atomic_write_text
 
 MODEL_PARAMETERS = (
     "damping", "frictionloss", "armature", "tau_max", "q_dot_tau_max", "tau_q_dot_max", "q_dot_max", "kd_min",

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from toddlerbot.actuation.model import ActuatorArrays, motor_torque
-from toddlerbot.sysid.logs import RunLog
+from toddlerbot.sysid.logs import MotorLog
 from toddlerbot.sysid.rigs import Rig, RobotJointRig, SimpleRig
 from toddlerbot.sysid.robot_joint import simulate_robot_joint
 
@@ -34,7 +34,7 @@ DT = 0.001
 class RunBatch:
     """Logs resampled onto a common simulation step grid (shorter runs padded with their last goal)."""
 
-    runs: tuple[RunLog, ...]
+    runs: tuple[MotorLog, ...]
     dt: float
     goal: np.ndarray
     """(n_steps, R) goal position held at each step, rad."""
@@ -54,7 +54,7 @@ class RunBatch:
     """(N,) measured positions, rad."""
 
     @classmethod
-    def from_runs(cls, runs: tuple[RunLog, ...] | list[RunLog], dt: float = DT) -> RunBatch:
+    def from_runs(cls, runs: tuple[MotorLog, ...] | list[MotorLog], dt: float = DT) -> RunBatch:
         runs = tuple(runs)
         n_steps = round(max(r.duration for r in runs) / dt) + 1
         goal = np.empty((n_steps, len(runs)))

@@ -10,16 +10,16 @@ import numpy as np
 
 from toddlerbot.actuation.catalogue import ActuatorParams
 from toddlerbot.sysid.excitation import Excitation
-from toddlerbot.sysid.logs import RunLog, write_log
+from toddlerbot.sysid.logs import MotorLog, write_log
 from toddlerbot.sysid.manifest import write_manifest
 from toddlerbot.sysid.rigs import Rig
 from toddlerbot.sysid.simulate import DT, RunBatch, simulate
 
 
 def synthesize(excitations: list[Excitation], rig: Rig, params: ActuatorParams, noise_std: float = 0.0,
-               seed: int = 0, q0: float | None = None, dt: float = DT) -> list[RunLog]:
+               seed: int = 0, q0: float | None = None, dt: float = DT) -> list[MotorLog]:
     """Runs with simulated positions (rad) plus Gaussian noise of std ``noise_std`` rad."""
-    runs = [RunLog(file=Path(f"{e.name}.csv"), time=e.time, goal_position=e.goal_position,
+    runs = [MotorLog(file=Path(f"{e.name}.csv"), time=e.time, goal_position=e.goal_position,
                    position=np.full_like(e.time, e.goal_position[0] if q0 is None else q0), kp=e.kp, kd=0.0)
             for e in excitations]
     batch = RunBatch.from_runs(runs, dt)
@@ -30,7 +30,7 @@ def synthesize(excitations: list[Excitation], rig: Rig, params: ActuatorParams, 
             for r, q in zip(runs, clean, strict=True)]
 
 
-def write_runs(folder: str | Path, motor: str, rig: Rig, runs: list[RunLog], with_position: bool = True) -> Path:
+def write_runs(folder: str | Path, motor: str, rig: Rig, runs: list[MotorLog], with_position: bool = True) -> Path:
     """Write one CSV per run and ``manifest.json`` into ``folder``; returns the manifest path."""
     folder = Path(folder)
     for run in runs:

@@ -1,0 +1,70 @@
+"""File output that never leaves a half-written file: every writer goes through `atomic_write`.
+
+The content is written to a new temporary file with a unique name in the target's folder (so that two writers of
+the same target never share it), then moved over the target with `os.replace` (atomic on POSIX and Windows within
+one file system). On any error the temporary file is removed and the target keeps its old content.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def atomic_write(path: str | Path, write: Callable[[Path], Any]) -> Path:
+    """Call ``write(tmp)`` on a fresh temporary file beside ``path`` (same suffix), then move it to ``path``.
+
+    Creates the parent folder. ``write`` must write to the file name it gets (and not append a suffix)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    return atomic_write(path, lambda tmp: tmp.write_bytes(data))
+
+
+def atomic_savez(path: str | Path, arrays: Mapping[str, Any], compressed: bool = False) -> Path:
+    """Write ``arrays`` as an ``.npz`` archive to ``path`` atomically, whatever its suffix (numpy appends
+    ``.npz`` to file names without it; writing through an open file avoids that)."""
+    save = np.savez_compressed if compressed else np.savez
+
+    def write(tmp: Path) -> None:
+        with tmp.open("wb") as f:
+            save(f, **arrays)
+
+    return atomic_write(path, write)
+
+
+def save_figure(fig: Any, path: str | Path, dpi: int = 100) -> Path:
+    """Lay out a matplotlib figure, write it atomically to ``path`` (format from the suffix, e.g. ``.png``) at
+    ``dpi`` dots per inch, and close it (figures otherwise stay in pyplot's registry)."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    try:
+        fig.tight_layout()
+        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png"))
+    finally:
+        plt.close(fig)
+    return path
