@@ -42,7 +42,8 @@ class DiffusionPolicy(nn.Module):
         per_step = config.state_dim + (config.image_feature_dim if config.uses_images else 0)
         self.unet = ConditionalUnet1D(config.action_dim, per_step * config.n_obs_steps, config.down_dims,
                                       config.kernel_size, config.n_groups, config.step_embed_dim)
-        self.schedule = NoiseSchedule(config.train_timesteps, config.beta_schedule, config.clip_sample)
+        self.schedule = NoiseSchedule(config.train_timesteps, config.beta_schedule, config.clip_sample,
+                                      config.prediction)
 
     def condition(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         """Observation features (B, n_obs * (state_dim [+ image_feature_dim])): normalised state, encoded images."""
@@ -59,13 +60,13 @@ class DiffusionPolicy(nn.Module):
         return torch.cat(features, dim=-1).flatten(1)
 
     def loss(self, batch: dict[str, torch.Tensor], generator: torch.Generator | None = None) -> torch.Tensor:
-        """Noise-prediction MSE over the non-padded actions of a batch."""
+        """Denoising MSE (of the noise or the clean sample, ``config.prediction``) over the non-padded actions."""
         x0 = self.action_norm.normalize(batch[ACTION].float())
         b = x0.shape[0]
         noise = torch.randn(x0.shape, generator=generator, device=x0.device)
         t = torch.randint(0, self.config.train_timesteps, (b,), generator=generator, device=x0.device)
         pred = self.unet(self.schedule.add_noise(x0, noise, t), t, self.condition(batch))
-        err = F.mse_loss(pred, noise, reduction="none")
+        err = F.mse_loss(pred, self.schedule.training_target(x0, noise), reduction="none")
         mask = ~batch[ACTION_PAD].to(torch.bool) if ACTION_PAD in batch else torch.ones(x0.shape[:2], dtype=torch.bool)
         weights = mask.unsqueeze(-1).expand_as(err).float()
         return (err * weights).sum() / weights.sum().clamp(min=1.0)
@@ -82,10 +83,10 @@ class DiffusionPolicy(nn.Module):
         timesteps = self.schedule.inference_timesteps(steps or cfg.inference_steps)
         for k, t in enumerate(timesteps):
             s = timesteps[k + 1] if k + 1 < len(timesteps) else -1
-            eps = self.unet(x, torch.full((b,), t, device=cond.device), cond)
+            output = self.unet(x, torch.full((b,), t, device=cond.device), cond)
             if sampler == "ddim":
-                x = self.schedule.ddim_step(x, eps, t, s)
+                x = self.schedule.ddim_step(x, output, t, s)
             else:
                 noise = torch.randn(x.shape, generator=generator, device=x.device) if s >= 0 else None
-                x = self.schedule.ddpm_step(x, eps, t, s, noise)
+                x = self.schedule.ddpm_step(x, output, t, s, noise)
         return self.action_norm.unnormalize(x)

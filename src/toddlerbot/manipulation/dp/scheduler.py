@@ -25,7 +25,8 @@ class NoiseSchedule:
     """The noise schedule of ``train_timesteps`` steps and a sampler (``ddpm`` or ``ddim``) over ``inference_steps``."""
 
     def __init__(self, train_timesteps: int = 100, beta_schedule: str = "squaredcos_cap_v2",
-                 clip_sample: float = 1.0) -> None:
+                 clip_sample: float = 1.0, prediction: str = "epsilon") -> None:
+        """``prediction``: what the network outputs, ``epsilon`` (noise) or ``sample`` (clean x_0)."""
         if beta_schedule == "squaredcos_cap_v2":
             betas = cosine_betas(train_timesteps)
         elif beta_schedule == "linear":
@@ -36,6 +37,7 @@ class NoiseSchedule:
         self.betas = betas
         self.alpha_bar = torch.cumprod(1 - betas, 0)
         self.clip_sample = clip_sample
+        self.prediction = prediction
 
     def inference_timesteps(self, steps: int) -> list[int]:
         """Descending steps visited by a ``steps``-step sampler (e.g. 66, 33, 0 for 3 of 100)."""
@@ -52,28 +54,35 @@ class NoiseSchedule:
         ab = self._alpha_bar(t).view(-1, *([1] * (x0.ndim - 1)))
         return ab.sqrt() * x0 + (1 - ab).sqrt() * noise
 
-    def predict_x0(self, x_t: torch.Tensor, eps: torch.Tensor, t: int) -> torch.Tensor:
-        """Clean sample implied by a noise prediction at step t, clipped to +-clip_sample when enabled."""
-        ab = self._alpha_bar(torch.tensor([t]))[0]
-        x0 = (x_t - (1 - ab).sqrt() * eps) / ab.sqrt()
+    def training_target(self, x0: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+        """What the network is trained to output."""
+        return noise if self.prediction == "epsilon" else x0
+
+    def predict_x0(self, x_t: torch.Tensor, output: torch.Tensor, t: int) -> torch.Tensor:
+        """Clean sample implied by the network output at step t, clipped to +-clip_sample when enabled."""
+        if self.prediction == "epsilon":
+            ab = self._alpha_bar(torch.tensor([t]))[0]
+            x0 = (x_t - (1 - ab).sqrt() * output) / ab.sqrt()
+        else:
+            x0 = output
         return x0.clamp(-self.clip_sample, self.clip_sample) if self.clip_sample > 0 else x0
 
-    def ddpm_step(self, x_t: torch.Tensor, eps: torch.Tensor, t: int, s: int,
+    def ddpm_step(self, x_t: torch.Tensor, output: torch.Tensor, t: int, s: int,
                   noise: torch.Tensor | None) -> torch.Tensor:
         """One DDPM posterior sample x_s ~ q(x_s | x_t, x0_hat) for s < t (s = -1: the final, noise-free step)."""
         ab_t, ab_s = self._alpha_bar(torch.tensor([t, s]))
         alpha_ts = ab_t / ab_s
         beta_ts = 1 - alpha_ts
-        x0 = self.predict_x0(x_t, eps, t)
+        x0 = self.predict_x0(x_t, output, t)
         mean = (ab_s.sqrt() * beta_ts / (1 - ab_t)) * x0 + (alpha_ts.sqrt() * (1 - ab_s) / (1 - ab_t)) * x_t
         if s < 0 or noise is None:
             return mean
         variance = ((1 - ab_s) / (1 - ab_t) * beta_ts).clamp(min=1e-20)
         return mean + variance.sqrt() * noise
 
-    def ddim_step(self, x_t: torch.Tensor, eps: torch.Tensor, t: int, s: int) -> torch.Tensor:
+    def ddim_step(self, x_t: torch.Tensor, output: torch.Tensor, t: int, s: int) -> torch.Tensor:
         """One deterministic DDIM step (eta = 0) from t to s < t."""
         ab_t, ab_s = self._alpha_bar(torch.tensor([t, s]))
-        x0 = self.predict_x0(x_t, eps, t)
+        x0 = self.predict_x0(x_t, output, t)
         eps_used = (x_t - ab_t.sqrt() * x0) / (1 - ab_t).sqrt()  # consistent with the clipped x0
         return ab_s.sqrt() * x0 + (1 - ab_s).sqrt() * eps_used

@@ -151,7 +151,7 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
             state.optimizer.step()
             state.ema.update(state.policy)
             state.step += 1
-            losses.append(float(loss))
+            losses.append(loss.item())
             if state.step % schedule.log_every == 0:
                 record = {"step": state.step, "train_loss": float(np.mean(losses)),
                           "val_loss": validation_loss(state, val_set, schedule.val_batches),
