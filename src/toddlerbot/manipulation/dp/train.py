@@ -22,7 +22,7 @@ from toddlerbot.manipulation.dp.checkpoint import (
     new_training_state,
     save_checkpoint,
 )
-from toddlerbot.manipulation.dp.config import DPConfig
+from toddlerbot.manipulation.dp.config import DPConfig, DPConfigError
 from toddlerbot.manipulation.dp.data import (
     DatasetError,
     WindowDataset,
@@ -32,6 +32,8 @@ from toddlerbot.manipulation.dp.data import (
     split_by_episode,
     value_ranges,
 )
+from toddlerbot.manipulation.dp.ema import EMA
+from toddlerbot.manipulation.dp.imagenet import load_imagenet_weights
 from toddlerbot.manipulation.dp.plot import plot_loss_curve
 from toddlerbot.sysid.io import atomic_write_text
 
@@ -84,7 +86,7 @@ def validation_loss(state: TrainingState, dataset: WindowDataset, batches: int) 
     return float(np.mean(losses))
 
 
-def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool):
+def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool, imagenet_weights: Path | None):
     if len(dataset) == 0:
         raise DatasetError("the window dataset is empty")
     sample = dataset[0]
@@ -105,6 +107,11 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
         return state, train_set, val_set, split
     config = config.with_dims(state_dim, action_dim)
     state = new_training_state(config, value_ranges(train_set))
+    if imagenet_weights is not None:
+        if config.encoder != "resnet18":
+            raise DPConfigError(f"ImageNet weights need encoder resnet18 (the config has {config.encoder})")
+        load_imagenet_weights(state.policy.encoder, imagenet_weights)
+        state.ema = EMA(state.policy, config.ema_decay)
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(run_dir / "config.json", json.dumps(json.loads(config.to_json()), indent=2) + "\n")
     atomic_write_text(split_file, json.dumps(split) + "\n")
@@ -112,9 +119,12 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
 
 
 def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes: float | None = None,
-          resume: bool = False, schedule: TrainSchedule | None = None, show_progress: bool = True) -> TrainResult:
+          resume: bool = False, schedule: TrainSchedule | None = None, show_progress: bool = True,
+          imagenet_weights: str | Path | None = None) -> TrainResult:
     """Train (or, with ``resume``, continue) a diffusion policy on ``dataset``; checkpoints go to ``out_dir``.
 
+    ``imagenet_weights``: a local torchvision ResNet-18 state dict to start the ``resnet18`` encoder from
+    (`imagenet.load_imagenet_weights`); without it the encoder trains from scratch.
     Stops at ``minutes`` of wall time or ``schedule.max_steps`` (at least one of them must be given).
     ``config``'s state/action dims are taken from the dataset; on resume the checkpoint's config is used.
     """
@@ -125,7 +135,8 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     if schedule.max_steps is None and schedule.minutes is None:
         raise ValueError("train needs minutes or schedule.max_steps")
     run_dir = Path(out_dir)
-    state, train_set, val_set, split = _start(dataset, config, run_dir, resume)
+    weights = None if imagenet_weights is None else Path(imagenet_weights)
+    state, train_set, val_set, split = _start(dataset, config, run_dir, resume, weights)
     cfg = state.policy.config
     keys = batch_keys(cfg.uses_images)
     n_train = len(train_set)

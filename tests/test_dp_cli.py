@@ -1,0 +1,41 @@
+"""``toddlerbot dp train``: trains through the dataset adapter, resumes, and refuses bad input in one line."""
+
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from typer.testing import CliRunner  # noqa: E402
+
+from dp_support import SyntheticWindows  # noqa: E402
+from toddlerbot.cli.main import app  # noqa: E402
+from toddlerbot.manipulation.dp import data  # noqa: E402
+from toddlerbot.manipulation.dp.checkpoint import load_training_state  # noqa: E402
+from toddlerbot.manipulation.dp.data import DatasetError  # noqa: E402
+
+runner = CliRunner()
+
+
+def test_dp_train_runs_through_the_dataset_adapter_and_resumes(tmp_path, monkeypatch):
+    opened = []
+
+    def fake_reader(path, n_obs_steps, horizon):
+        opened.append((path.name, n_obs_steps, horizon))
+        return SyntheticWindows(episodes=3, frames=5)
+
+    monkeypatch.setattr(data, "open_window_dataset", fake_reader)
+    run = tmp_path / "run"
+    args = ["dp", "train", str(tmp_path / "ds"), "-o", str(run), "--config", "tiny", "--threads", "1"]
+    result = runner.invoke(app, [*args, "--steps", "3"])
+    assert result.exit_code == 0, result.output
+    assert opened == [("ds", 2, 16)]  # observation history 2, horizon 16
+    assert load_training_state(run / "checkpoint.pt").step == 3
+    result = runner.invoke(app, [*args, "--steps", "5", "--resume"])
+    assert result.exit_code == 0, result.output
+    assert load_training_state(run / "checkpoint.pt").step == 5 and "step 5" in result.output
+
+
+def test_dp_train_names_a_missing_dataset_directory(tmp_path):
+    result = runner.invoke(app, ["dp", "train", str(tmp_path / "nowhere"), "-o", str(tmp_path / "r"), "--steps", "1"])
+    assert isinstance(result.exception, DatasetError)
+    assert "nowhere: no such dataset directory" in str(result.exception)
+    assert not (tmp_path / "r").exists()  # nothing half-written
