@@ -11,6 +11,7 @@ The appendix bounds inference at 0.1 s on a Jetson GPU; the issue's target for t
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import time
 
@@ -34,17 +35,19 @@ def batch(config, size: int, device: str) -> dict[str, torch.Tensor]:
     }
 
 
-def timed(fn, repeats: int, device: str) -> np.ndarray:
-    times = np.empty(repeats)
+def timed(fn, repeats: int, device: str) -> tuple[np.ndarray, np.ndarray]:
+    """Wall-clock and this thread's CPU seconds per call. On a shared machine the CPU time is the figure for
+    "one core" (the wall time includes waiting for a core); with one torch thread all work runs on this thread."""
+    wall, cpu = np.empty(repeats), np.empty(repeats)
     for i in range(repeats):
         if device == "cuda":
             torch.cuda.synchronize()
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         fn()
         if device == "cuda":
             torch.cuda.synchronize()
-        times[i] = time.perf_counter() - start
-    return times
+        wall[i], cpu[i] = time.perf_counter() - start, time.thread_time() - start_cpu
+    return wall, cpu
 
 
 def bench(name: str, device: str, train_repeats: int, infer_repeats: int) -> None:
@@ -61,16 +64,18 @@ def bench(name: str, device: str, train_repeats: int, infer_repeats: int) -> Non
         optimizer.step()
 
     train_step()  # warm-up (allocations, kernels)
-    t_train = timed(train_step, train_repeats, device)
+    train_wall, train_cpu = timed(train_step, train_repeats, device)
     policy.eval()
     one = {k: v[:1] for k, v in batch(config, 1, device).items() if k.startswith("observation")}
     with torch.inference_mode():
         policy.sample(one)
-        t_infer = timed(lambda: policy.sample(one), infer_repeats, device)
-    print(f"{name:8s} encoder {config.encoder:9s} U-Net {config.down_dims} {params:6.2f} M params | "
-          f"train step (batch {config.batch_size}) median {np.median(t_train):.3f} s | "
-          f"inference ({config.inference_steps} {config.sampler.upper()} steps, 1 obs) median "
-          f"{np.median(t_infer) * 1e3:.1f} ms, p90 {np.percentile(t_infer, 90) * 1e3:.1f} ms")
+        infer_wall, infer_cpu = timed(lambda: policy.sample(one), infer_repeats, device)
+    print(f"{name:8s} encoder {config.encoder:9s} U-Net {config.down_dims} {params:6.2f} M params\n"
+          f"  train step (batch {config.batch_size}): median {np.median(train_wall):.3f} s wall, "
+          f"{np.median(train_cpu):.3f} s CPU\n"
+          f"  inference ({config.inference_steps} {config.sampler.upper()} steps, 1 observation): median "
+          f"{np.median(infer_wall) * 1e3:.1f} ms wall (p90 {np.percentile(infer_wall, 90) * 1e3:.1f}), "
+          f"{np.median(infer_cpu) * 1e3:.1f} ms CPU (p90 {np.percentile(infer_cpu, 90) * 1e3:.1f})")
 
 
 def main() -> None:
@@ -84,7 +89,8 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     where = torch.cuda.get_device_name() if args.device == "cuda" else f"{platform.processor() or 'cpu'}, " \
         f"{args.threads} thread(s)"
-    print(f"torch {torch.__version__} on {args.device} ({where})")
+    print(f"torch {torch.__version__} on {args.device} ({where}); load average {os.getloadavg()[0]:.1f} on "
+          f"{os.cpu_count()} cores")
     for name in args.configs:
         bench(name, args.device, args.train_repeats, args.infer_repeats)
 
