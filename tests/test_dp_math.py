@@ -7,7 +7,12 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from toddlerbot.manipulation.dp.normalize import ImageFormatError, MinMaxNormalizer, images_to_unit  # noqa: E402
+from toddlerbot.manipulation.dp.normalize import (  # noqa: E402
+    ImageFormatError,
+    MinMaxNormalizer,
+    crop_images,
+    images_to_unit,
+)
 from toddlerbot.manipulation.dp.scheduler import NoiseSchedule  # noqa: E402
 
 torch.set_num_threads(1)
@@ -43,6 +48,16 @@ def test_images_are_scaled_once_from_uint8_and_floats_are_refused():
         images_to_unit(unit)  # an already-scaled image cannot be scaled again
     with pytest.raises(ImageFormatError, match="3, H, W"):
         images_to_unit(torch.zeros(1, 4, 2, 2, dtype=torch.uint8))
+
+
+def test_training_crops_are_random_windows_and_inference_takes_the_centre():
+    rows = torch.arange(10.0).view(1, 1, 10, 1).expand(64, 3, 10, 10)  # pixel value = its row
+    centre = crop_images(rows, 6, random=False)
+    assert centre.shape == (64, 3, 6, 6) and centre[0, 0, :, 0].tolist() == [2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+    torch.manual_seed(0)
+    tops = crop_images(rows, 6, random=True)[:, 0, 0, 0]
+    assert set(tops.tolist()) == {0.0, 1.0, 2.0, 3.0, 4.0}  # every offset 0..H-size occurs in 64 draws
+    assert crop_images(rows, 0, random=True) is rows
 
 
 def cosine_alpha_bar(t: int, n: int = 100) -> float:

@@ -38,6 +38,9 @@ class DPConfig:
     """Side of the square head-camera image, pixels."""
     encoder: str = "small_cnn"
     """Image encoder: ``resnet18`` (GroupNorm; appendix), ``small_cnn`` (CPU training) or ``none`` (state only)."""
+    crop_size: int = 0
+    """Random crop of this side in training and the centre crop at inference (diffusion policy's augmentation);
+    0 keeps the whole image."""
     image_feature_dim: int = 64
     """Image feature length per observation step."""
     small_cnn_channels: tuple[int, ...] = (16, 32, 64, 64)
@@ -97,6 +100,8 @@ class DPConfig:
                             "U-Net levels)")
         if any(d % self.n_groups for d in self.down_dims):
             problems.append(f"down_dims {self.down_dims} (each must be divisible by n_groups {self.n_groups})")
+        if not 0 <= self.crop_size <= self.image_size:
+            problems.append(f"crop_size {self.crop_size} (expected 0..image_size {self.image_size})")
         if self.n_obs_steps < 1 or self.state_dim < 0 or self.action_dim < 0:
             problems.append("n_obs_steps >= 1, state_dim >= 0 and action_dim >= 0 expected")
         if not 0.0 <= self.val_fraction < 1.0:
@@ -136,8 +141,8 @@ class DPConfig:
 
 SMALL = DPConfig(down_dims=(32, 64, 128))
 """The CPU configuration: small CNN at 96 px, U-Net (32, 64, 128) (inference within 50 ms on one core)."""
-APPENDIX = DPConfig(encoder="resnet18", image_feature_dim=512, down_dims=(256, 512, 1024))
-"""The appendix-size configuration: ResNet-18 (GroupNorm) image encoder, U-Net (256, 512, 1024)."""
+APPENDIX = DPConfig(encoder="resnet18", image_feature_dim=512, down_dims=(256, 512, 1024), crop_size=84)
+"""The appendix-size configuration: ResNet-18 (GroupNorm) image encoder on 84x84 crops, U-Net (256, 512, 1024)."""
 TINY = DPConfig(encoder="small_cnn", small_cnn_channels=(8, 16), image_feature_dim=16, down_dims=(16, 32),
                 step_embed_dim=16, batch_size=16, learning_rate=1e-3, ema_decay=0.9)
 """A configuration small enough for tests (seconds of CPU)."""

@@ -58,3 +58,17 @@ class MinMaxNormalizer(nn.Module):
 
     def unnormalize(self, y: torch.Tensor) -> torch.Tensor:
         return y * self.half_range + self.centre
+
+
+def crop_images(images: torch.Tensor, size: int, random: bool) -> torch.Tensor:
+    """Square crops (N, 3, size, size) of images (N, 3, H, W): a random one per image in training (offsets from
+    torch's global generator), the centre one at inference."""
+    n, _, height, width = images.shape
+    if size <= 0 or (size == height and size == width):
+        return images
+    if not random:
+        top, left = (height - size) // 2, (width - size) // 2
+        return images[:, :, top:top + size, left:left + size]
+    tops = torch.randint(0, height - size + 1, (n,)).tolist()
+    lefts = torch.randint(0, width - size + 1, (n,)).tolist()
+    return torch.stack([img[:, t:t + size, left:left + size] for img, t, left in zip(images, tops, lefts)])

@@ -13,7 +13,7 @@ from torch.nn import functional as F
 
 from toddlerbot.manipulation.dp.config import DPConfig
 from toddlerbot.manipulation.dp.encoders import ResNet18Encoder, SmallCNNEncoder
-from toddlerbot.manipulation.dp.normalize import MinMaxNormalizer, images_to_unit
+from toddlerbot.manipulation.dp.normalize import MinMaxNormalizer, crop_images, images_to_unit
 from toddlerbot.manipulation.dp.scheduler import NoiseSchedule
 from toddlerbot.manipulation.dp.unet import ConditionalUnet1D
 
@@ -56,6 +56,7 @@ class DiffusionPolicy(nn.Module):
             images = batch[IMAGE]
             b = images.shape[0]
             flat = images_to_unit(images.reshape(b * n, *images.shape[2:]))
+            flat = crop_images(flat, self.config.crop_size, random=self.training)
             features.append(self.encoder(flat).reshape(b, n, -1))
         return torch.cat(features, dim=-1).flatten(1)
 
