@@ -9,7 +9,7 @@ from typer.testing import CliRunner  # noqa: E402
 from dp_support import SyntheticWindows  # noqa: E402
 from toddlerbot.cli.main import app  # noqa: E402
 from toddlerbot.manipulation.dp import data  # noqa: E402
-from toddlerbot.manipulation.dp.checkpoint import load_training_state  # noqa: E402
+from toddlerbot.manipulation.dp.checkpoint import CheckpointError, load_training_state  # noqa: E402
 from toddlerbot.manipulation.dp.data import DatasetError  # noqa: E402
 
 runner = CliRunner()
@@ -29,6 +29,8 @@ def test_dp_train_runs_through_the_dataset_adapter_and_resumes(tmp_path, monkeyp
     assert result.exit_code == 0, result.output
     assert opened == [("ds", 2, 16)]  # observation history 2, horizon 16
     assert load_training_state(run / "checkpoint.pt").step == 3
+    again = runner.invoke(app, [*args, "--steps", "3"])  # without --resume: refuse to overwrite the run
+    assert isinstance(again.exception, CheckpointError) and "resume it (--resume)" in str(again.exception)
     result = runner.invoke(app, [*args, "--steps", "5", "--resume"])
     assert result.exit_code == 0, result.output
     assert load_training_state(run / "checkpoint.pt").step == 5 and "step 5" in result.output

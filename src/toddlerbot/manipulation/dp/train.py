@@ -17,6 +17,7 @@ import torch
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from toddlerbot.manipulation.dp.checkpoint import (
+    CheckpointError,
     TrainingState,
     load_training_state,
     new_training_state,
@@ -105,6 +106,9 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
         if saved != split:
             raise DatasetError(f"{split_file}: the dataset's episodes differ from the run being resumed")
         return state, train_set, val_set, split
+    if checkpoint.exists():
+        raise CheckpointError(f"{checkpoint}: a run already exists here; resume it (--resume) or choose another "
+                              "directory")
     config = config.with_dims(state_dim, action_dim)
     state = new_training_state(config, value_ranges(train_set))
     if imagenet_weights is not None:
