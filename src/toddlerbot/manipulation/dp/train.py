@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -134,8 +134,7 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     """
     schedule = schedule or TrainSchedule()
     if minutes is not None:
-        schedule = TrainSchedule(schedule.max_steps, minutes, schedule.log_every, schedule.val_batches,
-                                 schedule.checkpoint_every)
+        schedule = replace(schedule, minutes=minutes)
     if schedule.max_steps is None and schedule.minutes is None:
         raise ValueError("train needs minutes or schedule.max_steps")
     run_dir = Path(out_dir)
@@ -152,8 +151,7 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     state.policy.train()
     with Progress(TextColumn("dp train"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
                   disable=not show_progress) as bar:
-        total = schedule.max_steps if schedule.max_steps is not None else None
-        task = bar.add_task("train", total=total, completed=state.step, info="")
+        task = bar.add_task("train", total=schedule.max_steps, completed=state.step, info="")
         while True:
             if schedule.max_steps is not None and state.step >= schedule.max_steps:
                 break
