@@ -16,7 +16,7 @@ def plot_loss_curve(history: list[dict[str, float]], path: str | Path, title: st
 
     steps = [h["step"] for h in history]
     fig, ax = plt.subplots(figsize=(6, 3.5), dpi=100)
-    ax.plot(steps, [h["train_loss"] for h in history], label="train (noise MSE)")
+    ax.plot(steps, [h["train_loss"] for h in history], ".-", label="train (denoising MSE)")
     val = [(h["step"], h["val_loss"]) for h in history if h.get("val_loss") is not None]
     if val:
         ax.plot(*zip(*val), "o-", label="validation episodes (EMA)")
