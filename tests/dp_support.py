@@ -21,6 +21,8 @@ class SyntheticWindows:
         self.state = rng.uniform(-0.5, 0.5, (episodes * frames, state_dim)).astype(np.float32)
         self.action_dim = action_dim
         self.pad_from = rng.integers(horizon // 2, horizon + 1, episodes * frames)
+        self.state_names = tuple(f"joint_{i}" for i in range(state_dim))
+        self.action_names = tuple(f"target_{i}" for i in range(action_dim))
         if with_episode_attribute:
             self.window_episodes = self.episodes
 

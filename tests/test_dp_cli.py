@@ -1,5 +1,7 @@
 """``toddlerbot dp train``: trains through the dataset adapter, resumes, and refuses bad input in one line."""
 
+import json
+
 import pytest
 
 torch = pytest.importorskip("torch")
@@ -9,7 +11,7 @@ from typer.testing import CliRunner  # noqa: E402
 from dp_support import SyntheticWindows  # noqa: E402
 from toddlerbot.cli.main import app  # noqa: E402
 from toddlerbot.manipulation.dp import data  # noqa: E402
-from toddlerbot.manipulation.dp.checkpoint import CheckpointError, load_training_state  # noqa: E402
+from toddlerbot.manipulation.dp.checkpoint import CheckpointError, load_policy, load_training_state  # noqa: E402
 from toddlerbot.manipulation.dp.data import DatasetError  # noqa: E402
 
 runner = CliRunner()
@@ -34,6 +36,13 @@ def test_dp_train_runs_through_the_dataset_adapter_and_resumes(tmp_path, monkeyp
     result = runner.invoke(app, [*args, "--steps", "5", "--resume"])
     assert result.exit_code == 0, result.output
     assert load_training_state(run / "checkpoint.pt").step == 5 and "step 5" in result.output
+    result = runner.invoke(app, ["dp", "info", str(run / "checkpoint.pt"), "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    policy = load_policy(run / "checkpoint.pt")
+    assert summary["step"] == 5 and summary["parameters"] == sum(p.numel() for p in policy.parameters())
+    assert summary["config"]["state_names"] == ["joint_0", "joint_1", "joint_2"]
+    assert summary["last"]["step"] == 5 and summary["last"]["train_loss"] > 0
 
 
 def test_dp_train_names_a_missing_dataset_directory(tmp_path):

@@ -104,6 +104,8 @@ def test_checkpoint_rebuilds_its_network_and_inference_matches_the_training_pipe
                    show_progress=False)
     policy = load_policy(result.checkpoint)  # nothing but the file
     assert policy.config.state_dim == 3 and policy.config.action_dim == 2 and not policy.training
+    assert policy.config.state_names == ("joint_0", "joint_1", "joint_2")  # the dataset's names travel along
+    assert policy.config.action_names == ("target_0", "target_1")
     sample = data[1]
     batch = {"observation.state": torch.as_tensor(sample["observation.state"])[None],
              "observation.images.head": torch.as_tensor(sample["observation.images.head"])[None]}

@@ -62,3 +62,26 @@ def train(
     console.print(f"step {result.step}: train loss {last.get('train_loss', float('nan')):.4f}, validation loss "
                   f"{'-' if val is None else f'{val:.4f}'} (episodes {result.split['val_episodes']}); "
                   f"checkpoint {result.checkpoint}, curve {result.run_dir / 'loss_curve.png'}")
+
+
+@app.command()
+def info(
+    checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by dp train (RUN/checkpoint.pt).")],
+    json_output: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+) -> None:
+    """Print a checkpoint's training step, size, last losses and configuration."""
+    _require_torch()
+    import json
+
+    from toddlerbot.manipulation.dp.checkpoint import checkpoint_summary
+
+    summary = checkpoint_summary(checkpoint)
+    if json_output:
+        print(json.dumps(summary))
+        return
+    cfg, last = summary["config"], summary["last"] or {}
+    console.print(f"{checkpoint}: step {summary['step']}, {summary['parameters'] / 1e6:.2f} M parameters, "
+                  f"encoder {cfg['encoder']}, U-Net {cfg['down_dims']}, state {cfg['state_dim']} / action "
+                  f"{cfg['action_dim']}, horizon {cfg['horizon']}, {cfg['inference_steps']} {cfg['sampler']} steps")
+    if last:
+        console.print(f"last losses: train {last['train_loss']:.4f}, validation {last.get('val_loss')}")

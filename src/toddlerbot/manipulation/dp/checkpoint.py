@@ -120,3 +120,18 @@ def load_training_state(path: str | Path) -> TrainingState:
     data_rng.set_state(body["data_rng"])
     torch.set_rng_state(body["rng"])
     return TrainingState(policy, ema, optimizer, int(body["step"]), data_rng, json.loads(body["history"]))
+
+
+def checkpoint_summary(path: str | Path) -> dict[str, Any]:
+    """What a checkpoint holds: training step, parameter count, the last losses and the whole config."""
+    path = Path(path)
+    body = _read(path)
+    policy = _network(path, body, "ema")
+    history = json.loads(body["history"])
+    return {
+        "checkpoint": str(path),
+        "step": int(body["step"]),
+        "parameters": sum(p.numel() for p in policy.parameters()),
+        "last": history[-1] if history else None,
+        "config": json.loads(body["config"]),
+    }

@@ -24,6 +24,10 @@ class DPConfig:
     """Length of ``observation.state`` (joint angles, rad, and gripper; set from the dataset)."""
     action_dim: int = 0
     """Length of ``action`` (joint targets; set from the dataset)."""
+    state_names: tuple[str, ...] = ()
+    """Name of each state dimension (the dataset's joint names), so a runtime can map the policy to robot joints."""
+    action_names: tuple[str, ...] = ()
+    """Name of each action dimension."""
     n_obs_steps: int = 2
     """Observation history, at the policy rate."""
     horizon: int = 16
@@ -102,6 +106,9 @@ class DPConfig:
             problems.append(f"down_dims {self.down_dims} (each must be divisible by n_groups {self.n_groups})")
         if not 0 <= self.crop_size <= self.image_size:
             problems.append(f"crop_size {self.crop_size} (expected 0..image_size {self.image_size})")
+        for names, dim in ((self.state_names, self.state_dim), (self.action_names, self.action_dim)):
+            if names and len(names) != dim:
+                problems.append(f"{len(names)} names for {dim} dimensions")
         if self.n_obs_steps < 1 or self.state_dim < 0 or self.action_dim < 0:
             problems.append("n_obs_steps >= 1, state_dim >= 0 and action_dim >= 0 expected")
         if not 0.0 <= self.val_fraction < 1.0:
@@ -127,7 +134,7 @@ class DPConfig:
         unknown = sorted(set(raw) - known)
         if unknown:
             raise DPConfigError(f"{source}: unknown config field(s) {', '.join(unknown)}")
-        for name in ("small_cnn_channels", "down_dims"):
+        for name in ("small_cnn_channels", "down_dims", "state_names", "action_names"):
             if name in raw:
                 raw[name] = tuple(raw[name])
         try:
@@ -135,8 +142,10 @@ class DPConfig:
         except TypeError as exc:
             raise DPConfigError(f"{source}: {exc}") from exc
 
-    def with_dims(self, state_dim: int, action_dim: int) -> DPConfig:
-        return replace(self, state_dim=state_dim, action_dim=action_dim)
+    def with_dims(self, state_dim: int, action_dim: int, state_names: tuple[str, ...] = (),
+                  action_names: tuple[str, ...] = ()) -> DPConfig:
+        return replace(self, state_dim=state_dim, action_dim=action_dim, state_names=tuple(state_names),
+                       action_names=tuple(action_names))
 
 
 SMALL = DPConfig(down_dims=(32, 64, 128))

@@ -10,7 +10,7 @@ A window is one training sample at one frame of one episode, at the policy rate 
 - ``episode_index``: int, the episode the window belongs to.
 
 A dataset may also carry ``window_episodes`` (len,) int, the episode of every window, to spare a pass over the
-samples when splitting.
+samples when splitting, and ``state_names`` / ``action_names`` (joint names), which the checkpoint keeps.
 """
 
 from __future__ import annotations
@@ -121,6 +121,7 @@ class ChannelFirstWindows:
     def __init__(self, windows: Any) -> None:
         self.windows = windows
         self.window_episodes = np.asarray(windows.dataset.episode_index)[np.asarray(windows.frames)]
+        self.state_names = self.action_names = tuple(windows.dataset.names)  # one name list for both
 
     def __len__(self) -> int:
         return len(self.windows)

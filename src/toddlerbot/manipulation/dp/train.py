@@ -109,7 +109,8 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
     if checkpoint.exists():
         raise CheckpointError(f"{checkpoint}: a run already exists here; resume it (--resume) or choose another "
                               "directory")
-    config = config.with_dims(state_dim, action_dim)
+    config = config.with_dims(state_dim, action_dim, getattr(dataset, "state_names", ()),
+                              getattr(dataset, "action_names", ()))
     state = new_training_state(config, value_ranges(train_set))
     if imagenet_weights is not None:
         if config.encoder != "resnet18":
