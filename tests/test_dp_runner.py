@@ -89,3 +89,11 @@ def test_slow_inference_on_the_worker_never_blocks_the_control_loop_and_stale_ch
         time.sleep(0.001)
     assert runner.status.stale_dropped == 1  # 50+ control steps (> 0.2 s) old when it arrived: not used
     runner.close()
+
+
+def test_a_chunk_of_the_wrong_width_is_a_failure_not_a_target():
+    runner = ChunkPolicyRunner(lambda history: np.zeros((16, 3)), ActionChunker(), 2, np.ones(2), synchronous=True)
+    targets = np.array([runner.step(obs(k)) for k in range(20)])
+    assert targets.shape == (20, 2) and np.all(targets == 1.0)
+    # retried on every 10 Hz tick (0, 5, 10, 15), each refused
+    assert runner.status.failures == 4 and "expected (horizon, 2)" in runner.status.last_error

@@ -38,6 +38,8 @@ class RunnerStatus:
 
 
 class ChunkPolicyRunner:
+    """Call `step` once per control period with this period's observation; it returns the targets to send."""
+
     def __init__(self, infer: Infer, chunker: ActionChunker, n_obs_steps: int, initial_targets: np.ndarray,
                  stale_after_s: float = 1.0, synchronous: bool = False) -> None:
         """``initial_targets`` (A,) are held until the first chunk; ``synchronous`` runs inference inline (for
@@ -109,6 +111,9 @@ class ChunkPolicyRunner:
             chunk = np.asarray(future.result(), dtype=float)
             if not np.isfinite(chunk).all():
                 raise ValueError("inference returned non-finite actions")
+            if chunk.ndim != 2 or chunk.shape[1] != len(self.last_target):
+                raise ValueError(f"inference returned a chunk of shape {chunk.shape}, expected (horizon, "
+                                 f"{len(self.last_target)})")
             plan = self.chunker.plan(chunk)
         except Exception as exc:
             self.status.failures += 1
