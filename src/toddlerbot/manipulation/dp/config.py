@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any
+from dataclasses import asdict, dataclass, fields, replace
 
 from toddlerbot.errors import ToddlerbotError
 
@@ -80,8 +79,6 @@ class DPConfig:
     val_fraction: float = 0.1
     """Fraction of episodes (not windows) held out for validation."""
     seed: int = 0
-    extra: dict[str, Any] = field(default_factory=dict)
-    """Free-form metadata kept with the checkpoint (dataset path, task name)."""
 
     def __post_init__(self) -> None:
         problems = []
