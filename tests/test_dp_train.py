@@ -131,3 +131,31 @@ def test_broken_checkpoints_and_configs_are_refused_in_one_line(tmp_path):
     with pytest.raises(DPConfigError, match="latency_drop \\+ n_action_steps = 18 > horizon 16"):
         DPConfig(latency_drop=3, n_action_steps=15)
     assert DPConfig.from_json(TINY.to_json()) == TINY
+
+
+def test_the_image_path_conditions_the_chunk():
+    """The action is the image's brightness (the state is constant): the policy must read it from the camera."""
+    torch.manual_seed(0)
+    config = dataclasses.replace(TINY, learning_rate=3e-3).with_dims(1, 1)
+    policy = DiffusionPolicy(config)
+    policy.action_norm.fit([-1.0], [1.0])
+
+    def windows(n, generator):
+        level = torch.rand(n, generator=generator)
+        images = (level * 255).round().to(torch.uint8).view(n, 1, 1, 1, 1).expand(n, 2, 3, 16, 16).contiguous()
+        return {"observation.state": torch.zeros(n, 2, 1), "observation.images.head": images,
+                "action": (level * 1.6 - 0.8).view(n, 1, 1).expand(n, 16, 1).contiguous(),
+                "action_is_pad": torch.zeros(n, 16, dtype=torch.bool)}
+
+    generator = torch.Generator().manual_seed(0)
+    optimizer = torch.optim.AdamW(policy.parameters(), lr=config.learning_rate)
+    for _ in range(200):
+        loss = policy.loss(windows(32, generator))
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    policy.eval()
+    test = windows(16, torch.Generator().manual_seed(99))
+    error = float((policy.sample(test, torch.Generator().manual_seed(1)) - test["action"]).abs().mean())
+    blind = float((test["action"] - test["action"].mean()).abs().mean())  # best guess without the image
+    assert error < 0.5 * blind  # measured: 0.09 against 0.50
