@@ -1,0 +1,87 @@
+"""``toddlerbot dp``: train a diffusion policy on a demonstration dataset (needs the \\[dp] extra: torch)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
+
+app = typer.Typer(help="Diffusion policy from demonstrations (needs the \\[dp] extra: torch==2.13.0).",
+                  no_args_is_help=True)
+
+PRESET_NAMES = ("small", "tiny", "appendix")
+
+
+def _require_torch() -> None:
+    try:
+        import torch  # noqa: F401
+    except ImportError as exc:
+        raise ToddlerbotError(f"the diffusion policy needs the [dp] extra (pip install 'toddlerbot[dp]'): {exc}") \
+            from exc
+
+
+@app.command()
+def train(
+    dataset: Annotated[Path, typer.Argument(help="LeRobot v3.0 dataset directory (toddlerbot manip demo -o DIR).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Run directory (checkpoint.pt, loss_curve.png, ...).")],
+    minutes: Annotated[float | None, typer.Option(help="Stop after this wall time (resume later with --resume).")]
+    = None,
+    steps: Annotated[int | None, typer.Option(help="Stop at this total optimiser step count.")] = None,
+    resume: Annotated[bool, typer.Option(help="Continue the run in --out from its checkpoint.")] = False,
+    config: Annotated[str, typer.Option(help=f"Configuration preset: {', '.join(PRESET_NAMES)}.")] = "small",
+    imagenet_weights: Annotated[Path | None, typer.Option(help="Local torchvision ResNet-18 state dict (ImageNet) "
+                                                                "to start the appendix config's encoder from.")]
+    = None,
+    threads: Annotated[int, typer.Option(help="CPU threads for torch.")] = 2,
+) -> None:
+    """Train on the dataset's episodes (validation episodes held out), with a progress bar and a loss curve."""
+    _require_torch()
+    import torch
+
+    from toddlerbot.manipulation.dp.config import PRESETS
+    from toddlerbot.manipulation.dp.data import open_window_dataset
+    from toddlerbot.manipulation.dp.train import TrainSchedule
+    from toddlerbot.manipulation.dp.train import train as run_training
+
+    if config not in PRESETS:
+        raise ToddlerbotError(f"--config {config!r}: expected one of {', '.join(PRESET_NAMES)}")
+    if minutes is None and steps is None:
+        raise ToddlerbotError("give --minutes or --steps (or both)")
+    preset = PRESETS[config]
+    torch.set_num_threads(threads)
+    windows = open_window_dataset(dataset, preset.n_obs_steps, preset.horizon)
+    console.print(f"dataset {dataset}: {len(windows)} windows; run directory {out}")
+    result = run_training(windows, preset, out, minutes=minutes, resume=resume,
+                          schedule=TrainSchedule(max_steps=steps), imagenet_weights=imagenet_weights)
+    last = result.history[-1] if result.history else {}
+    val = last.get("val_loss")
+    console.print(f"step {result.step}: train loss {last.get('train_loss', float('nan')):.4f}, validation loss "
+                  f"{'-' if val is None else f'{val:.4f}'} (episodes {result.split['val_episodes']}); "
+                  f"checkpoint {result.checkpoint}, curve {result.run_dir / 'loss_curve.png'}")
+
+
+@app.command()
+def info(
+    checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by dp train (RUN/checkpoint.pt).")],
+    json_output: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+) -> None:
+    """Print a checkpoint's training step, size, last losses and configuration."""
+    _require_torch()
+    import json
+
+    from toddlerbot.manipulation.dp.checkpoint import checkpoint_summary
+
+    summary = checkpoint_summary(checkpoint)
+    if json_output:
+        print(json.dumps(summary))
+        return
+    cfg, last = summary["config"], summary["last"] or {}
+    console.print(f"{checkpoint}: step {summary['step']}, {summary['parameters'] / 1e6:.2f} M parameters, "
+                  f"encoder {cfg['encoder']}, U-Net {cfg['down_dims']}, state {cfg['state_dim']} / action "
+                  f"{cfg['action_dim']}, horizon {cfg['horizon']}, {cfg['inference_steps']} {cfg['sampler']} steps")
+    if last:
+        console.print(f"last losses: train {last['train_loss']:.4f}, validation {last.get('val_loss')}")

@@ -1,0 +1,1 @@
+"""Manipulation from demonstrations: the diffusion policy (``dp``, PyTorch, extra ``[dp]``)."""

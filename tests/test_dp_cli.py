@@ -1,0 +1,52 @@
+"""``toddlerbot dp train``: trains through the dataset adapter, resumes, and refuses bad input in one line."""
+
+import json
+
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from typer.testing import CliRunner  # noqa: E402
+
+from dp_support import SyntheticWindows  # noqa: E402
+from toddlerbot.cli.main import app  # noqa: E402
+from toddlerbot.manipulation.dp import data  # noqa: E402
+from toddlerbot.manipulation.dp.checkpoint import CheckpointError, load_policy, load_training_state  # noqa: E402
+from toddlerbot.manipulation.dp.data import DatasetError  # noqa: E402
+
+runner = CliRunner()
+
+
+def test_dp_train_runs_through_the_dataset_adapter_and_resumes(tmp_path, monkeypatch):
+    opened = []
+
+    def fake_reader(path, n_obs_steps, horizon):
+        opened.append((path.name, n_obs_steps, horizon))
+        return SyntheticWindows(episodes=3, frames=5)
+
+    monkeypatch.setattr(data, "open_window_dataset", fake_reader)
+    run = tmp_path / "run"
+    args = ["dp", "train", str(tmp_path / "ds"), "-o", str(run), "--config", "tiny", "--threads", "1"]
+    result = runner.invoke(app, [*args, "--steps", "3"])
+    assert result.exit_code == 0, result.output
+    assert opened == [("ds", 2, 16)]  # observation history 2, horizon 16
+    assert load_training_state(run / "checkpoint.pt").step == 3
+    again = runner.invoke(app, [*args, "--steps", "3"])  # without --resume: refuse to overwrite the run
+    assert isinstance(again.exception, CheckpointError) and "resume it (--resume)" in str(again.exception)
+    result = runner.invoke(app, [*args, "--steps", "5", "--resume"])
+    assert result.exit_code == 0, result.output
+    assert load_training_state(run / "checkpoint.pt").step == 5 and "step 5" in result.output
+    result = runner.invoke(app, ["dp", "info", str(run / "checkpoint.pt"), "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    policy = load_policy(run / "checkpoint.pt")
+    assert summary["step"] == 5 and summary["parameters"] == sum(p.numel() for p in policy.parameters())
+    assert summary["config"]["state_names"] == ["joint_0", "joint_1", "joint_2"]
+    assert summary["last"]["step"] == 5 and summary["last"]["train_loss"] > 0
+
+
+def test_dp_train_names_a_missing_dataset_directory(tmp_path):
+    result = runner.invoke(app, ["dp", "train", str(tmp_path / "nowhere"), "-o", str(tmp_path / "r"), "--steps", "1"])
+    assert isinstance(result.exception, DatasetError)
+    assert "nowhere: no such dataset directory" in str(result.exception)
+    assert not (tmp_path / "r").exists()  # nothing half-written
