@@ -100,12 +100,12 @@ def _bars(image: np.ndarray, rgb: tuple[int, int, int], axis: int) -> int:
     return int(np.sum(np.diff(np.concatenate([[0], holds.astype(int), [0]])) == 1))
 
 
-def test_design_plots_show_the_report(tmp_path, spec):
+def test_design_plots_show_the_report(tmp_path, description):
     from PIL import Image
 
     result = runner.invoke(app, ["design", "report", "--plot", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    report = design_report(spec)
+    report = design_report(description)
     images = {name: np.asarray(Image.open(tmp_path / f"{name}.png").convert("RGB")).astype(int)
               for name in ("power_factor", "range_of_motion", "torque_requirement")}
     rows = len(report.range_of_motion)
