@@ -16,7 +16,7 @@ from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.output import console
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
-from toddlerbot.sysid.excitation import DEFAULT_KP, PROFILES, excitation_set
+from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, PROFILES, excitation_set
 from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.logs import read_columns
@@ -126,7 +126,8 @@ def excite(
     for name in profile or []:
         if name not in PROFILES:
             raise SysIDError(f"--profile: unknown profile {name!r}; expected one of {', '.join(PROFILES)}")
-    runs_ex = excitation_set(tuple(profile or PROFILES), tuple(kp or DEFAULT_KP), duration, rate, amplitude, center)
+    runs_ex = excitation_set(tuple(profile or DEFAULT_PROFILES), tuple(kp or DEFAULT_KP), duration, rate, amplitude,
+                             center)
     p = load_params(params)[1] if params is not None else model.actuator
     import numpy as np
 

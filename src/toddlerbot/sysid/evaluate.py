@@ -37,7 +37,7 @@ class Evaluation:
 
 def evaluate(manifest: Manifest, params: ActuatorParams, dt: float = DT) -> Evaluation:
     """Replay every run with ``params`` and compare simulated with measured positions."""
-    batch = RunBatch.from_runs(manifest.runs, dt)
+    batch = RunBatch.from_runs(manifest.runs, dt, manifest.motor.rated_voltage)
     fields = {k: np.array([float(v)]) for k, v in dataclasses.asdict(params).items()}
     sim = simulate(batch, manifest.rig, fields)[0]
     err = np.degrees(sim - batch.measured)

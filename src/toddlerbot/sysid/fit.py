@@ -74,7 +74,7 @@ def fit(
     t0 = time.perf_counter()
     names = parameter_names(fit_kp_scale)
     base = start or manifest.motor.actuator
-    batch = RunBatch.from_runs(manifest.runs, dt)
+    batch = RunBatch.from_runs(manifest.runs, dt, manifest.motor.rated_voltage)
 
     def loss(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(mean over runs of log MSE, MSE over all samples in rad^2) of each candidate."""

@@ -17,12 +17,15 @@ from toddlerbot.sysid.simulate import DT, RunBatch, simulate
 
 
 def synthesize(excitations: list[Excitation], rig: Rig, params: ActuatorParams, noise_std: float = 0.0,
-               seed: int = 0, q0: float | None = None, dt: float = DT) -> list[RunLog]:
-    """Runs with simulated positions (rad) plus Gaussian noise of std ``noise_std`` rad."""
+               seed: int = 0, q0: float | None = None, dt: float = DT, voltage: float | None = None,
+               rated_voltage: float | None = None) -> list[RunLog]:
+    """Runs with simulated positions (rad) plus Gaussian noise of std ``noise_std`` rad; ``voltage``: the supply
+    (V, logged in every sample) relative to the motor's ``rated_voltage``."""
     runs = [RunLog(file=Path(f"{e.name}.csv"), time=e.time, goal_position=e.goal_position,
-                   position=np.full_like(e.time, e.goal_position[0] if q0 is None else q0), kp=e.kp, kd=0.0)
+                   position=np.full_like(e.time, e.goal_position[0] if q0 is None else q0), kp=e.kp, kd=0.0,
+                   torque_enable=e.torque_enable, voltage=None if voltage is None else np.full_like(e.time, voltage))
             for e in excitations]
-    batch = RunBatch.from_runs(runs, dt)
+    batch = RunBatch.from_runs(runs, dt, rated_voltage)
     fields = {k: np.array([float(v)]) for k, v in dataclasses.asdict(params).items()}
     clean = batch.split(simulate(batch, rig, fields)[0])
     rng = np.random.default_rng(seed)
@@ -34,6 +37,7 @@ def write_runs(folder: str | Path, motor: str, rig: Rig, runs: list[RunLog], wit
     """Write one CSV per run and ``manifest.json`` into ``folder``; returns the manifest path."""
     folder = Path(folder)
     for run in runs:
-        write_log(folder / run.file.name, run.time, run.goal_position, run.position if with_position else None)
+        write_log(folder / run.file.name, run.time, run.goal_position, run.position if with_position else None,
+                  torque_enable=run.torque_enable, voltage=run.voltage if with_position else None)
     logs = [{"file": run.file.name, "kp": run.kp, "kd": run.kd} for run in runs]
     return write_manifest(folder / "manifest.json", motor, rig, logs)
