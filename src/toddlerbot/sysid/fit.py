@@ -26,7 +26,7 @@ import numpy as np
 from toddlerbot.actuation.catalogue import ActuatorParams
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.manifest import Manifest
-from toddlerbot.sysid.params import from_unit, parameter_names, params_at, to_unit
+from toddlerbot.sysid.params import at_bounds, from_unit, parameter_names, params_at, to_unit
 from toddlerbot.sysid.simulate import DT, RunBatch, simulate
 
 DEFAULT_EVALS = 3000
@@ -50,14 +50,20 @@ class FitResult:
     seed: int
     restarts: int
     """IPOP restarts made (0: one CMA-ES run)."""
+    at_bounds: dict[str, str]
+    """Fitted parameters that ended within 1 % of a search bound: name -> "lower" / "upper". Such a value is not
+    identified: the data wants it beyond the bound (a model or unit error) or does not constrain it."""
+    model: str = "appendix"
 
 
 def fit(
-    manifest: Manifest, fit_kp_scale: bool = False, seed: int = 1, evals: int = DEFAULT_EVALS, popsize: int = 32,
+    manifest: Manifest, fit_kp_scale: bool = False, model: str = "appendix", seed: int = 1,
+    evals: int = DEFAULT_EVALS, popsize: int = 32,
     sigma0: float = 0.25, restarts: int = 4, dt: float = DT, start: ActuatorParams | None = None,
     progress: Callable[[int, float], None] | None = None,
 ) -> FitResult:
-    """Fit the 9 model parameters (plus kp_scale if asked) to the manifest's runs.
+    """Fit the 9 model parameters (``model="extended"``: plus stiction, Stribeck velocity, load friction; plus
+    kp_scale if asked) to the manifest's runs.
 
     ``evals``: candidate evaluations over all runs (each generation is evaluated whole, so the total is rounded up
     to the last generation); ``popsize``: population of the first CMA-ES run (doubled at each restart);
@@ -71,8 +77,12 @@ def fit(
         raise SysIDError(f"need popsize >= 4 and evals >= popsize, got popsize={popsize}, evals={evals}")
     if restarts < 0:
         raise SysIDError(f"restarts must be >= 0, got {restarts}")
+    if model == "extended" and start is None:
+        # the catalogue holds no extended friction: start the search inside its range instead of on its bound
+        start = manifest.motor.actuator.replace(stiction=max(manifest.motor.actuator.stiction, 0.01),
+                                                load_friction=max(manifest.motor.actuator.load_friction, 0.1))
     t0 = time.perf_counter()
-    names = parameter_names(fit_kp_scale)
+    names = parameter_names(fit_kp_scale, model)
     base = start or manifest.motor.actuator
     batch = RunBatch.from_runs(manifest.runs, dt, manifest.motor.rated_voltage)
 
@@ -111,6 +121,9 @@ def fit(
                 break
         if done >= evals:
             break
+    if not np.isfinite(best_f):
+        raise SysIDError(f"{manifest.path}: the fit found no candidate with a finite tracking error")
     params = params_at(from_unit(best_u[None, :], names, base), 0)
     return FitResult(params=params, fitted=names, rmse_deg=float(np.degrees(np.sqrt(best_mse))), evals=done,
-                     generations=generations, wall_s=time.perf_counter() - t0, seed=seed, restarts=made)
+                     generations=generations, wall_s=time.perf_counter() - t0, seed=seed, restarts=made,
+                     at_bounds=at_bounds(best_u, names), model=model)

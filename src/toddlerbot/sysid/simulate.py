@@ -47,7 +47,8 @@ def simulate_simple_rig(batch: RunBatch, rig: SimpleRig, fields: dict[str, np.nd
         tau_q_dot_max=col["tau_q_dot_max"], tau_brake=col["tau_brake"], stiction=col["stiction"],
         stribeck_velocity=col["stribeck_velocity"], load_friction=col["load_friction"],
     )
-    steady_voltage = bool(np.all(batch.voltage_ratio == batch.voltage_ratio[0]))
+    # the logged voltage is held between samples: rescale the parameters only on the steps where it changes
+    voltage_changes = np.r_[False, np.any(np.diff(batch.voltage_ratio, axis=0) != 0, axis=1)]
     p_now = at_voltage(p, batch.voltage_ratio[0])
     always_on = bool(batch.torque_on.all())
     # the appendix's model (no extended friction in any candidate): skip computing a friction term that is 0
@@ -62,7 +63,7 @@ def simulate_simple_rig(batch: RunBatch, rig: SimpleRig, fields: dict[str, np.nd
     record = np.empty((len(batch.goal), n_cand, n_runs))
     for k, goal in enumerate(batch.goal):
         record[k] = q
-        if not steady_voltage:
+        if voltage_changes[k]:
             p_now = at_voltage(p, batch.voltage_ratio[k])
         if appendix_model:
             tau = limit_torque(pd_torque(goal, q, v, p_now), v, p_now)
