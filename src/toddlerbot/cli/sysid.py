@@ -14,6 +14,7 @@ from rich.table import Table
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.output import console
+from toddlerbot.cli.sysid_record import record_command
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
 from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, PROFILES, excitation_set
@@ -30,6 +31,7 @@ app = typer.Typer(help="Motor system identification: test-bed analysis, excitati
                   no_args_is_help=True)
 testbed = typer.Typer(help="Motor test-bed analysis (appendix 8.8).", no_args_is_help=True)
 app.add_typer(testbed, name="testbed")
+app.command("record")(record_command)
 
 ManifestArg = Annotated[Path, typer.Argument(help="Manifest (JSON or YAML) naming the run CSVs, motor and rig.")]
 JsonOption = Annotated[bool, typer.Option("--json", help="Machine-readable output.")]
