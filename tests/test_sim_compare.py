@@ -34,16 +34,17 @@ def _compare(*args: str) -> dict:
     return json.loads(result.output)
 
 
-def _weaker_motors(path: Path) -> Path:
-    """params.json files of every motor model of the robot with half the torque, a third of the damping."""
+def _weaker_motors(path: Path) -> list[str]:
+    """--motor-params options: params.json files of every motor model of the robot with half the torque and
+    stiffness, a third of the powered damping."""
     description = RobotDescription.load()
     files = []
     for model in {m.name: m for m in description.motor_models}.values():
         a = model.actuator
         body = {"motor": model.name, "actuator": {"tau_max": 0.5 * a.tau_max, "tau_q_dot_max": 0.5 * a.tau_q_dot_max,
                                                   "kd_min": a.kd_min / 3, "kp_scale": 2 * a.kp_scale}}
-        files.append(path / f"{model.name}.json")
-        files[-1].write_text(json.dumps(body))
+        (path / f"{model.name}.json").write_text(json.dumps(body))
+        files += ["--motor-params", str(path / f"{model.name}.json")]
     return files
 
 
@@ -57,7 +58,7 @@ def test_a_simulated_log_replays_exactly_and_walking_reports_table7(tmp_path: Pa
     assert same["position_mae_deg"] < 1e-9 and same["gains_logged"]  # the simulator is deterministic
     assert same["tracking"]["sim"] == pytest.approx(same["tracking"]["real"])
     assert same["tracking"]["sim"]["lin_vel_mps"] < 0.1
-    weaker = _compare(str(path), *sum((["--motor-params", str(p)] for p in _weaker_motors(tmp_path)), []))
+    weaker = _compare(str(path), *_weaker_motors(tmp_path))
     assert weaker["position_mae_deg"] > 0.5
     with pytest.raises(CompareError, match="not this robot's"):
         replay_in_sim(RunLog(**{**log.__dict__, "motor_names": log.motor_names[:-1]}), description)
@@ -79,7 +80,7 @@ def test_hw_run_log_from_the_hil_emulator_agrees_with_the_simulator(tmp_path: Pa
         emulator.communicate(timeout=30)
     assert run.returncode == 0, run.stderr
     real = _compare(str(log_file), "--plot", str(tmp_path / "plots"))
-    weaker = _compare(str(log_file), *sum((["--motor-params", str(p)] for p in _weaker_motors(tmp_path)), []))
+    weaker = _compare(str(log_file), *_weaker_motors(tmp_path))
     print(f"HIL vs sim: {real['position_mae_deg']:.3f} deg; weaker motors: {weaker['position_mae_deg']:.3f} deg")
     assert real["position_mae_deg"] < 1.0
     assert weaker["position_mae_deg"] > 1.5 * real["position_mae_deg"]
