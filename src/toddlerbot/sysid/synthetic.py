@@ -50,13 +50,13 @@ ENCODER_COUNTS = 4096
 
 def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: ActuatorParams, voltage: float,
                       rated_voltage: float, sag: float = 0.3, noise_std: float = np.radians(0.05), seed: int = 0,
-                      dt: float = 0.00025) -> list[RunLog]:
+                      latency: float = 0.002, dt: float = 0.00025) -> list[RunLog]:
     """Pendulum / test-bed runs from a plant RICHER than any model the fit can express, to test the fit against
     model error rather than only noise:
 
     * the static friction decays exponentially (exp(-|q_dot| / stribeck_velocity)), not as the model's Gaussian;
-    * the gearbox friction grows with the transmitted load also while torque is off (the rig's gravity torque
-      back-driving the gears), where the model has none;
+    * each position is read up to ``latency`` s before its logged timestamp (uniformly at random), as a bus
+      read returns a sample taken some time before the host stamps it;
     * the supply sags by ``sag`` V per N*m of motor torque relative to the stall torque (logged, as a servo reports
       its input voltage);
     * positions are read through the 4096-count encoder and Gaussian noise, the plant steps at 0.25 ms.
@@ -83,9 +83,8 @@ def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: Act
         gravity = rig.gravity_gain * np.sin(q)
         powered = limit_torque(pd_torque(goal[k], q, v, p), v, p)
         tau = np.where(on[k] > 0.5, powered, 0.0)
-        load = np.where(on[k] > 0.5, tau, gravity)
         friction = (params.stiction * np.exp(-np.abs(v) / params.stribeck_velocity)
-                    + params.load_friction * np.abs(load)) * np.tanh(v / FRICTION_SMOOTHING)
+                    + params.load_friction * np.abs(tau)) * np.tanh(v / FRICTION_SMOOTHING)
         v_free = (inertia * v + dt * (tau - friction - gravity)) / implicit
         v = np.sign(v_free) * np.maximum(np.abs(v_free) - dt * params.frictionloss / implicit, 0.0)
         q = q + dt * v
@@ -93,7 +92,8 @@ def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: Act
     count = 2.0 * np.pi / ENCODER_COUNTS
     runs = []
     for i, e in enumerate(excitations):
-        at = np.clip(np.round((e.time - e.time[0]) / dt).astype(int), 0, n_steps - 1)
+        sampled = e.time - e.time[0] - rng.uniform(0.0, latency, len(e.time))
+        at = np.clip(np.round(sampled / dt).astype(int), 0, n_steps - 1)
         measured = np.round((q_rec[at, i] + rng.normal(0.0, noise_std, len(at))) / count) * count
         runs.append(RunLog(file=Path(f"{e.name}.csv"), time=e.time, goal_position=e.goal_position, position=measured,
                            kp=float(e.kp), kd=0.0, torque_enable=e.torque_enable,
