@@ -123,3 +123,28 @@ def test_cli_fit_extended_writes_all_parameters_and_keeps_a_good_file(tmp_path: 
         CliRunner().invoke(app, ["sysid", "fit", str(path), "-o", str(out), "--model", "extended"],
                            catch_exceptions=False)
     assert out.read_text() == good
+
+
+def test_the_simulator_applies_a_fitted_extended_model_unchanged(tmp_path: Path) -> None:
+    from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+    from toddlerbot.sysid.params import save_params
+
+    xc330 = default_catalogue()["XC330"]
+
+    def moved(params) -> np.ndarray:
+        files = [save_params(tmp_path / "p.json", xc330.name, params, parameter_names(False, "extended"), {})]
+        robot = MuJoCoRobot(RobotDescription.load(motor_params=files), SimConfig(control_dt=0.02))
+        targets = robot.description.home_motor_pos + 0.2
+        for _ in range(5):
+            obs = robot.step(targets)
+        return obs.motor_pos
+
+    xc = np.array([m.model == "XC330-T288" for m in RobotDescription.load().motors])
+    appendix = moved(xc330.actuator)
+    # the extended fields at their defaults, written to a params.json, give the appendix model bit for bit
+    np.testing.assert_array_equal(moved(xc330.actuator.replace(stribeck_velocity=0.5)), appendix)
+    # fitted extended friction slows the XC330s on their way to the targets (no simulator change needed)
+    extended = moved(xc330.actuator.replace(stiction=0.05, load_friction=0.3))
+    start = RobotDescription.load().home_motor_pos
+    assert np.all(np.abs(extended - start)[xc] < np.abs(appendix - start)[xc])
