@@ -73,6 +73,7 @@ def test_torque_off_is_passive_and_voltage_scales_the_motor() -> None:
     assert q_eq - brentq(lambda q: 100 / plain.kp_scale * (0.5 - q) - RIG.gravity_gain * np.sin(q), 0, 0.5) > 0.04
 
 
+@pytest.mark.slow
 def test_extended_fit_recovers_the_model_that_the_appendix_model_cannot(manifest: Manifest) -> None:
     noise_mae = np.degrees(NOISE) * np.sqrt(2 / np.pi)
     assert evaluate(manifest, TRUTH).mae_deg == pytest.approx(noise_mae, rel=0.15)
