@@ -72,9 +72,9 @@ def fit(
     initial guess of the first run (default: the catalogue's parameters of the manifest's motor);
     ``progress(evals_done, best_rmse_deg)`` is called after each generation.
 
-    The extended model is fitted in two stages, since its 12-13 dimensional landscape is harder to enter than the
-    appendix model's: the 9 appendix parameters with half the budget (the extended ones held at the start's values,
-    0 for the catalogue), then all of them from that result (plus a little static and load friction, off their
+    From a start without extended friction (the catalogue's values) the extended model is fitted in two stages,
+    since its 12-13 dimensional landscape is harder to enter than the appendix model's: the 9 appendix parameters
+    with half the budget, then all of them from that result (plus a little static and load friction, off their
     bounds) with the rest and a first step of at most 0.1. The second stage contains the first one's result (to
     within the 1e-4 N m floor of stiction), so it should only improve on it; where it does not, the first stage's
     parameters are returned.
@@ -86,7 +86,9 @@ def fit(
     if restarts < 0:
         raise SysIDError(f"restarts must be >= 0, got {restarts}")
     parameter_names(fit_kp_scale, model)
-    if model != "extended" or evals < 2 * popsize:
+    base = start or manifest.motor.actuator
+    has_extended_start = base.stiction > 0 or base.load_friction > 0
+    if model != "extended" or has_extended_start or evals < 2 * popsize:
         return _fit_stage(manifest, fit_kp_scale, model, seed, evals, popsize, sigma0, restarts, dt, start,
                           progress)[0]
     t0 = time.perf_counter()
