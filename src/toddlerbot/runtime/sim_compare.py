@@ -44,6 +44,7 @@ class Comparison:
     velocity_mae: float
     """rad/s, over all motors and steps."""
     time: np.ndarray
+    """(n,) s from the first step, as replayed."""
     real_pos: np.ndarray
     """(n, m) logged motor angles, rad."""
     sim_pos: np.ndarray
@@ -96,7 +97,10 @@ def replay_in_sim(log: RunLog, description: RobotDescription) -> Comparison:
     gains_logged = log.motor_kp is not None and log.motor_kd is not None
     sim_pos, sim_vel = np.empty_like(log.motor_pos), np.empty_like(log.motor_vel)
     base_pos, base_quat = np.empty((n, 3)), np.empty((n, 4))
+    # a step's interval is the logged time to the next step; where the log's clock does not advance (a real
+    # robot's first observation is stamped before its clock restarts) the control period stands in
     intervals = np.diff(log.time, append=log.time[-1] + log.control_dt)
+    intervals = np.where(intervals > 0, intervals, log.control_dt)
     for k in range(n):
         obs = robot.observe()
         sim_pos[k], sim_vel[k] = obs.motor_pos, obs.motor_vel
@@ -116,7 +120,8 @@ def replay_in_sim(log: RunLog, description: RobotDescription) -> Comparison:
         if np.all(np.isfinite(log.base_pos)) and np.all(np.isfinite(log.base_quat)):
             real_tracking = tracking_errors(log.time, log.command, log.base_pos, log.base_quat, fell=False)
     return Comparison(motors=motors, position_mae_deg=float(pos_err.mean()), velocity_mae=float(vel_err.mean()),
-                      time=log.time, real_pos=log.motor_pos, sim_pos=sim_pos, sim_tracking=sim_tracking,
+                      time=np.concatenate([[0.0], np.cumsum(intervals[:-1])]),
+                      real_pos=log.motor_pos, sim_pos=sim_pos, sim_tracking=sim_tracking,
                       real_tracking=real_tracking, gains_logged=gains_logged)
 
 
