@@ -12,6 +12,7 @@ errors are computed for the simulated robot, and for the logged one when it has 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -125,10 +126,8 @@ def replay_in_sim(log: RunLog, description: RobotDescription) -> Comparison:
                       real_tracking=real_tracking, gains_logged=gains_logged)
 
 
-def plot_comparison(result: Comparison, folder, top: int = 6) -> list:
+def plot_comparison(result: Comparison, folder: str | Path, top: int = 6) -> list[Path]:
     """PNG of the ``top`` motors with the largest position error: logged vs simulated angle over time."""
-    from pathlib import Path
-
     import matplotlib
 
     matplotlib.use("Agg")
