@@ -95,3 +95,15 @@ def test_save_figure_writes_the_laid_out_figure_and_closes_it(tmp_path: Path) ->
         assert image.size == (200, 150)  # figsize x dpi
         pixels = np.asarray(image.convert("L"))
     assert (pixels < 128).mean() > 0.005  # the line and axes were drawn
+
+
+def test_written_files_get_the_permissions_of_a_plain_open(tmp_path):
+    import os
+    import stat
+
+    from toddlerbot.files import FILE_MODE, atomic_write_text
+
+    plain = tmp_path / "plain.txt"
+    plain.write_text("x")
+    written = atomic_write_text(tmp_path / "atomic.txt", "x")
+    assert stat.S_IMODE(os.stat(written).st_mode) == stat.S_IMODE(os.stat(plain).st_mode) == FILE_MODE

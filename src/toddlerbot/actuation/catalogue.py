@@ -40,6 +40,12 @@ class ActuatorParams:
     """Braking torque limit, N*m."""
     kp_scale: float
     """Dynamixel position P gain divided by the physical stiffness in N*m/rad."""
+    stiction: float = 0.0
+    """Extended model: static friction in excess of the Coulomb ``frictionloss`` at zero speed, N*m (0: none)."""
+    stribeck_velocity: float = 0.1
+    """Extended model: speed over which the excess static friction decays (exp(-(q_dot/v)^2)), rad/s."""
+    load_friction: float = 0.0
+    """Extended model: gearbox friction per N*m of transmitted motor torque (1 - efficiency), 1 (0: none)."""
 
     def __post_init__(self) -> None:
         for field in dataclasses.fields(self):
@@ -50,6 +56,10 @@ class ActuatorParams:
             raise ValueError(f"q_dot_max ({self.q_dot_max}) must exceed q_dot_tau_max ({self.q_dot_tau_max})")
         if self.kp_scale <= 0:
             raise ValueError(f"kp_scale must be > 0, got {self.kp_scale}")
+        if self.stribeck_velocity <= 0:
+            raise ValueError(f"stribeck_velocity must be > 0, got {self.stribeck_velocity}")
+        if self.load_friction >= 1:
+            raise ValueError(f"load_friction must be < 1 (share of the transmitted torque), got {self.load_friction}")
 
     def replace(self, **changes: float) -> ActuatorParams:
         return dataclasses.replace(self, **changes)
@@ -62,7 +72,7 @@ class MotorModel:
     name: str
     aliases: tuple[str, ...]
     stall_torque_nm: float
-    """Stall torque at 12 V, N*m (appendix Table 2)."""
+    """Stall torque at ``rated_voltage``, N*m (appendix Table 2 for the robot's motors)."""
     mass_kg: float
     """Mass of one unit, kg (a dual-axis unit drives two motor entries)."""
     dimensions_mm: tuple[float, float, float]
@@ -71,6 +81,9 @@ class MotorModel:
     actuator: ActuatorParams
     model_number: int | None = None
     """Model number reported by a Dynamixel ping (control table address 0); None if unknown."""
+    rated_voltage: float = 12.0
+    """Supply voltage, V, at which ``stall_torque_nm`` and the actuator parameters hold (see
+    `toddlerbot.actuation.model.at_voltage` for other supplies)."""
 
     @property
     def mass_per_axis_kg(self) -> float:
@@ -117,7 +130,10 @@ def _parse(raw: object, source: str) -> Catalogue:
                 axes=int(entry.get("axes", 1)),
                 actuator=ActuatorParams(**entry["actuator"]),
                 model_number=int(entry["model_number"]) if "model_number" in entry else None,
+                rated_voltage=float(entry.get("rated_voltage", 12.0)),
             )
+            if models[name].rated_voltage <= 0:
+                raise ValueError(f"rated_voltage must be > 0 V, got {models[name].rated_voltage}")
         except KeyError as exc:
             raise SpecError(f"{where}: missing field {exc.args[0]!r}") from None
         except (TypeError, ValueError, AttributeError) as exc:

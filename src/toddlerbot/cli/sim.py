@@ -9,12 +9,14 @@ from typing import Annotated
 import typer
 
 from toddlerbot.cli.output import console
+from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
 from toddlerbot.policies import POLICIES
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
+app.command("compare")(compare_command)
 
 
 @app.command()

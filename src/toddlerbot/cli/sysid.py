@@ -14,14 +14,15 @@ from rich.table import Table
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.output import console
+from toddlerbot.cli.sysid_record import record_command
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
-from toddlerbot.sysid.excitation import DEFAULT_KP, PROFILES, excitation_set
+from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, PROFILES, excitation_set
 from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.logs import read_columns
 from toddlerbot.sysid.manifest import load_manifest
-from toddlerbot.sysid.params import save_params
+from toddlerbot.sysid.params import BOUNDS, SEARCHED_AS, parameter_names, save_params
 from toddlerbot.sysid.rigs import parse_rig
 from toddlerbot.sysid.synthetic import synthesize, write_runs
 from toddlerbot.sysid.testbed import armature_from_spindown, fit_friction
@@ -30,6 +31,7 @@ app = typer.Typer(help="Motor system identification: test-bed analysis, excitati
                   no_args_is_help=True)
 testbed = typer.Typer(help="Motor test-bed analysis (appendix 8.8).", no_args_is_help=True)
 app.add_typer(testbed, name="testbed")
+app.command("record")(record_command)
 
 ManifestArg = Annotated[Path, typer.Argument(help="Manifest (JSON or YAML) naming the run CSVs, motor and rig.")]
 JsonOption = Annotated[bool, typer.Option("--json", help="Machine-readable output.")]
@@ -41,6 +43,8 @@ def fit_command(
     output: Annotated[Path, typer.Option("-o", "--output", help="params.json to write.")],
     fit_kp_scale: Annotated[bool, typer.Option("--fit-kp-scale", help="Also fit the firmware-to-physical kp factor.")]
     = False,
+    model: Annotated[str, typer.Option("--model", help="appendix (the 9 parameters of section 8.9) or extended (plus "
+                                       "stiction, Stribeck velocity and load-dependent friction).")] = "appendix",
     seed: Annotated[int, typer.Option("--seed", min=1, help="CMA-ES seed (>= 1); same seed, same result.")] = 1,
     evals: Annotated[int, typer.Option("--evals", min=4, help="Candidate evaluations (all restarts).")]
     = DEFAULT_EVALS,
@@ -50,7 +54,9 @@ def fit_command(
     start: Annotated[Path | None, typer.Option("--start", help="params.json to start from (default: catalogue).")]
     = None,
 ) -> None:
-    """Fit damping, friction loss, armature, tau_max, q_dot_tau_max, tau_q_dot_max, q_dot_max, kd_min, tau_brake."""
+    """Fit damping, friction loss, armature, tau_max, q_dot_tau_max, tau_q_dot_max, q_dot_max, kd_min, tau_brake
+    (--model extended: also stiction, stribeck_velocity, load_friction). Reports parameters left at a bound."""
+    parameter_names(fit_kp_scale, model)  # an unknown --model fails before any work
     m = load_manifest(manifest)
     start_params = None
     if start is not None:
@@ -60,17 +66,23 @@ def fit_command(
     with Progress(TextColumn("fitting"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"),
                   TimeElapsedColumn(), console=console, transient=True) as bar:
         task = bar.add_task("", total=evals)
-        result = run_fit(m, fit_kp_scale=fit_kp_scale, seed=seed, evals=evals, popsize=popsize, restarts=restarts,
+        result = run_fit(m, fit_kp_scale=fit_kp_scale, model=model, seed=seed, evals=evals, popsize=popsize,
+                         restarts=restarts,
                          start=start_params,
                          progress=lambda n, rmse: bar.update(task, completed=n, description=f"RMSE {rmse:.3f} deg"))
     provenance = {
         "manifest": str(manifest), "runs": len(m.runs), "rig": m.rig.type, "seed": seed, "evals": result.evals,
         "generations": result.generations,
         "restarts": result.restarts, "rmse_deg": result.rmse_deg, "wall_s": round(result.wall_s, 2),
+        "model": model, "at_bounds": result.at_bounds,
     }
     save_params(output, m.motor.name, result.params, result.fitted, provenance)
     console.print(f"wrote {output}: {m.motor.name}, RMSE {result.rmse_deg:.3f} deg over {len(m.runs)} runs "
                   f"({result.evals} evaluations, {result.wall_s:.1f} s)")
+    for name, side in result.at_bounds.items():
+        lo, hi = BOUNDS[name]
+        console.print(f"[yellow]warning:[/] {name} = {getattr(result.params, name):.4g} ended at its {side} search "
+                      f"bound ({lo:g} .. {hi:g}{SEARCHED_AS.get(name, '')}): not identified by these runs")
 
 
 @app.command("eval")
@@ -126,7 +138,8 @@ def excite(
     for name in profile or []:
         if name not in PROFILES:
             raise SysIDError(f"--profile: unknown profile {name!r}; expected one of {', '.join(PROFILES)}")
-    runs_ex = excitation_set(tuple(profile or PROFILES), tuple(kp or DEFAULT_KP), duration, rate, amplitude, center)
+    runs_ex = excitation_set(tuple(profile or DEFAULT_PROFILES), tuple(kp or DEFAULT_KP), duration, rate, amplitude,
+                             center)
     p = load_params(params)[1] if params is not None else model.actuator
     import numpy as np
 

@@ -116,6 +116,9 @@ _TRAITS = {
     "XC430-T240BB": ModelTraits(False),
     "2XL430-W250": ModelTraits(False, max_voltage_limit=140),
     "2XC430-W250": ModelTraits(False),
+    # XL330 (e-Manual): current in 1 mA units; stall torque / stall current at 5.0 V; voltage limits 3.5-7.0 V
+    "XL330-M288-T": ModelTraits(True, 0.001, 0.52 / 1.47, min_voltage_limit=35, max_voltage_limit=70),
+    "XL330-M077-T": ModelTraits(True, 0.001, 0.215 / 1.47, min_voltage_limit=35, max_voltage_limit=70),
 }
 
 

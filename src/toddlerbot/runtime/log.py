@@ -18,6 +18,7 @@ base_pos            (n, 3)      torso position in the world, m (simulation groun
 base_quat           (n, 4)      torso orientation in the world (simulation ground truth; NaN on hardware)
 compute_time        (n,)        s spent in policy + backend step
 step_period         (n,)        s of wall time from this step's start to the next's
+motor_kp/kd         (n, m)      firmware gains in effect during the step (optional: absent in older logs)
 motor_names         (m,)        str
 joint_names         (m,)        str
 control_dt          ()          s
@@ -40,6 +41,8 @@ STEP_KEYS = (
     "joint_target", "imu_quat", "imu_ang_vel", "imu_lin_acc", "foot_contact", "base_pos", "base_quat",
     "compute_time", "step_period",
 )
+OPTIONAL_STEP_KEYS = ("motor_kp", "motor_kd")
+"""Recorded when given to `LogRecorder.append`; logs written before they existed load with None."""
 
 
 @dataclass(frozen=True)
@@ -65,10 +68,14 @@ class RunLog:
     joint_names: tuple[str, ...]
     control_dt: float
     policy: str
+    motor_kp: np.ndarray | None = None
+    """(n, m) firmware P gains in effect at each step (None: not recorded)."""
+    motor_kd: np.ndarray | None = None
 
     def save(self, path: str | Path) -> Path:
         """Write the log as a compressed ``.npz`` atomically (concurrent saves of one path never mix)."""
-        arrays = {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+        arrays = {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)
+                  if getattr(self, f.name) is not None}
         return atomic_savez(path, arrays, compressed=True)
 
     @classmethod
@@ -76,7 +83,8 @@ class RunLog:
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as data:
-                values = {f.name: data[f.name] for f in fields(cls)}
+                values = {f.name: data[f.name] for f in fields(cls) if f.name in data or f.name not in
+                          OPTIONAL_STEP_KEYS}
         except (OSError, KeyError, ValueError) as exc:
             raise ToddlerbotError(f"{path} is not a run log (.npz with the keys of toddlerbot.runtime.log): {exc}") \
                 from None
@@ -91,14 +99,15 @@ class LogRecorder:
     """Collects one row per step; `finish` stacks them into a `RunLog`."""
 
     def __init__(self) -> None:
-        self.rows: dict[str, list[np.ndarray]] = {k: [] for k in STEP_KEYS}
+        self.rows: dict[str, list[np.ndarray]] = {k: [] for k in (*STEP_KEYS, *OPTIONAL_STEP_KEYS)}
 
     def append(self, **row: np.ndarray | float) -> None:
-        for key in STEP_KEYS:
+        for key in (*STEP_KEYS, *(k for k in OPTIONAL_STEP_KEYS if k in row)):
             self.rows[key].append(np.asarray(row[key], dtype=float))
 
     def finish(self, motor_names, joint_names, control_dt: float, policy: str) -> RunLog:
+        n = len(self.rows["time"])
         return RunLog(
-            **{k: np.array(v) for k, v in self.rows.items()},
+            **{k: np.array(v) if k in STEP_KEYS or len(v) == n else None for k, v in self.rows.items()},
             motor_names=tuple(motor_names), joint_names=tuple(joint_names), control_dt=control_dt, policy=policy,
         )

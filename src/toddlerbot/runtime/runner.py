@@ -47,6 +47,7 @@ def run_policy(
     fall_time = None
     has_ground_truth = hasattr(robot, "base_pos")
     next_deadline = time.perf_counter()
+    kp, kd = robot.default_kp, robot.default_kd  # gains stay in effect until a policy sends others
     for _ in range(n_steps):
         start = time.perf_counter()
         command = np.asarray(commands(obs.time), dtype=float)
@@ -54,6 +55,8 @@ def run_policy(
         base_pos = robot.base_pos if has_ground_truth else NAN3
         base_quat = robot.base_quat if has_ground_truth else NAN4
         new_obs = robot.step(action.motor_targets, action.kp, action.kd)
+        kp = kp if action.kp is None else action.kp
+        kd = kd if action.kd is None else action.kd
         compute = time.perf_counter() - start
         if realtime:
             next_deadline += robot.control_dt
@@ -64,7 +67,7 @@ def run_policy(
             motor_target=action.motor_targets, joint_target=action.joint_targets, imu_quat=obs.imu_quat,
             imu_ang_vel=obs.imu_ang_vel, imu_lin_acc=obs.imu_lin_acc, foot_contact=obs.foot_contact,
             base_pos=base_pos, base_quat=base_quat, compute_time=compute,
-            step_period=time.perf_counter() - start,
+            step_period=time.perf_counter() - start, motor_kp=kp, motor_kd=kd,
         )
         obs = new_obs
         if on_step is not None:

@@ -1,1 +1,2 @@
-"""Motor system identification: test-bed analysis, excitation profiles, logs and rigs, and the 9-parameter fit."""
+"""Motor system identification: test-bed analysis, excitation profiles, logs and rigs, the 9-parameter and
+extended fits, and recording on a real motor."""

@@ -37,7 +37,7 @@ class Evaluation:
 
 def evaluate(manifest: Manifest, params: ActuatorParams, dt: float = DT) -> Evaluation:
     """Replay every run with ``params`` and compare simulated with measured positions."""
-    batch = RunBatch.from_runs(manifest.runs, dt)
+    batch = RunBatch.from_runs(manifest.runs, dt, manifest.motor.rated_voltage)
     fields = {k: np.array([float(v)]) for k, v in dataclasses.asdict(params).items()}
     sim = simulate(batch, manifest.rig, fields)[0]
     err = np.degrees(sim - batch.measured)
@@ -51,7 +51,8 @@ def evaluate(manifest: Manifest, params: ActuatorParams, dt: float = DT) -> Eval
 
 
 def plot_tracking(manifest: Manifest, evaluation: Evaluation, folder: str | Path) -> list[Path]:
-    """One PNG per run: goal, measured and simulated position (deg) over time, and the error below."""
+    """One PNG per run: goal, measured and simulated position (deg) over time (torque-off time shaded), and the
+    error below."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -64,6 +65,9 @@ def plot_tracking(manifest: Manifest, evaluation: Evaluation, folder: str | Path
         top.plot(t, np.degrees(run.goal_position), color="0.6", lw=1, label="goal")
         top.plot(t, np.degrees(run.position), lw=1.2, label="measured")
         top.plot(t, np.degrees(sim), lw=1.2, ls="--", label="simulated")
+        if run.torque_enable is not None and not run.torque_enable.all():
+            top.fill_between(t, 0, 1, where=run.torque_enable < 0.5, transform=top.get_xaxis_transform(),
+                             color="0.9", label="torque off")
         top.set_ylabel("position (deg)")
         top.set_title(f"{err.file}: kp={run.kp:g} kd={run.kd:g}  "
                       f"MAE {err.mae_deg:.2f} deg  RMSE {err.rmse_deg:.2f} deg")

@@ -10,6 +10,9 @@ is run with (one run per kp value).
 * ``fast_steps``: full-swing steps between -2 and +2 x amplitude, 0.4 s each: the torque saturates and the shaft
   runs well past ``q_dot_tau_max`` (on the XC330 pendulum of the docs to 9-13 rad/s, beyond ``q_dot_max``), which
   is what pins the speed curve (``q_dot_tau_max``, ``q_dot_max``, ``tau_q_dot_max``) and passive damping.
+* ``drop``: a ramp to 2 x amplitude over the first 30 %, a hold, then torque OFF from half-time to the end: the
+  pendulum falls and swings out passively, which isolates the passive friction loss, damping, static friction and
+  armature from the controller (the only profile with a ``torque_enable`` schedule).
 """
 
 from __future__ import annotations
@@ -60,10 +63,23 @@ def fast_steps(t: np.ndarray, duration: float, amplitude: float, hold: float = 0
     return np.where(index == 0, 0.0, np.where(index % 2 == 1, 2.0 * amplitude, -2.0 * amplitude))
 
 
+def drop(t: np.ndarray, duration: float, amplitude: float) -> np.ndarray:
+    return 2.0 * amplitude * np.clip(t / (0.3 * duration), 0.0, 1.0)
+
+
+def drop_torque_enable(t: np.ndarray, duration: float) -> np.ndarray:
+    """1 (powered) for the first half of the run, 0 (torque off) after."""
+    return (t < 0.5 * duration).astype(float)
+
+
 PROFILES: dict[str, Callable[[np.ndarray, float, float], np.ndarray]] = {
     "chirp": chirp, "steps": steps, "sinusoids": sinusoids, "lift_and_drop": lift_and_drop,
-    "fast_steps": fast_steps,
+    "fast_steps": fast_steps, "drop": drop,
 }
+TORQUE_SCHEDULES: dict[str, Callable[[np.ndarray, float], np.ndarray]] = {"drop": drop_torque_enable}
+"""Profiles that switch torque off: name -> torque_enable (0/1) over time."""
+DEFAULT_PROFILES = ("chirp", "steps", "sinusoids", "lift_and_drop", "fast_steps")
+"""What ``sysid excite`` writes by default (``drop`` only on request: it needs a rig where falling is safe)."""
 
 
 @dataclass(frozen=True)
@@ -74,6 +90,8 @@ class Excitation:
     """s, from 0."""
     goal_position: np.ndarray
     """rad."""
+    torque_enable: np.ndarray | None = None
+    """0/1 per sample (None: powered throughout)."""
 
     @property
     def name(self) -> str:
@@ -91,12 +109,13 @@ def excitation(profile: str, duration: float = 6.0, rate: float = 200.0, amplitu
     return t, center + PROFILES[profile](t, duration, amplitude)
 
 
-def excitation_set(profiles: tuple[str, ...] = tuple(PROFILES), kp_values: tuple[int, ...] = DEFAULT_KP,
+def excitation_set(profiles: tuple[str, ...] = DEFAULT_PROFILES, kp_values: tuple[int, ...] = DEFAULT_KP,
                    duration: float = 6.0, rate: float = 200.0, amplitude: float = 0.5,
                    center: float = 0.0) -> list[Excitation]:
     """Every profile at every kp value."""
     out = []
     for profile in profiles:
         t, goal = excitation(profile, duration, rate, amplitude, center)
-        out += [Excitation(profile, int(kp), t, goal) for kp in kp_values]
+        enable = TORQUE_SCHEDULES[profile](t, duration) if profile in TORQUE_SCHEDULES else None
+        out += [Excitation(profile, int(kp), t, goal, enable) for kp in kp_values]
     return out

@@ -16,6 +16,7 @@ same result.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -26,7 +27,7 @@ import numpy as np
 from toddlerbot.actuation.catalogue import ActuatorParams
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.manifest import Manifest
-from toddlerbot.sysid.params import from_unit, parameter_names, params_at, to_unit
+from toddlerbot.sysid.params import at_bounds, from_unit, parameter_names, params_at, to_unit
 from toddlerbot.sysid.simulate import DT, RunBatch, simulate
 
 DEFAULT_EVALS = 3000
@@ -50,20 +51,33 @@ class FitResult:
     seed: int
     restarts: int
     """IPOP restarts made (0: one CMA-ES run)."""
+    at_bounds: dict[str, str]
+    """Fitted parameters that ended within 1 % of a search bound: name -> "lower" / "upper". Such a value is not
+    identified: the data wants it beyond the bound (a model or unit error) or does not constrain it."""
+    model: str = "appendix"
 
 
 def fit(
-    manifest: Manifest, fit_kp_scale: bool = False, seed: int = 1, evals: int = DEFAULT_EVALS, popsize: int = 32,
+    manifest: Manifest, fit_kp_scale: bool = False, model: str = "appendix", seed: int = 1,
+    evals: int = DEFAULT_EVALS, popsize: int = 32,
     sigma0: float = 0.25, restarts: int = 4, dt: float = DT, start: ActuatorParams | None = None,
     progress: Callable[[int, float], None] | None = None,
 ) -> FitResult:
-    """Fit the 9 model parameters (plus kp_scale if asked) to the manifest's runs.
+    """Fit the 9 model parameters (``model="extended"``: plus stiction, Stribeck velocity, load friction; plus
+    kp_scale if asked) to the manifest's runs.
 
     ``evals``: candidate evaluations over all runs (each generation is evaluated whole, so the total is rounded up
     to the last generation); ``popsize``: population of the first CMA-ES run (doubled at each restart);
     ``sigma0``: initial step size in the unit cube; ``restarts``: at most this many IPOP restarts; ``start``:
     initial guess of the first run (default: the catalogue's parameters of the manifest's motor);
     ``progress(evals_done, best_rmse_deg)`` is called after each generation.
+
+    From a start without extended friction (the catalogue's values) the extended model is fitted in two stages,
+    since its 12-13 dimensional landscape is harder to enter than the appendix model's: the 9 appendix parameters
+    with half the budget, then all of them from that result (plus a little static and load friction, off their
+    bounds) with the rest and a first step of at most 0.1. The second stage contains the first one's result (to
+    within the 1e-4 N m floor of stiction), so it should only improve on it; where it does not, the first stage's
+    parameters are returned.
     """
     if seed < 1:
         raise SysIDError(f"seed must be >= 1 (cma treats 0 as 'seed from the clock'), got {seed}")
@@ -71,10 +85,37 @@ def fit(
         raise SysIDError(f"need popsize >= 4 and evals >= popsize, got popsize={popsize}, evals={evals}")
     if restarts < 0:
         raise SysIDError(f"restarts must be >= 0, got {restarts}")
-    t0 = time.perf_counter()
-    names = parameter_names(fit_kp_scale)
+    parameter_names(fit_kp_scale, model)
     base = start or manifest.motor.actuator
-    batch = RunBatch.from_runs(manifest.runs, dt)
+    has_extended_start = base.stiction > 0 or base.load_friction > 0
+    if model != "extended" or has_extended_start or evals < 2 * popsize:
+        return _fit_stage(manifest, fit_kp_scale, model, seed, evals, popsize, sigma0, restarts, dt, start,
+                          progress)[0]
+    t0 = time.perf_counter()
+    first, first_loss = _fit_stage(manifest, fit_kp_scale, "appendix", seed, evals // 2, popsize, sigma0, restarts,
+                                   dt, start, progress)
+    offset = (lambda n, rmse: progress(first.evals + n, rmse)) if progress is not None else None
+    seeded = first.params.replace(stiction=max(first.params.stiction, 0.01),
+                                  load_friction=max(first.params.load_friction, 0.05))
+    # a smaller first step: the second stage starts next to a fitted optimum and should refine it, not leave it
+    second, second_loss = _fit_stage(manifest, fit_kp_scale, "extended", seed, evals - first.evals, popsize,
+                                     min(sigma0, 0.1), restarts, dt, seeded, offset)
+    best = second if second_loss <= first_loss else dataclasses.replace(
+        first, fitted=second.fitted, at_bounds={k: v for k, v in second.at_bounds.items() if k in first.fitted})
+    return dataclasses.replace(best, evals=first.evals + second.evals, wall_s=time.perf_counter() - t0,
+                               generations=first.generations + second.generations,
+                               restarts=first.restarts + second.restarts, model="extended")
+
+
+def _fit_stage(
+    manifest: Manifest, fit_kp_scale: bool, model: str, seed: int, evals: int, popsize: int, sigma0: float,
+    restarts: int, dt: float, start: ActuatorParams | None, progress: Callable[[int, float], None] | None,
+) -> tuple[FitResult, float]:
+    """One IPOP-CMA-ES fit of ``model``'s parameters; (result, best loss)."""
+    t0 = time.perf_counter()
+    names = parameter_names(fit_kp_scale, model)
+    base = start or manifest.motor.actuator
+    batch = RunBatch.from_runs(manifest.runs, dt, manifest.motor.rated_voltage)
 
     def loss(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(mean over runs of log MSE, MSE over all samples in rad^2) of each candidate."""
@@ -111,6 +152,9 @@ def fit(
                 break
         if done >= evals:
             break
+    if not np.isfinite(best_f):
+        raise SysIDError(f"{manifest.path}: the fit found no candidate with a finite tracking error")
     params = params_at(from_unit(best_u[None, :], names, base), 0)
     return FitResult(params=params, fitted=names, rmse_deg=float(np.degrees(np.sqrt(best_mse))), evals=done,
-                     generations=generations, wall_s=time.perf_counter() - t0, seed=seed, restarts=made)
+                     generations=generations, wall_s=time.perf_counter() - t0, seed=seed, restarts=made,
+                     at_bounds=at_bounds(best_u, names), model=model), best_f

@@ -1,9 +1,9 @@
 """The fitted actuator parameters: search bounds, candidate matrices and ``params.json`` files.
 
-A ``params.json`` (written by ``toddlerbot sysid fit``) holds ``{"motor": <catalogue name>, "actuator": {the ten
-ActuatorParams fields}, "fitted": [names], "fit": {...provenance...}}``. `catalogue_with_params` loads one or
-more of them into a motor `Catalogue`, which the model builder (``build_mjspec(..., catalogue=...)``) and the
-actuator model then use: that is the hook behind a simulator ``--motor-params FILE`` option.
+A ``params.json`` (written by ``toddlerbot sysid fit``) holds ``{"motor": <catalogue name>, "actuator": {every
+ActuatorParams field, including the extended model's}, "fitted": [names], "fit": {...provenance...}}``.
+`toddlerbot.actuation.params_file.catalogue_with_params` loads them into a motor `Catalogue` (and
+``RobotDescription.load(motor_params=...)`` into a robot).
 """
 
 from __future__ import annotations
@@ -18,12 +18,19 @@ import numpy as np
 
 from toddlerbot.actuation.catalogue import ActuatorParams
 from toddlerbot.files import atomic_write_text
+from toddlerbot.sysid.errors import SysIDError
 
 MODEL_PARAMETERS = (
     "damping", "frictionloss", "armature", "tau_max", "q_dot_tau_max", "tau_q_dot_max", "q_dot_max", "kd_min",
     "tau_brake",
 )
 """The 9 parameters of the appendix (section 8.9), always fitted."""
+EXTENDED_PARAMETERS = ("stiction", "stribeck_velocity", "load_friction")
+"""Fitted in addition with ``model="extended"`` (see `toddlerbot.actuation.model.extra_friction`)."""
+MODELS = ("appendix", "extended")
+BOUND_MARGIN = 0.01
+"""A fitted parameter within this share of its searched range (the unit cube, log-scaled where the search is) of
+a bound is reported as at that bound."""
 
 BOUNDS: dict[str, tuple[float, float]] = {
     "damping": (1e-4, 0.05),  # N*m*s/rad
@@ -35,18 +42,42 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "q_dot_max": (0.2, 20.0),  # rad/s ABOVE q_dot_tau_max (searched as the span, so q_dot_max > q_dot_tau_max)
     "kd_min": (0.01, 2.0),  # N*m*s/rad
     "tau_brake": (0.05, 10.0),  # N*m
-    "kp_scale": (50.0, 400.0),  # firmware P gain per N*m/rad
+    "kp_scale": (15.0, 1000.0),  # firmware P gain per N*m/rad: 173.8 / stall torque over the X series (motors.yaml)
+    "stiction": (1e-4, 0.3),  # N*m above frictionloss
+    "stribeck_velocity": (0.01, 3.0),  # rad/s
+    "load_friction": (0.0, 0.6),  # 1 (share of the transmitted torque)
 }
 """Search bounds of each parameter (q_dot_max: bounds of q_dot_max - q_dot_tau_max; tau_q_dot_max: bounds of
 tau_q_dot_max / tau_max)."""
 
-LOG_SCALED = frozenset({"damping", "frictionloss", "armature", "tau_max", "kd_min", "tau_brake", "kp_scale"})
+SEARCHED_AS = {"q_dot_max": " above q_dot_tau_max", "tau_q_dot_max": " x tau_max"}
+"""How the bounds of the parameters not searched directly apply."""
+
+LOG_SCALED = frozenset({"damping", "frictionloss", "armature", "tau_max", "kd_min", "tau_brake", "kp_scale",
+                        "stiction", "stribeck_velocity"})
 """Parameters searched on a log scale (positive, spanning one to three decades); the speeds and the torque
 fraction are searched linearly."""
 
 
-def parameter_names(fit_kp_scale: bool) -> tuple[str, ...]:
-    return (*MODEL_PARAMETERS, "kp_scale") if fit_kp_scale else MODEL_PARAMETERS
+def parameter_names(fit_kp_scale: bool, model: str = "appendix") -> tuple[str, ...]:
+    """The fitted parameters of ``model`` (``appendix``: the 9 of section 8.9; ``extended``: plus stiction,
+    Stribeck velocity and load friction), plus kp_scale if asked."""
+    if model not in MODELS:
+        raise SysIDError(f"unknown model {model!r}; expected one of {', '.join(MODELS)}")
+    names = MODEL_PARAMETERS + (EXTENDED_PARAMETERS if model == "extended" else ())
+    return (*names, "kp_scale") if fit_kp_scale else names
+
+
+def at_bounds(u: np.ndarray, names: Sequence[str]) -> dict[str, str]:
+    """Parameters of a unit-cube point within `BOUND_MARGIN` of a bound: name -> ``"lower"`` / ``"upper"``
+    (for q_dot_max and tau_q_dot_max the bound is on the searched span / fraction, see `BOUNDS`)."""
+    out = {}
+    for name, x in zip(names, np.asarray(u, dtype=float), strict=True):
+        if x <= BOUND_MARGIN:
+            out[name] = "lower"
+        elif x >= 1.0 - BOUND_MARGIN:
+            out[name] = "upper"
+    return out
 
 
 def _searched(name: str, params: ActuatorParams) -> float:
@@ -90,6 +121,6 @@ def params_at(fields: dict[str, np.ndarray], i: int) -> ActuatorParams:
 
 def save_params(path: str | Path, motor: str, params: ActuatorParams, fitted: Iterable[str],
                 fit: dict[str, Any]) -> Path:
-    """Write a params.json atomically."""
+    """Write a params.json atomically (a failed or interrupted write leaves any previous file untouched)."""
     body = {"motor": motor, "actuator": dataclasses.asdict(params), "fitted": list(fitted), "fit": fit}
     return atomic_write_text(path, json.dumps(body, indent=2) + "\n")

@@ -11,9 +11,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cache
 from typing import Any
 
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sysid.errors import SysIDError
 
 GRAVITY = 9.81
@@ -59,6 +61,17 @@ class RobotJointRig:
     joint: str
     """Motor joint of the robot spec, e.g. ``left_elbow_roll``."""
     type: str = "robot_joint"
+    description: RobotDescription | None = field(default=None, compare=False, repr=False)
+    """The robot the joint belongs to (None: the packaged robot with the catalogue's parameters)."""
+
+    @property
+    def robot(self) -> RobotDescription:
+        return self.description or _packaged_robot()
+
+
+@cache
+def _packaged_robot() -> RobotDescription:
+    return RobotDescription.load()
 
 
 Rig = PendulumRig | TestBedRig | RobotJointRig
@@ -71,8 +84,9 @@ _FIELDS: dict[str, tuple[type, tuple[str, ...], tuple[str, ...]]] = {
 }
 
 
-def parse_rig(raw: Any, source: str) -> Rig:
-    """A rig from its manifest entry, e.g. ``{"type": "pendulum", "mass": 0.49, "length": 0.1}``."""
+def parse_rig(raw: Any, source: str, description: RobotDescription | None = None) -> Rig:
+    """A rig from its manifest entry, e.g. ``{"type": "pendulum", "mass": 0.49, "length": 0.1}``;
+    ``description``: the robot of a ``robot_joint`` rig (default: the packaged robot)."""
     kinds = ", ".join([*_FIELDS, "robot_joint"])
     if not isinstance(raw, dict) or "type" not in raw:
         raise SysIDError(f"{source}: 'rig' must be a mapping with a 'type' (one of {kinds})")
@@ -82,7 +96,7 @@ def parse_rig(raw: Any, source: str) -> Rig:
         if not isinstance(joint, str) or not joint:
             raise SysIDError(f"{source}: rig 'robot_joint' needs 'joint' (a motor joint name of the robot spec)")
         _no_extra(raw, {"type", "joint"}, source)
-        return RobotJointRig(joint=joint)
+        return RobotJointRig(joint=joint, description=description)
     if kind not in _FIELDS:
         raise SysIDError(f"{source}: unknown rig type {kind!r}; expected one of {kinds}")
     cls, required, optional = _FIELDS[kind]

@@ -3,8 +3,10 @@
 Pendulum and test-bed rigs are one-degree-of-freedom and integrated here in numpy, vectorised over
 (candidates x runs), with the same time step and the same passive terms as the MuJoCo model:
 
-* the motor torque comes from `toddlerbot.actuation.model.motor_torque` (Eq. 8-10), recomputed every step from
-  the goal position held since the last log sample (zero-order hold, as the firmware receives it);
+* the motor torque comes from `toddlerbot.actuation.model.motor_torque` (Eq. 8-10 and the optional extended
+  friction), recomputed every step from the goal position held since the last log sample (zero-order hold, as the
+  firmware receives it), at the logged supply voltage (`toddlerbot.actuation.model.at_voltage`); while the log
+  says torque was off the motor is passive (`passive_torque`: no PD torque, no kd_min);
 * the armature adds to the rig's load inertia;
 * damping is integrated implicitly, as MuJoCo's ``implicitfast`` integrator does;
 * friction loss (plus a test-bed brake torque) is exact time-stepped Coulomb friction: in each step it removes up
@@ -17,67 +19,21 @@ Single joints of the fixed-base robot are simulated with MuJoCo itself (`toddler
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from toddlerbot.actuation.model import ActuatorArrays, motor_torque
-from toddlerbot.sysid.logs import MotorLog
+from toddlerbot.actuation.model import (
+    ActuatorArrays,
+    at_voltage,
+    limit_torque,
+    motor_torque,
+    passive_torque,
+    pd_torque,
+)
+from toddlerbot.sysid.batch import DT, RunBatch
 from toddlerbot.sysid.rigs import Rig, RobotJointRig, SimpleRig
 from toddlerbot.sysid.robot_joint import simulate_robot_joint
 
-DT = 0.001
-"""Simulation step, s (the robot model's MuJoCo timestep)."""
-
-
-@dataclass(frozen=True)
-class RunBatch:
-    """Logs resampled onto a common simulation step grid (shorter runs padded with their last goal)."""
-
-    runs: tuple[MotorLog, ...]
-    dt: float
-    goal: np.ndarray
-    """(n_steps, R) goal position held at each step, rad."""
-    q0: np.ndarray
-    """(R,) logged initial position, rad."""
-    v0: np.ndarray
-    """(R,) logged initial velocity, rad/s (0 without a velocity column)."""
-    kp: np.ndarray
-    """(R,) firmware P gains."""
-    kd: np.ndarray
-    """(R,) firmware D gains."""
-    sample_step: np.ndarray
-    """(N,) simulation step of every log sample of every run, concatenated run after run."""
-    sample_run: np.ndarray
-    """(N,) run index of every sample."""
-    measured: np.ndarray
-    """(N,) measured positions, rad."""
-
-    @classmethod
-    def from_runs(cls, runs: tuple[MotorLog, ...] | list[MotorLog], dt: float = DT) -> RunBatch:
-        runs = tuple(runs)
-        n_steps = round(max(r.duration for r in runs) / dt) + 1
-        goal = np.empty((n_steps, len(runs)))
-        steps, run_ids = [], []
-        t = np.arange(n_steps) * dt
-        for i, run in enumerate(runs):
-            rel = run.time - run.time[0]
-            held = np.searchsorted(rel, t + 1e-9, side="right") - 1
-            goal[:, i] = run.goal_position[np.clip(held, 0, len(rel) - 1)]
-            steps.append(np.round(rel / dt).astype(int))
-            run_ids.append(np.full(len(rel), i))
-        return cls(
-            runs=runs, dt=dt, goal=goal,
-            q0=np.array([r.position[0] for r in runs]), v0=np.array([r.initial_velocity for r in runs]),
-            kp=np.array([r.kp for r in runs]), kd=np.array([r.kd for r in runs]),
-            sample_step=np.concatenate(steps), sample_run=np.concatenate(run_ids),
-            measured=np.concatenate([r.position for r in runs]),
-        )
-
-    def split(self, values: np.ndarray) -> list[np.ndarray]:
-        """(..., N) concatenated samples -> one (..., n_i) array per run."""
-        bounds = np.cumsum([len(r.time) for r in self.runs])[:-1]
-        return np.split(values, bounds, axis=-1)
+__all__ = ["DT", "RunBatch", "simulate", "simulate_simple_rig"]
 
 
 def simulate_simple_rig(batch: RunBatch, rig: SimpleRig, fields: dict[str, np.ndarray]) -> np.ndarray:
@@ -88,8 +44,15 @@ def simulate_simple_rig(batch: RunBatch, rig: SimpleRig, fields: dict[str, np.nd
     p = ActuatorArrays(
         kp=batch.kp[None, :] / col["kp_scale"], kd=batch.kd[None, :] / col["kp_scale"], kd_min=col["kd_min"],
         tau_max=col["tau_max"], q_dot_tau_max=col["q_dot_tau_max"], q_dot_max=col["q_dot_max"],
-        tau_q_dot_max=col["tau_q_dot_max"], tau_brake=col["tau_brake"],
+        tau_q_dot_max=col["tau_q_dot_max"], tau_brake=col["tau_brake"], stiction=col["stiction"],
+        stribeck_velocity=col["stribeck_velocity"], load_friction=col["load_friction"],
     )
+    # the logged voltage is held between samples: rescale the parameters only on the steps where it changes
+    voltage_changes = np.r_[False, np.any(np.diff(batch.voltage_ratio, axis=0) != 0, axis=1)]
+    p_now = at_voltage(p, batch.voltage_ratio[0])
+    always_on = bool(batch.torque_on.all())
+    # the appendix's model (no extended friction in any candidate): skip computing a friction term that is 0
+    appendix_model = not np.any(col["stiction"]) and not np.any(col["load_friction"])
     dt = batch.dt
     inertia = col["armature"] + rig.load_inertia
     implicit = inertia + dt * col["damping"]
@@ -100,7 +63,14 @@ def simulate_simple_rig(batch: RunBatch, rig: SimpleRig, fields: dict[str, np.nd
     record = np.empty((len(batch.goal), n_cand, n_runs))
     for k, goal in enumerate(batch.goal):
         record[k] = q
-        tau = motor_torque(goal, q, v, p)
+        if voltage_changes[k]:
+            p_now = at_voltage(p, batch.voltage_ratio[k])
+        if appendix_model:
+            tau = limit_torque(pd_torque(goal, q, v, p_now), v, p_now)
+        else:
+            tau = motor_torque(goal, q, v, p_now)
+        if not always_on and not batch.torque_on[k].all():
+            tau = np.where(batch.torque_on[k], tau, passive_torque(v, p_now))
         if gravity:
             tau = tau - gravity * np.sin(q)
         v_free = (inertia * v + dt * tau) / implicit

@@ -16,10 +16,10 @@ from typing import Any
 import torch
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write
 from toddlerbot.manipulation.dp.config import DPConfig
 from toddlerbot.manipulation.dp.ema import EMA
 from toddlerbot.manipulation.dp.policy import ACTION, STATE, DiffusionPolicy
-from toddlerbot.sysid.io import atomic_write
 
 FORMAT = "toddlerbot-dp/1"
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from toddlerbot.sysid.io import atomic_write
+from toddlerbot.files import save_figure
 
 
 def plot_loss_curve(history: list[dict[str, float]], path: str | Path, title: str = "diffusion policy") -> Path:
@@ -26,8 +26,4 @@ def plot_loss_curve(history: list[dict[str, float]], path: str | Path, title: st
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    try:
-        return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png"))
-    finally:
-        plt.close(fig)
+    return save_figure(fig, path)

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from toddlerbot.files import atomic_write_text
 from toddlerbot.manipulation.dp.checkpoint import (
     CheckpointError,
     TrainingState,
@@ -36,7 +37,6 @@ from toddlerbot.manipulation.dp.data import (
 from toddlerbot.manipulation.dp.ema import EMA
 from toddlerbot.manipulation.dp.imagenet import load_imagenet_weights
 from toddlerbot.manipulation.dp.plot import plot_loss_curve
-from toddlerbot.sysid.io import atomic_write_text
 
 CHECKPOINT = "checkpoint.pt"
 VAL_SEED = 12345
