@@ -206,7 +206,7 @@ class HilPlant:
         dt = m.opt.timestep
         self._wait_for_torque()
         t0 = time.perf_counter()
-        lost = 0.0  # wall-clock time the simulation gave up on (host too slow, or paused)
+        lost = 0.0  # wall-clock time the simulation gave up on (host too slow)
         unpowered_since = None  # sim time at which the last motor lost torque
         while not self._stop.is_set():
             self.wall_time = time.perf_counter() - t0
@@ -237,6 +237,6 @@ class HilPlant:
                 if self._at_rest() or self.sim_time - unpowered_since > SETTLE_S:
                     paused = time.perf_counter()
                     self._wait_for_torque()
-                    lost += time.perf_counter() - paused
+                    t0 += time.perf_counter() - paused  # paused time is neither simulated nor lost
                     unpowered_since = None
             time.sleep(0)  # let the serving thread answer between batches
