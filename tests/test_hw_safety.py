@@ -34,7 +34,8 @@ def _calibration(emu: EmulatedBus, path: Path) -> Path:
 
 def _hw_run(port: str, cal: Path, *args: str) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "toddlerbot.cli.main", "hw", "run", "--port", port, "--calibration", str(cal), *args],
+        [sys.executable, "-m", "toddlerbot.cli.main", "hw", "run", "--port", port, "--calibration", str(cal),
+         "--latency-ms", "50", *args],  # ~100 ms status timeouts: this machine is shared and loaded
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
     )
 

@@ -26,6 +26,8 @@ MotorParamsOption = Annotated[list[Path] | None, typer.Option(
     "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): fitted actuator parameters.")]
 PortOption = Annotated[str, typer.Option("--port", help="Serial device of the bus, e.g. /dev/ttyUSB0.")]
 BaudOption = Annotated[int, typer.Option("--baud", help="Bus baud rate.")]
+LatencyOption = Annotated[float, typer.Option("--latency-ms", help="USB-serial latency timer, ms: status packets "
+                                              "are awaited 2 x this + 2 ms (raise it on a loaded machine).")]
 
 
 def _description(spec_path: Path | None, variant: str | None, motor_params: list[Path] | None = None
@@ -182,6 +184,7 @@ def run(
     control_dt: Annotated[float, typer.Option("--dt", help="Control period, s.")] = 0.02,
     log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
     baud: BaudOption = 2_000_000,
+    latency_ms: LatencyOption = 16.0,
     spec_path: SpecOption = None,
     variant: VariantOption = None,
     motor_params: MotorParamsOption = None,
@@ -198,13 +201,14 @@ def run(
 
     _positive(seconds, "--seconds", "seconds")
     _positive(control_dt, "--dt", "seconds")
+    _positive(latency_ms, "--latency-ms", "milliseconds")
     if log is not None:
         _writable(log, "--log")
     description = _description(spec_path, variant, motor_params)
     cal = load_calibration(calibration, description)
     schedule = CommandSchedule.parse(command)
     robot = RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
-                      calibration_source=str(calibration))
+                      calibration_source=str(calibration), latency_ms=latency_ms)
     pol = make_policy(policy, robot, motion, weights)  # bad weights or motions fail before the bus opens
     try:
         with robot:

@@ -44,6 +44,8 @@ MAX_MISSED_CYCLES = 5
 """Consecutive control cycles a motor may stay silent (its last reading reused) before the run stops."""
 BUS_WATCHDOG_S = 0.5
 """Bus Watchdog period, s: a motor that hears nothing for this long stops (holds) by itself."""
+DEFAULT_LATENCY_MS = 16.0
+"""USB-serial latency timer assumed by the status timeouts, ms (the SDK's and FTDI's default)."""
 TORQUE_OFF_DEADLINE_S = 1.5
 """How long closing keeps retrying torque-off for motors that have not confirmed it, s."""
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
@@ -123,6 +125,18 @@ def motors_of(description: RobotDescription, ids: set[int] | None = None) -> lis
             if ids is None or m.id in ids]
 
 
+def _port_handler(port: str, latency_ms: float):
+    """The SDK's port handler with status timeouts computed for a USB-serial latency timer of `latency_ms`
+    (the SDK's module-wide default is 16 ms, FTDI's factory setting)."""
+
+    class Port(sdk.PortHandler):
+        def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 - the SDK's name
+            self.packet_start_time = self.getCurrentTime()
+            self.packet_timeout = self.tx_time_per_byte * packet_length + 2.0 * latency_ms + 2.0
+
+    return Port(port)
+
+
 class DynamixelBus:
     """One TTL bus of Dynamixel X-series motors speaking Protocol 2.0."""
 
@@ -136,9 +150,11 @@ class DynamixelBus:
         max_missed_cycles: int = MAX_MISSED_CYCLES,
         watchdog_s: float = BUS_WATCHDOG_S,
         torque_off_deadline: float = TORQUE_OFF_DEADLINE_S,
+        latency_ms: float = DEFAULT_LATENCY_MS,
     ) -> None:
         """`watchdog_s`: Bus Watchdog period (0 leaves it off), rounded up to 20 ms, at most 2.54 s;
-        `torque_off_deadline`: s of torque-off retries when closing."""
+        `torque_off_deadline`: s of torque-off retries when closing; `latency_ms`: the USB-serial adapter's
+        latency timer, which sets how long a status packet is waited for (2 x latency + 2 ms)."""
         if sdk is None:
             raise HardwareError("the Dynamixel driver needs the [hw] extra: pip install 'toddlerbot[hw]'")
         if retries < 1 or max_missed_cycles < 1:
@@ -160,7 +176,9 @@ class DynamixelBus:
         """Consecutive cycles each motor's state answer has been missing."""
         self._last_state: MotorState | None = None
         self._last_contact = time.perf_counter()
-        self.port = sdk.PortHandler(port)
+        if not (math.isfinite(latency_ms) and 0 < latency_ms <= 1000):
+            raise ValueError(f"latency_ms must lie in (0, 1000] ms, got {latency_ms}")
+        self.port = _port_handler(port, latency_ms)
         self.ph = sdk.PacketHandler(2.0)
         self.fast_sync_read = True
         self.torque_enabled = False

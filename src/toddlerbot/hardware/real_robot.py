@@ -20,6 +20,7 @@ from toddlerbot.hardware.calibration import Calibration
 from toddlerbot.hardware.control_table import PULSES_PER_REV, pulses_to_rad, rad_to_pulses
 from toddlerbot.hardware.driver import (
     DEFAULT_BAUDRATE,
+    DEFAULT_LATENCY_MS,
     DEFAULT_RETRIES,
     DynamixelBus,
     HardwareError,
@@ -54,12 +55,14 @@ class RealRobot(Robot):
         calibration_source: str = "calibration",
         retries: int = DEFAULT_RETRIES,
         startup_margin: float = STARTUP_MARGIN,
+        latency_ms: float = DEFAULT_LATENCY_MS,
     ) -> None:
         # slew limit: no target moves faster than the motor's no-load speed
         super().__init__(description, control_dt, max_step=description.max_motor_speed * control_dt)
         self.offsets = calibration.offsets_for(description, calibration_source)
         self.calibration_source = calibration_source
-        self.bus = DynamixelBus(port, motors_of(description), baudrate=baudrate, retries=retries)
+        self.bus = DynamixelBus(port, motors_of(description), baudrate=baudrate, retries=retries,
+                                latency_ms=latency_ms)
         self.startup_margin = startup_margin
         self.imu = imu or StaticImu()
         self.reset_duration = reset_duration
