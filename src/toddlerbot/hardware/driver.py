@@ -130,7 +130,7 @@ def _port_handler(port: str, latency_ms: float):
     (the SDK's module-wide default is 16 ms, FTDI's factory setting)."""
 
     class Port(sdk.PortHandler):
-        def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 - the SDK's name
+        def setPacketTimeout(self, packet_length: int) -> None:  # the SDK names it
             self.packet_start_time = self.getCurrentTime()
             self.packet_timeout = self.tx_time_per_byte * packet_length + 2.0 * latency_ms + 2.0
 
