@@ -175,7 +175,7 @@ def test_hostile_calibration_files_get_one_line_errors(tmp_path, text, expected)
 def test_oversized_calibration_file_is_refused_before_parsing(tmp_path):
     path = tmp_path / "huge.yaml"
     path.write_bytes(b"#" * 2_000_001)
-    with pytest.raises(CalibrationError, match=r"2000001 bytes; a calibration file has at most 1000000"):
+    with pytest.raises(CalibrationError, match=r"2000001 bytes is too large for a calibration file \(at most 1000000"):
         load_calibration(path)
 
 

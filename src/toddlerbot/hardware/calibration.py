@@ -31,6 +31,7 @@ from toddlerbot.hardware.control_table import PULSES_PER_REV, RAD_PER_PULSE
 from toddlerbot.hardware.driver import DynamixelBus
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import MotorSpec
+from toddlerbot.yaml_input import read_yaml
 
 GROUPS = ("arm", "neck", "hip", "ankle")
 SAMPLES = 5
@@ -111,17 +112,7 @@ def load_calibration(
     Every offset must be an integer number of pulses in 0..4095 (one turn, as `measure_offsets` writes them):
     anything else (a float, ``true``, a number of radians, a value past one turn) is refused naming the motor."""
     path = Path(path)
-    try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise CalibrationError(f"{path}: {path.stat().st_size} bytes; a calibration file has at most "
-                                   f"{MAX_FILE_BYTES} bytes")
-        raw = yaml.safe_load(path.read_bytes().decode("utf-8"))
-    except OSError as exc:
-        raise CalibrationError(f"{path}: cannot read calibration file ({exc.strerror})") from None
-    except UnicodeDecodeError as exc:
-        raise CalibrationError(f"{path}: not UTF-8 text (byte {exc.start})") from None
-    except yaml.YAMLError as exc:
-        raise CalibrationError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
+    raw = read_yaml(path, "calibration file", CalibrationError, MAX_FILE_BYTES)
     if not isinstance(raw, dict) or not isinstance(raw.get("robot"), str) or not isinstance(raw.get("spec"), str):
         raise CalibrationError(f"{path}: expected a mapping with 'robot', 'spec' and 'offsets'")
     offsets = raw.get("offsets") or {}

@@ -111,9 +111,10 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
             raise ToddlerbotError(f"{path}: empty file, not an exported RL policy")
         if size > MAX_POLICY_BYTES:
             raise ToddlerbotError(f"{path}: {size} bytes; an exported policy has at most {MAX_POLICY_BYTES} bytes")
-        with np.load(path, allow_pickle=False) as data:
-            if not isinstance(data, np.lib.npyio.NpzFile):
-                raise ToddlerbotError(f"{path}: a single .npy array, not an exported RL policy (.npz)")
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            raise ToddlerbotError(f"{path}: a single .npy array, not an exported RL policy (.npz)")
+        with loaded as data:
             return {key: data[key] for key in data.files}
     except ToddlerbotError:
         raise
