@@ -447,13 +447,17 @@ class DynamixelBus:
     def read_state(self) -> MotorState:
         """Present current/velocity/position of every motor in one transaction.
 
-        A failed group read is retried once; motors whose answers are still missing keep their last reading
+        A failed group read is retried once (`retries` times for the very first read) for the motors whose answers
+        are missing; motors still missing keep their last reading
         (``fresh`` False) for up to `max_missed_cycles` consecutive cycles, after which `BusError` names them.
         Without an earlier reading, every motor must answer."""
         self._check_watchdog_gap()
         answers, problem = self._group_read(self.ids)
-        missing = [i for i in self.ids if i not in answers]
-        if missing:
+        # a control cycle retries once (time matters); the first read, which has no earlier reading, `retries` times
+        for _ in range(1 if self._last_state is not None else self.retries):
+            missing = [i for i in self.ids if i not in answers]
+            if not missing:
+                break
             retried, problem = self._group_read(missing, fast=False)
             answers |= retried
         fresh = np.array([i in answers for i in self.ids])
