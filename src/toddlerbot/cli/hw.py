@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
-import os
 import signal
 import sys
 from pathlib import Path
@@ -14,8 +12,8 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from toddlerbot.cli.options import positive, writable
 from toddlerbot.cli.output import console
-from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
@@ -33,24 +31,6 @@ LatencyOption = Annotated[float, typer.Option("--latency-ms", help="USB-serial l
 def _description(spec_path: Path | None, variant: str | None, motor_params: list[Path] | None = None
                  ) -> RobotDescription:
     return RobotDescription.load(spec_path, variant, motor_params or [])
-
-
-def _positive(value: float, option: str, unit: str) -> float:
-    """`value` if it is a finite number > 0, else a one-line error naming the option."""
-    if not (math.isfinite(value) and value > 0):
-        raise ToddlerbotError(f"{option} {value}: expected a finite number of {unit} > 0")
-    return value
-
-
-def _writable(path: Path, option: str) -> None:
-    """Fail before the run, not after it, if `path` cannot be written."""
-    parent = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise ToddlerbotError(f"{option} {path}: is a directory")
-    existing = next((p for p in (parent, *parent.parents) if p.exists()), Path("."))
-    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK) or (
-            path.exists() and not os.access(path, os.W_OK)):
-        raise ToddlerbotError(f"{option} {path}: cannot write there (permission denied or not a directory)")
 
 
 def _raise_interrupt(signum: int, frame: object) -> None:
@@ -156,7 +136,7 @@ def calibrate(
 
     description = _description(spec_path, variant)
     existing = load_calibration(output) if output.exists() else None
-    _writable(output, "--output")
+    writable(output, "--output")
     cal = existing
     for g in group or list(GROUPS):
         ids = {m.id for m in group_motors(description, g)}
@@ -199,11 +179,11 @@ def run(
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
 
-    _positive(seconds, "--seconds", "seconds")
-    _positive(control_dt, "--dt", "seconds")
-    _positive(latency_ms, "--latency-ms", "milliseconds")
+    positive(seconds, "--seconds", "seconds")
+    positive(control_dt, "--dt", "seconds")
+    positive(latency_ms, "--latency-ms", "milliseconds")
     if log is not None:
-        _writable(log, "--log")
+        writable(log, "--log")
     description = _description(spec_path, variant, motor_params)
     cal = load_calibration(calibration, description)
     schedule = CommandSchedule.parse(command)
