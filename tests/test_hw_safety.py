@@ -201,6 +201,8 @@ def test_host_that_goes_silent_is_stopped_by_the_bus_watchdog(tmp_path):
     with emulated(DESC) as (emu, port):
         proc = _hw_run(port, _calibration(emu, tmp_path / "cal.yaml"), "--policy", "stand", "--seconds", "30")
         _wait_for_torque(emu, proc)
+        while not all(m.torque_on for m in emu.motors):  # torque comes on motor by motor
+            time.sleep(0.01)
         time.sleep(0.3)
         proc.kill()
         proc.communicate(timeout=30)
