@@ -76,6 +76,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     rng = random.Random(args.seed)
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # a background shell job starts with SIGINT ignored
     description = RobotDescription.load()
     low, high = description.motor_range.T
     mid = np.where(np.isfinite(low + high), (low + high) / 2, 0.0)

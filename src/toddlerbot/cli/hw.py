@@ -173,32 +173,33 @@ def run(
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
     with 128 + its number."""
     from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.driver import BusInterrupt
+    from toddlerbot.hardware.driver import BusInterrupt, raise_on_stop_signals
     from toddlerbot.hardware.real_robot import RealRobot
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
 
-    positive(seconds, "--seconds", "seconds")
-    positive(control_dt, "--dt", "seconds")
-    positive(latency_ms, "--latency-ms", "milliseconds")
-    if log is not None:
-        writable(log, "--log")
-    description = _description(spec_path, variant, motor_params)
-    cal = load_calibration(calibration, description)
-    schedule = CommandSchedule.parse(command)
-    robot = RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
-                      calibration_source=str(calibration), latency_ms=latency_ms)
-    pol = make_policy(policy, robot, motion, weights)  # bad weights or motions fail before the bus opens
+    previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     try:
+        positive(seconds, "--seconds", "seconds")
+        positive(control_dt, "--dt", "seconds")
+        positive(latency_ms, "--latency-ms", "milliseconds")
+        if log is not None:
+            writable(log, "--log")
+        description = _description(spec_path, variant, motor_params)
+        cal = load_calibration(calibration, description)
+        schedule = CommandSchedule.parse(command)
+        robot = RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
+                          calibration_source=str(calibration), latency_ms=latency_ms)
+        pol = make_policy(policy, robot, motion, weights)  # bad weights or motions fail before the bus opens
         with robot:
             result = run_policy(robot, pol, schedule, seconds)
     except BusInterrupt as exc:
         console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
         raise typer.Exit(128 + exc.signum) from None
-    except KeyboardInterrupt:
-        console.print(f"{policy}: interrupted; torque is off", highlight=False)
-        raise typer.Exit(128 + signal.SIGINT) from None
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     steps = result.log.time.size
     error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)
     console.print(f"{policy}: {steps} steps at {steps / max(result.log.step_period.sum(), 1e-9):.0f} Hz; "

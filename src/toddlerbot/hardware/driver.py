@@ -125,6 +125,16 @@ def motors_of(description: RobotDescription, ids: set[int] | None = None) -> lis
             if ids is None or m.id in ids]
 
 
+def _raise_bus_interrupt(signum: int, frame: object) -> None:
+    raise BusInterrupt(signum)
+
+
+def raise_on_stop_signals() -> dict[int, object]:
+    """Make every stop signal raise `BusInterrupt` in the main thread (even one the parent process ignored, as a
+    shell does for background jobs); returns the previous handlers."""
+    return {signum: signal.signal(signum, _raise_bus_interrupt) for signum in STOP_SIGNALS}
+
+
 def _port_handler(port: str, latency_ms: float):
     """The SDK's port handler with status timeouts computed for a USB-serial latency timer of `latency_ms`
     (the SDK's module-wide default is 16 ms, FTDI's factory setting)."""
@@ -236,14 +246,8 @@ class DynamixelBus:
 
     def _install_signals(self) -> None:
         """SIGINT/SIGTERM/SIGHUP/SIGQUIT raise `BusInterrupt`, so `with` blocks and `close()` disable torque."""
-        if threading.current_thread() is not threading.main_thread() or self._old_handlers:
-            return
-
-        def _interrupt(signum: int, frame: object) -> None:
-            raise BusInterrupt(signum)
-
-        for signum in STOP_SIGNALS:
-            self._old_handlers[signum] = signal.signal(signum, _interrupt)
+        if threading.current_thread() is threading.main_thread() and not self._old_handlers:
+            self._old_handlers = raise_on_stop_signals()
 
     def _restore_signals(self) -> None:
         if self._old_handlers and threading.current_thread() is threading.main_thread():
