@@ -35,7 +35,7 @@ MAX_LAG = 0.05
 (reported by `HilPlant.realtime_factor`)."""
 REST_SPEED = 1e-3
 """Largest joint or base speed (rad/s, m/s) at which an unpowered robot counts as at rest."""
-SETTLE_S = 3.0
+SETTLE_S = 2.0
 """Simulated seconds after which an unpowered robot counts as settled even if contacts still jitter."""
 IDLE_POLL_S = 0.02
 """How often a paused simulation (robot unpowered and at rest) checks whether torque came on, s."""
