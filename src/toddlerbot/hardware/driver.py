@@ -290,9 +290,9 @@ class DynamixelBus:
                 self._release_port()
                 problem = f"serial port error ({exc})"
                 continue
-            self._last_contact = time.perf_counter()
             problem = self._result(comm, error)
             if problem is None:
+                self._last_contact = time.perf_counter()
                 if error & 0x80 and not allow_alert:
                     raise BusError(f"{motor.label}: {what}: {self._hardware_error(motor)}")
                 return tuple(values)
