@@ -44,8 +44,6 @@ MAX_MISSED_CYCLES = 5
 """Consecutive control cycles a motor may stay silent (its last reading reused) before the run stops."""
 BUS_WATCHDOG_S = 0.5
 """Bus Watchdog period, s: a motor that hears nothing for this long stops (holds) by itself."""
-DEFAULT_LATENCY_MS = 16.0
-"""USB-serial latency timer assumed by the status timeouts, ms (the SDK's and FTDI's default)."""
 TORQUE_OFF_DEADLINE_S = 1.5
 """How long closing keeps retrying torque-off for motors that have not confirmed it, s."""
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
@@ -135,9 +133,11 @@ def raise_on_stop_signals() -> dict[int, object]:
     return {signum: signal.signal(signum, _raise_bus_interrupt) for signum in STOP_SIGNALS}
 
 
-def _port_handler(port: str, latency_ms: float):
-    """The SDK's port handler with status timeouts computed for a USB-serial latency timer of `latency_ms`
-    (the SDK's module-wide default is 16 ms, FTDI's factory setting)."""
+def _port_handler(port: str, latency_ms: float | None):
+    """The SDK's port handler, with status timeouts computed for a USB-serial latency timer of `latency_ms`
+    (None: the SDK's module-wide ``LATENCY_TIMER``, 16 ms, FTDI's factory setting)."""
+    if latency_ms is None:
+        return sdk.PortHandler(port)
 
     class Port(sdk.PortHandler):
         def setPacketTimeout(self, packet_length: int) -> None:  # the SDK names it
@@ -160,7 +160,7 @@ class DynamixelBus:
         max_missed_cycles: int = MAX_MISSED_CYCLES,
         watchdog_s: float = BUS_WATCHDOG_S,
         torque_off_deadline: float = TORQUE_OFF_DEADLINE_S,
-        latency_ms: float = DEFAULT_LATENCY_MS,
+        latency_ms: float | None = None,
     ) -> None:
         """`watchdog_s`: Bus Watchdog period (0 leaves it off), rounded up to 20 ms, at most 2.54 s;
         `torque_off_deadline`: s of torque-off retries when closing; `latency_ms`: the USB-serial adapter's
@@ -186,7 +186,7 @@ class DynamixelBus:
         """Consecutive cycles each motor's state answer has been missing."""
         self._last_state: MotorState | None = None
         self._last_contact = time.perf_counter()
-        if not (math.isfinite(latency_ms) and 0 < latency_ms <= 1000):
+        if latency_ms is not None and not (math.isfinite(latency_ms) and 0 < latency_ms <= 1000):
             raise ValueError(f"latency_ms must lie in (0, 1000] ms, got {latency_ms}")
         self.port = _port_handler(port, latency_ms)
         self.ph = sdk.PacketHandler(2.0)

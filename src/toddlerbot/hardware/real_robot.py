@@ -20,7 +20,6 @@ from toddlerbot.hardware.calibration import Calibration
 from toddlerbot.hardware.control_table import PULSES_PER_REV, pulses_to_rad, rad_to_pulses
 from toddlerbot.hardware.driver import (
     DEFAULT_BAUDRATE,
-    DEFAULT_LATENCY_MS,
     DEFAULT_RETRIES,
     DynamixelBus,
     HardwareError,
@@ -55,7 +54,7 @@ class RealRobot(Robot):
         calibration_source: str = "calibration",
         retries: int = DEFAULT_RETRIES,
         startup_margin: float = STARTUP_MARGIN,
-        latency_ms: float = DEFAULT_LATENCY_MS,
+        latency_ms: float | None = None,
     ) -> None:
         # slew limit: no target moves faster than the motor's no-load speed
         super().__init__(description, control_dt, max_step=description.max_motor_speed * control_dt)
