@@ -160,3 +160,48 @@ def test_empty_truncated_pickled_and_foreign_weight_files(tmp_path):
         with pytest.raises(ToddlerbotError) as info:
             RLPolicyFile(tmp_path / name)
         assert message in _one_line_error(info.value, tmp_path / name)
+
+
+def _run_log(n: int = 5):
+    from toddlerbot.runtime.log import LogRecorder
+
+    recorder = LogRecorder()
+    names = ("a", "b")
+    for k in range(n):
+        recorder.append(time=0.02 * k, command=np.zeros(3), motor_pos=np.zeros(2), motor_vel=np.zeros(2),
+                        motor_torque=np.zeros(2), joint_pos=np.zeros(2), joint_vel=np.zeros(2),
+                        motor_target=np.zeros(2), joint_target=np.zeros(2), imu_quat=np.array([1.0, 0, 0, 0]),
+                        imu_ang_vel=np.zeros(3), imu_lin_acc=np.zeros(3), foot_contact=np.zeros(2, bool),
+                        base_pos=np.full(3, np.nan), base_quat=np.full(4, np.nan), compute_time=0.001,
+                        step_period=0.02)
+    return recorder.finish(names, names, 0.02, "stand")
+
+
+def test_hostile_run_logs_get_one_line_errors(tmp_path):
+    from toddlerbot.runtime.log import RunLog
+
+    good = _run_log().save(tmp_path / "good.npz")
+    assert RunLog.load(good).time.size == 5  # NaN ground truth (hardware) is allowed
+    arrays = dict(np.load(good, allow_pickle=False))
+    cases = {
+        "empty.npz": b"", "truncated.npz": good.read_bytes()[:200],
+        "nan_time.npz": arrays | {"time": np.array([0.0, np.nan, 0.04, 0.06, 0.08])},
+        "backwards.npz": arrays | {"time": arrays["time"][::-1]},
+        "short_rows.npz": arrays | {"motor_pos": arrays["motor_pos"][:3]},
+        "wide.npz": arrays | {"joint_pos": np.zeros((5, 7))},
+        "bad_dt.npz": arrays | {"control_dt": np.array(np.inf)},
+        "pickled.npz": arrays | {"policy": np.array([{"x": 1}], dtype=object)},
+    }
+    expected = {"empty.npz": "is not a run log", "truncated.npz": "is not a run log",
+                "nan_time.npz": "'time' must be finite and increasing", "backwards.npz": "'time' must be finite",
+                "short_rows.npz": "'motor_pos' has shape (3, 2)", "wide.npz": "'joint_pos' has shape (5, 7)",
+                "bad_dt.npz": "control_dt must be a finite period", "pickled.npz": "is not a run log"}
+    for name, content in cases.items():
+        path = tmp_path / name
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            np.savez(path, **content)
+        with pytest.raises(ToddlerbotError) as info:
+            RunLog.load(path)
+        assert expected[name] in _one_line_error(info.value, path)
