@@ -33,27 +33,42 @@ import numpy as np
 import toddlerbot.cli.main as cli_main
 from toddlerbot.hardware import control_table as ct
 from toddlerbot.hardware.calibration import load_calibration
-from toddlerbot.hardware.driver import DynamixelBus, motors_of
+from toddlerbot.hardware.driver import BusError, DynamixelBus, motors_of
 from toddlerbot.robot.description import RobotDescription
 
 
-def _hw_run(argv: list[str]) -> int:
-    """Fork a child that runs `toddlerbot <argv>` and return its pid."""
+def _hw_run(argv: list[str], output: Path) -> int:
+    """Fork a child that runs `toddlerbot <argv>` (stdout and stderr to `output`) and return its pid."""
     pid = os.fork()
     if pid == 0:  # child: the real CLI, then exit without running the parent's cleanup
         code = 1
         try:
             sys.argv = ["toddlerbot", *argv]
-            sys.stdout = sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - lives until _exit
+            sys.stdout = sys.stderr = output.open("w")
             cli_main.main()
             code = 0
         except SystemExit as exc:
             code = exc.code if isinstance(exc.code, int) else 1
-        except BaseException:
+        except BaseException as exc:  # escaped the CLI: record it
+            print(f"escaped: {type(exc).__name__}: {exc}", file=sys.stderr)
             code = 99
         finally:
+            sys.stderr.flush()
             os._exit(code)
     return pid
+
+
+def _read_back_retrying(bus: DynamixelBus, offsets: np.ndarray, mid: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """`_read_back`, tolerating an emulator that a loaded machine starves for a while."""
+    for attempt in range(5):
+        try:
+            with bus:  # closing it afterwards sends torque-off again, after the read-back
+                return _read_back(bus, offsets, mid)
+        except BusError:
+            if attempt == 4:
+                raise
+            time.sleep(1.0)
+    raise AssertionError("unreachable")
 
 
 def _read_back(bus: DynamixelBus, offsets: np.ndarray, mid: np.ndarray) -> tuple[list[int], np.ndarray]:
@@ -88,7 +103,7 @@ def main() -> None:
     offsets = load_calibration(cal_file, description).offsets_for(description)
     checker = DynamixelBus(port, motors_of(description), latency_ms=50, watchdog_s=0)
     exit_codes: collections.Counter[int] = collections.Counter()
-    powered_trials, out_of_range_trials = [], []
+    powered_trials, out_of_range_trials, unusual = [], [], []
     start = time.perf_counter()
     try:
         with checker:  # goals where the motors are, so that every register starts inside its range
@@ -96,14 +111,16 @@ def main() -> None:
         for trial in range(args.trials):
             argv = ["hw", "run", "--port", port, "--calibration", str(cal_file), "--policy", "stand", "--seconds",
                     "2", "--latency-ms", "50"] + (["--dt", "1e-9"] if trial % 2 else [])
-            pid = _hw_run(argv)
+            pid = _hw_run(argv, work / "trial.log")
             time.sleep(rng.uniform(0.0, args.max_delay))
             with contextlib.suppress(ProcessLookupError):  # the run may have finished already
                 os.kill(pid, signal.SIGINT)
             _, status = os.waitpid(pid, 0)
-            exit_codes[os.waitstatus_to_exitcode(status)] += 1
-            with checker:  # closing it afterwards sends torque-off again, after the read-back
-                powered, goals = _read_back(checker, offsets, mid)
+            code = os.waitstatus_to_exitcode(status)
+            exit_codes[code] += 1
+            if code not in (0, 130):
+                unusual.append((trial, code, (work / "trial.log").read_text().strip().splitlines()[-1:]))
+            powered, goals = _read_back_retrying(checker, offsets, mid)
             if powered:
                 powered_trials.append((trial, powered))
             if np.any(goals < low - ct.RAD_PER_PULSE) or np.any(goals > high + ct.RAD_PER_PULSE):
@@ -117,6 +134,8 @@ def main() -> None:
     print(f"\nmachine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}")
     print(f"{args.trials} SIGINTs at random moments (0..{args.max_delay:g} s after start) in {elapsed:.0f} s")
     print(f"exit codes: {dict(sorted(exit_codes.items()))}")
+    for trial, code, last_line in unusual:
+        print(f"  trial {trial}: exit {code}: {last_line}")
     print(f"trials ending with any motor powered: {len(powered_trials)} {powered_trials or ''}")
     print(f"trials with a goal register outside its joint range: {len(out_of_range_trials)} "
           f"{out_of_range_trials or ''}")
