@@ -34,6 +34,8 @@ def main() -> None:
     except ToddlerbotError as exc:
         Console(stderr=True, soft_wrap=True).print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
         sys.exit(2)
+    except KeyboardInterrupt:  # Ctrl-C outside a command's own handling (e.g. while it prints its result)
+        sys.exit(130)
 
 
 if __name__ == "__main__":
