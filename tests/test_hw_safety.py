@@ -37,6 +37,8 @@ def _hw_run(port: str, cal: Path, *args: str) -> subprocess.Popen:
         [sys.executable, "-m", "toddlerbot.cli.main", "hw", "run", "--port", port, "--calibration", str(cal),
          "--latency-ms", "50", *args],  # ~100 ms status timeouts: this machine is shared and loaded
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+        # as from an interactive shell, even when pytest itself runs as a background job (SIGINT ignored)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 
