@@ -368,12 +368,11 @@ class DynamixelBus:
         return readings[low_id]
 
     def configure(self) -> None:
-        """Torque off, then write return delay, operating mode, gains, (grippers) goal current and the Bus
-        Watchdog (cleared first: an expired watchdog makes the goal registers read-only)."""
+        """Torque off, then clear the Bus Watchdog (an expired one makes the goal registers read-only) and write
+        return delay, operating mode, gains and (grippers) goal current."""
         self.disable_torque()
         for m in self.motors:
             self.write(m, "bus_watchdog", 0)
-            self.write(m, "bus_watchdog", self.watchdog_units)
             self.write(m, "return_delay_time", 0)
             self.write(m, "operating_mode", m.mode)
             self.write(m, "position_p_gain", m.kp)
@@ -401,9 +400,33 @@ class DynamixelBus:
             for m in self.motors:
                 self._powered.add(m.id)
                 self.write(m, "torque_enable", 1)
+            self._arm_watchdog()
         except BaseException:
             self.disable_torque()
             raise
+
+    def _arm_watchdog(self) -> None:
+        """Set every motor's Bus Watchdog with one broadcast Sync Write (armed one by one, the first motor could
+        expire while the others are written), then confirm it by a Sync Read; retried for missing answers."""
+        if not self.watchdog_units:
+            return
+        address = ct.ENTRIES["bus_watchdog"].address
+        pending = list(self.ids)
+        for _ in range(self.retries):
+            writer = sdk.GroupSyncWrite(self.port, self.ph, address, 1)
+            for i in pending:
+                writer.addParam(i, [self.watchdog_units])
+            self._send(writer, "bus watchdog")
+            try:
+                answers, _ = self._sync_read(pending, address, 1)
+            except (IndexError, OSError):
+                self._release_port()
+                continue
+            pending = [i for i in pending if answers.get(i) != bytes([self.watchdog_units])]
+            if not pending:
+                return
+        labels = ", ".join(m.label for m in self.motors if m.id in pending)
+        raise BusError(f"bus {self.port_name}: could not arm the Bus Watchdog of {labels}")
 
     def disable_torque(self) -> None:
         """Torque off for every motor, confirmed motor by motor; raises `TorqueOffError` naming the motors that
@@ -497,16 +520,16 @@ class DynamixelBus:
                 if ok:
                     return {i: bytes(self._state_reader.data_dict[i]) for i in self.ids}, ""
                 return {}, problem
-            return self._sync_read(ids)
+            return self._sync_read(ids, *ct.STATE_BLOCK)
         except IndexError:
             return {}, "malformed status packet"
         except OSError as exc:
             self._release_port()
             return {}, f"serial port error ({exc})"
 
-    def _sync_read(self, ids: list[int]) -> tuple[dict[int, bytes], str]:
-        """Sync Read: every status packet that arrives before the timeout counts, whatever its position."""
-        address, length = ct.STATE_BLOCK
+    def _sync_read(self, ids: list[int], address: int, length: int) -> tuple[dict[int, bytes], str]:
+        """Sync Read of `length` bytes at `address`: every status packet that arrives before the timeout counts,
+        whatever its position (a missing motor does not hide the ones after it)."""
         reader = sdk.GroupSyncRead(self.port, self.ph, address, length)
         for i in ids:
             reader.addParam(i)
