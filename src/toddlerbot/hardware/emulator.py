@@ -197,6 +197,12 @@ class EmulatedBus:
         with self.lock:
             self.plant.update()
             now = time.perf_counter()
+            if isinstance(packet, p.Packet):
+                # heard first, then expire: a packet that waited in the pty while this thread was descheduled
+                # proves the host was alive
+                for m in self.motors:
+                    if packet.id in (m.id, p.BROADCAST_ID):
+                        m.last_heard = now
             self._expire_watchdogs(now)
             for m in self.motors:
                 m.set("present_input_voltage", round(self.faults.voltage * 10))
@@ -205,9 +211,6 @@ class EmulatedBus:
                 self.stats.crc_errors += 1
                 m = self._answering(packet.id) if packet.id != p.BROADCAST_ID else None
                 return self._status(m, p.ERR_CRC) if m else b""
-            for m in self.motors:
-                if packet.id in (m.id, p.BROADCAST_ID):
-                    m.last_heard = now
             self.stats.by_instruction[packet.instruction] = self.stats.by_instruction.get(packet.instruction, 0) + 1
             out = self._dispatch(packet)
             self.stats.bytes_out += len(out)
