@@ -217,3 +217,25 @@ def test_cli_reports_a_missing_port_in_one_line():
     assert result.returncode == 2
     assert "cannot open serial port /dev/ttyNOPE" in " ".join(result.stderr.split())
     assert "Traceback" not in result.stderr
+
+
+def test_a_signal_during_close_is_raised_only_after_torque_is_off():
+    """A second Ctrl-C (here SIGTERM) while closing must not cut the torque-off short."""
+    from toddlerbot.hardware.driver import BusInterrupt
+
+    with emulated(SPEC) as (emu, path):
+        bus = DynamixelBus(path, motors_of(DESC)).open()
+        bus.scan()
+        bus.enable_torque()
+        original = bus._torque_off_until
+
+        def interrupted(*args):
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.2)  # the handler runs here: it must only record the signal
+            return original(*args)
+
+        bus._torque_off_until = interrupted
+        with pytest.raises(BusInterrupt, match="SIGTERM"):
+            bus.close()
+        assert not any(m.torque_on for m in emu.motors) and not bus.is_open
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL

@@ -123,7 +123,15 @@ def motors_of(description: RobotDescription, ids: set[int] | None = None) -> lis
             if ids is None or m.id in ids]
 
 
+_deferring = 0
+"""How many torque-off sequences are running; while > 0 a stop signal is recorded instead of raised."""
+_deferred: list[int] = []
+
+
 def _raise_bus_interrupt(signum: int, frame: object) -> None:
+    if _deferring:
+        _deferred.append(signum)  # raised once the torque-off is done (see `DynamixelBus.close`)
+        return
     raise BusInterrupt(signum)
 
 
@@ -218,25 +226,30 @@ class DynamixelBus:
     def close(self) -> None:
         """Disable torque on every motor (retried until confirmed or the deadline), close the port.
 
-        Stop signals are held back meanwhile, so a second Ctrl-C cannot cut the torque-off short. Raises
+        A stop signal arriving meanwhile is held back and raised afterwards, so a second Ctrl-C cannot cut the
+        torque-off short (blocking the signal would not do: numpy's BLAS threads would still receive it). Raises
         `TorqueOffError` naming the motors that never confirmed torque off."""
+        global _deferring
         if not self.is_open:
             return
-        masked = self._block_signals()
+        _deferring += 1
         try:
             self._release_port()
             unconfirmed = self._torque_off_until(time.perf_counter() + self.torque_off_deadline, self._powered)
             self.port.closePort()
             self.is_open = False
         finally:
+            _deferring -= 1
             self._restore_signals()
-            if masked:
-                signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
         if unconfirmed:
             raise TorqueOffError(
                 f"bus {self.port_name}: TORQUE MAY STILL BE ON: no torque-off confirmation within "
                 f"{self.torque_off_deadline:g} s from {'; '.join(unconfirmed)}; cut the motor power"
             )
+        if _deferred and not _deferring:
+            signum = _deferred[0]
+            _deferred.clear()
+            raise BusInterrupt(signum)
 
     def __enter__(self) -> DynamixelBus:
         return self.open()
@@ -254,13 +267,6 @@ class DynamixelBus:
             for signum, handler in self._old_handlers.items():
                 signal.signal(signum, handler)
             self._old_handlers = {}
-
-    @staticmethod
-    def _block_signals() -> bool:
-        if threading.current_thread() is not threading.main_thread():
-            return False
-        signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
-        return True
 
     def _release_port(self) -> None:
         """Undo what an interrupted SDK transaction leaves behind: the in-use flag and half-read answers."""
