@@ -241,15 +241,17 @@ class DynamixelBus:
         finally:
             _deferring -= 1
             self._restore_signals()
-        if unconfirmed:
+        signals: list[int] = []
+        if not _deferring:  # the outermost close raises what arrived meanwhile
+            signals = list(_deferred)
+            _deferred.clear()
+        if unconfirmed:  # louder than the signal that may have arrived meanwhile
             raise TorqueOffError(
                 f"bus {self.port_name}: TORQUE MAY STILL BE ON: no torque-off confirmation within "
                 f"{self.torque_off_deadline:g} s from {'; '.join(unconfirmed)}; cut the motor power"
             )
-        if _deferred and not _deferring:
-            signum = _deferred[0]
-            _deferred.clear()
-            raise BusInterrupt(signum)
+        if signals:
+            raise BusInterrupt(signals[0])
 
     def __enter__(self) -> DynamixelBus:
         return self.open()
