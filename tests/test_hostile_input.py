@@ -193,7 +193,7 @@ def test_hostile_run_logs_get_one_line_errors(tmp_path):
         "pickled.npz": arrays | {"policy": np.array([{"x": 1}], dtype=object)},
     }
     expected = {"empty.npz": "is not a run log", "truncated.npz": "is not a run log",
-                "nan_time.npz": "'time' must be finite and increasing", "backwards.npz": "'time' must be finite",
+                "nan_time.npz": "'time' must be finite and non-decreasing", "backwards.npz": "'time' must be finite",
                 "short_rows.npz": "'motor_pos' has shape (3, 2)", "wide.npz": "'joint_pos' has shape (5, 7)",
                 "bad_dt.npz": "control_dt must be a finite period", "pickled.npz": "is not a run log"}
     for name, content in cases.items():

@@ -12,6 +12,7 @@ still limp); otherwise `StartupCheckError` names the motors and torque stays off
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -124,7 +125,8 @@ class RealRobot(Robot):
             bus.close()
             raise
         self._t0 = time.perf_counter()
-        return obs
+        self._last = dataclasses.replace(obs, time=0.0)  # time counts from the end of the reset
+        return self._last
 
     def check_startup_pose(self, angles: np.ndarray) -> None:
         """Refuse (`StartupCheckError`) if any motor angle (rad) lies beyond its range +- `startup_margin`."""

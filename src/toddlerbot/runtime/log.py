@@ -49,8 +49,8 @@ def _check_shapes(values: dict, path: Path) -> None:
     if not np.isfinite(values["control_dt"]) or values["control_dt"] <= 0:
         raise ToddlerbotError(f"{path}: control_dt must be a finite period > 0 s")
     time_ = np.asarray(values["time"], dtype=float) if values["time"].dtype.kind in "fiu" else None
-    if time_ is None or time_.ndim != 1 or not np.all(np.isfinite(time_)) or np.any(np.diff(time_) <= 0):
-        raise ToddlerbotError(f"{path}: 'time' must be finite and increasing")
+    if time_ is None or time_.ndim != 1 or not np.all(np.isfinite(time_)) or np.any(np.diff(time_) < 0):
+        raise ToddlerbotError(f"{path}: 'time' must be finite and non-decreasing")
     widths = {"motor_pos": motors, "motor_vel": motors, "motor_torque": motors, "motor_target": motors,
               "joint_pos": joints, "joint_vel": joints, "joint_target": joints}
     for name in STEP_KEYS:
