@@ -239,3 +239,19 @@ def test_a_signal_during_close_is_raised_only_after_torque_is_off():
             bus.close()
         assert not any(m.torque_on for m in emu.motors) and not bus.is_open
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
+def test_a_host_stall_longer_than_the_bus_watchdog_stops_the_run():
+    """The motors held by their watchdog ignore goals, so the driver must not carry on: the next state read
+    names the stopped motors; torque still goes off at close."""
+    with emulated(SPEC) as (emu, path), DynamixelBus(path, motors_of(DESC), watchdog_s=0.1) as bus:
+        bus.scan()
+        bus.configure()
+        bus.enable_torque()
+        assert {m.get("bus_watchdog") for m in emu.motors} == {5}  # 0.1 s in 20 ms units, armed after torque-on
+        bus.read_state()
+        time.sleep(0.4)
+        with pytest.raises(BusError, match=r"host was silent for 0\.\d+ s, longer than the 0.1 s Bus Watchdog; "
+                                           r"stopped motors: motor 0 \(neck_yaw_drive"):
+            bus.read_state()
+    assert not any(m.torque_on for m in emu.motors)
