@@ -28,6 +28,7 @@ from toddlerbot.hardware import driver as drv
 from toddlerbot.hardware import protocol as p
 from toddlerbot.hardware.driver import DynamixelBus, motors_of
 from toddlerbot.hardware.emulator import EmulatedBus
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 
 
@@ -88,12 +89,12 @@ class ReplayPort:
 
 def host_cycle(cycles: int, baudrate: int, fast: bool) -> dict[str, float]:
     spec = load_spec()
-    emulator = EmulatedBus(spec)
+    emulator = EmulatedBus(RobotDescription(spec))
     replay = ReplayPort(emulator, baudrate)
     real_port_handler = drv.sdk.PortHandler
     drv.sdk.PortHandler = lambda name: replay
     try:
-        bus = DynamixelBus("replay", motors_of(spec), baudrate=baudrate).open()
+        bus = DynamixelBus("replay", motors_of(RobotDescription(spec)), baudrate=baudrate).open()
     finally:
         drv.sdk.PortHandler = real_port_handler
     bus.fast_sync_read = fast
@@ -121,7 +122,7 @@ def emulator_loop(cycles: int) -> float:
                             text=True, env=env)
     path = proc.stdout.readline().strip()
     try:
-        with DynamixelBus(path, motors_of(load_spec())) as bus:
+        with DynamixelBus(path, motors_of(RobotDescription.load())) as bus:
             bus.scan()
             bus.configure()
             goal = bus.read_state().position

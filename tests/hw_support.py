@@ -9,7 +9,8 @@ from contextlib import contextmanager
 import pytest
 
 from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
-from toddlerbot.robot.spec import RobotSpec, load_spec
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.spec import RobotSpec
 
 sdk = pytest.importorskip("dynamixel_sdk")
 port_handler = pytest.importorskip("dynamixel_sdk.port_handler")
@@ -17,7 +18,7 @@ port_handler = pytest.importorskip("dynamixel_sdk.port_handler")
 
 @contextmanager
 def emulated(
-    spec: RobotSpec | None = None, faults: Faults | None = None, **kwargs
+    robot: RobotDescription | RobotSpec | None = None, faults: Faults | None = None, **kwargs
 ) -> Iterator[tuple[EmulatedBus, str]]:
     """An emulated bus served from a thread; yields (bus, device path).
 
@@ -29,7 +30,9 @@ def emulated(
     old_latency = port_handler.LATENCY_TIMER
     sys.setswitchinterval(0.0002)
     port_handler.LATENCY_TIMER = 50
-    bus = EmulatedBus(spec or load_spec(), faults=faults, **kwargs)
+    if not isinstance(robot, RobotDescription):
+        robot = RobotDescription.load() if robot is None else RobotDescription(robot)
+    bus = EmulatedBus(robot, faults=faults, **kwargs)
     server = PtyServer(bus).start()
     try:
         yield bus, server.path

@@ -18,27 +18,28 @@ from toddlerbot.hardware.calibration import (
 )
 from toddlerbot.hardware.control_table import RAD_PER_PULSE
 from toddlerbot.hardware.driver import DynamixelBus, motors_of
-from toddlerbot.hardware.real_robot import RealRobot
+from toddlerbot.hardware.real_robot import RealRobot, StartupCheckError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 
 SPEC = load_spec()
+DESC = RobotDescription(SPEC)
 
 
 def _calibrate(path, group, existing=None, robot="tb-07", spec=SPEC, force=False):
-    ids = {m.id for m in group_motors(spec, group)}
-    with DynamixelBus(path, motors_of(spec, ids)) as bus:
-        return merge(existing, robot, spec, group, measure_offsets(bus), force=force)
+    ids = {m.id for m in group_motors(RobotDescription(spec), group)}
+    with DynamixelBus(path, motors_of(RobotDescription(spec), ids)) as bus:
+        return merge(existing, robot, RobotDescription(spec), group, measure_offsets(bus), force=force)
 
 
 def test_groups_follow_the_jigs_and_cover_every_motor():
-    sizes = {g: len(group_motors(SPEC, g)) for g in GROUPS}
+    sizes = {g: len(group_motors(DESC, g)) for g in GROUPS}
     assert sizes == {"arm": 14, "neck": 2, "hip": 8, "ankle": 6}
-    assert {m.joint for m in group_motors(SPEC, "ankle")} == {
+    assert {m.joint for m in group_motors(DESC, "ankle")} == {
         "left_knee_drive", "left_ankle_roll", "left_ankle_pitch", "right_knee_drive", "right_ankle_roll",
         "right_ankle_pitch"}
     gripper = SPEC.with_variant("gripper")
-    assert len(group_motors(gripper, "arm")) == 16
+    assert len(group_motors(RobotDescription(gripper), "arm")) == 16
 
 
 def test_group_by_group_calibration_recovers_the_hidden_offsets(tmp_path):
@@ -50,7 +51,7 @@ def test_group_by_group_calibration_recovers_the_hidden_offsets(tmp_path):
     assert cal.offsets == {m.name: m.mounting_offset for m in emu.motors}
     assert set(cal.groups) == set(GROUPS)
     save_calibration(cal, tmp_path / "tb-07.yaml")
-    loaded = load_calibration(tmp_path / "tb-07.yaml", SPEC, robot="tb-07")
+    loaded = load_calibration(tmp_path / "tb-07.yaml", DESC, robot="tb-07")
     assert loaded.offsets == cal.offsets
 
 
@@ -86,14 +87,14 @@ def test_calibration_for_another_robot_or_spec_is_refused(tmp_path):
     path = tmp_path / "tb-07.yaml"
     save_calibration(cal, path)
     with pytest.raises(CalibrationError, match=rf"{path}: calibration of robot 'tb-07', not of 'tb-08'"):
-        load_calibration(path, SPEC, robot="tb-08")
+        load_calibration(path, DESC, robot="tb-08")
     with pytest.raises(CalibrationError, match=rf"{path}: made for spec 'toddlerbot_v1'.*toddlerbot_v1\+gripper"):
-        load_calibration(path, SPEC.with_variant("gripper"))
+        load_calibration(path, RobotDescription(SPEC.with_variant("gripper")))
     with pytest.raises(CalibrationError, match="belongs to robot 'tb-07'"):
-        merge(cal, "tb-08", SPEC, "neck", {"neck_yaw_drive": 1})
+        merge(cal, "tb-08", DESC, "neck", {"neck_yaw_drive": 1})
     partial = Calibration("tb-07", "toddlerbot_v1", {"neck_yaw_drive": 1})
     with pytest.raises(CalibrationError, match=r"no zero offset for neck_pitch_drive.*ankle, arm, hip, neck"):
-        partial.offsets_for(SPEC)
+        partial.offsets_for(DESC)
     with pytest.raises(CalibrationError, match="cannot read calibration file"):
         load_calibration(tmp_path / "missing.yaml")
 
@@ -107,7 +108,7 @@ def test_real_robot_applies_offsets_and_recovers_multi_turn_positions():
             for m in emu.motors:
                 emu._power_up(m)
         assert all(0 <= m.get("present_position") < 4096 for m in emu.motors)
-        with RealRobot(RobotDescription(SPEC), path, cal, control_dt=0.01) as robot:
+        with RealRobot(DESC, path, cal, control_dt=0.01) as robot:
             robot.bus.open()
             robot.bus.scan()
             state = robot.bus.read_state()
@@ -121,7 +122,7 @@ def test_real_robot_applies_offsets_and_recovers_multi_turn_positions():
 def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
     with emulated(SPEC, offsets_seed=4) as (emu, path):
         cal = Calibration("tb", "toddlerbot_v1", {m.name: m.mounting_offset for m in emu.motors})
-        with RealRobot(RobotDescription(SPEC), path, cal, control_dt=0.01, reset_duration=0.3) as robot:
+        with RealRobot(DESC, path, cal, control_dt=0.01, reset_duration=0.3) as robot:
             obs = robot.reset()
             home = robot.description.home_motor_pos
             for _ in range(30):
@@ -144,3 +145,57 @@ def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
             assert np.diff(goals).max() <= step + RAD_PER_PULSE
             assert goals[-1] == pytest.approx(robot.upper[0], abs=RAD_PER_PULSE)
         assert not any(m.torque_on for m in emu.motors)
+
+
+_GOOD = {m.joint: 2048 for m in SPEC.motors}
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    (b"", "expected a mapping with 'robot', 'spec' and 'offsets'"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: {neck_yaw_drive: 2", "not valid YAML"),
+    (b"\xff\xfe\x00binary", "not UTF-8 text"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: [1, 2]\n", "'offsets' must map motor names"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: {neck_yaw_drive: true}\n", r"offsets.neck_yaw_drive is True"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: {neck_yaw_drive: 100.0}\n", r"offsets.neck_yaw_drive is 100.0"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: {neck_yaw_drive: -5}\n", r"is -5; expected .* in 0..4095"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: {neck_yaw_drive: 5644}\n", r"is 5644; expected .* in 0..4095"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: {neck_yaw_drive: .nan}\n", r"is nan"),
+    (b"robot: tb\nspec: toddlerbot_v1\noffsets: {}\ngroups: {neck: [1]}\n", "'groups' must map"),
+    (b"a: &a [x, x, x, x, x, x, x, x, x]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
+     b"c: &c [*b, *b, *b, *b, *b, *b, *b, *b, *b]\nrobot: *c\n", "expected a mapping with 'robot'"),
+])
+def test_hostile_calibration_files_get_one_line_errors(tmp_path, text, expected):
+    path = tmp_path / "cal.yaml"
+    path.write_bytes(text)
+    with pytest.raises(CalibrationError, match=expected) as info:
+        load_calibration(path, DESC)
+    assert str(info.value).startswith(str(path)) and "\n" not in str(info.value)
+
+
+def test_oversized_calibration_file_is_refused_before_parsing(tmp_path):
+    path = tmp_path / "huge.yaml"
+    path.write_bytes(b"#" * 2_000_001)
+    with pytest.raises(CalibrationError, match=r"2000001 bytes is too large for a calibration file \(at most 1000000"):
+        load_calibration(path)
+
+
+def test_unknown_motor_in_calibration_is_refused(tmp_path):
+    path = tmp_path / "cal.yaml"
+    save_calibration(Calibration("tb", "toddlerbot_v1", {**_GOOD, "tail_wag": 3}), path)
+    with pytest.raises(CalibrationError, match="unknown motor 'tail_wag'"):
+        load_calibration(path, DESC)
+    assert load_calibration(tmp_path / "cal.yaml").offsets["tail_wag"] == 3  # without a robot: just the file
+
+
+def test_start_up_check_refuses_an_offset_that_puts_a_joint_past_its_range():
+    """+1500 pulses on the left ankle pitch (about +2.3 rad) is caught while the motors are limp: torque never
+    comes on and the error names the motor and the file."""
+    with emulated(SPEC, offsets_seed=3) as (emu, path):
+        offsets = {m.name: m.mounting_offset for m in emu.motors}
+        offsets["left_ankle_pitch"] = (offsets["left_ankle_pitch"] - 1500) % 4096
+        robot = RealRobot(DESC, path, Calibration("tb", "toddlerbot_v1", offsets), calibration_source="tb.yaml")
+        with pytest.raises(StartupCheckError, match=r"left_ankle_pitch reads \+2\.\d\d rad, range \[-1\.75, \+0\.79\]"
+                           r".*check tb.yaml"), robot:
+            robot.reset()
+        assert not any(m.torque_on for m in emu.motors)
+        assert emu.stats.by_instruction.get(0x03, 0) > 0  # configured (writes) but never enabled

@@ -15,13 +15,15 @@ from toddlerbot.hardware import protocol as p
 from toddlerbot.hardware.control_table import MODE_CURRENT_BASED_POSITION, MODE_EXTENDED_POSITION, RAD_PER_PULSE
 from toddlerbot.hardware.driver import BusError, DynamixelBus, HardwareError, motors_of
 from toddlerbot.hardware.emulator import Faults
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 
 SPEC = load_spec()
+DESC = RobotDescription(SPEC)
 
 
 def test_configure_and_control_cycle_tracks_goals():
-    with emulated(SPEC) as (emu, path), DynamixelBus(path, motors_of(SPEC)) as bus:
+    with emulated(SPEC) as (emu, path), DynamixelBus(path, motors_of(DESC)) as bus:
         assert bus.scan()[7] == 1030
         bus.configure()
         assert bus.fast_sync_read
@@ -43,7 +45,7 @@ def test_configure_and_control_cycle_tracks_goals():
 
 def test_gripper_variant_uses_current_based_position_mode():
     spec = SPEC.with_variant("gripper")
-    with emulated(spec) as (emu, path), DynamixelBus(path, motors_of(spec)) as bus:
+    with emulated(spec) as (emu, path), DynamixelBus(path, motors_of(RobotDescription(spec))) as bus:
         bus.scan()
         bus.configure()
         assert emu.motor(30).get("operating_mode") == MODE_CURRENT_BASED_POSITION
@@ -51,7 +53,7 @@ def test_gripper_variant_uses_current_based_position_mode():
 
 
 def test_falls_back_to_sync_read_without_fast_sync_read():
-    with emulated(SPEC, fast_sync_read=False) as (emu, path), DynamixelBus(path, motors_of(SPEC)) as bus:
+    with emulated(SPEC, fast_sync_read=False) as (emu, path), DynamixelBus(path, motors_of(DESC)) as bus:
         bus.scan()
         bus.configure()
         assert not bus.fast_sync_read
@@ -61,7 +63,7 @@ def test_falls_back_to_sync_read_without_fast_sync_read():
 
 def test_retries_recover_from_dropped_and_corrupted_packets():
     faults = Faults(drop=0.01, corrupt=0.02, seed=11)  # per status packet; 30 motors share a fast sync read
-    with emulated(SPEC, faults) as (emu, path), DynamixelBus(path, motors_of(SPEC), retries=8) as bus:
+    with emulated(SPEC, faults) as (emu, path), DynamixelBus(path, motors_of(DESC), retries=8) as bus:
         bus.scan()
         for _ in range(20):
             state = bus.read_state()
@@ -71,18 +73,18 @@ def test_retries_recover_from_dropped_and_corrupted_packets():
 
 def test_nonexistent_port_is_named():
     with pytest.raises(HardwareError, match="/dev/ttyNOPE"):
-        DynamixelBus("/dev/ttyNOPE", motors_of(SPEC)).open()
+        DynamixelBus("/dev/ttyNOPE", motors_of(DESC)).open()
 
 
 def test_missing_motor_is_named_and_torque_stays_off():
     with emulated(SPEC, Faults(missing=frozenset({9}))) as (emu, path):
-        bus = DynamixelBus(path, motors_of(SPEC), retries=2)
+        bus = DynamixelBus(path, motors_of(DESC), retries=2)
         with pytest.raises(BusError, match=r"motor 9 \(left_ankle_pitch, XM430-W210\) does not answer"), bus:
             bus.scan()
-        bus = DynamixelBus(path, motors_of(SPEC), retries=2)
-        with pytest.raises(BusError, match=r"not answering: motor 9 \(left_ankle_pitch"), bus:
+        bus = DynamixelBus(path, motors_of(DESC), retries=2)
+        with pytest.raises(BusError, match=r"no state answer from motor 9 \(left_ankle_pitch"), bus:
             bus.read_state()
-        bus = DynamixelBus(path, motors_of(SPEC), retries=2)
+        bus = DynamixelBus(path, motors_of(DESC), retries=2)
         with pytest.raises(BusError, match=r"motor 9 \(left_ankle_pitch, XM430-W210\): read .* no status packet"), bus:
             bus.enable_torque()
         assert not any(m.torque_on for m in emu.motors)
@@ -90,7 +92,7 @@ def test_missing_motor_is_named_and_torque_stays_off():
 
 def test_wrong_model_number_is_named():
     spec = load_spec()
-    motors = motors_of(spec)
+    motors = motors_of(RobotDescription(spec))
     motors[7], motors[8] = motors[8].__class__(**{**motors[8].__dict__, "id": 7}), motors[7]
     expected = r"motor 7 \(left_ankle_roll, XC430-T240BB\): reports model number 1030 \(XM430-W210\), expected 1080"
     with emulated(spec) as (_, path), DynamixelBus(path, motors[:8]) as bus, pytest.raises(BusError, match=expected):
@@ -98,7 +100,7 @@ def test_wrong_model_number_is_named():
 
 
 def test_low_supply_voltage_refuses_torque():
-    with emulated(SPEC, Faults(voltage=10.0)) as (emu, path), DynamixelBus(path, motors_of(SPEC)) as bus:
+    with emulated(SPEC, Faults(voltage=10.0)) as (emu, path), DynamixelBus(path, motors_of(DESC)) as bus:
         bus.scan()
         with pytest.raises(BusError, match=r"supply voltage too low: .* reads 10.0 V, need at least 10.5 V"):
             bus.enable_torque()
@@ -107,7 +109,7 @@ def test_low_supply_voltage_refuses_torque():
 
 def test_overload_is_reported_with_the_motor_and_torque_goes_off():
     with emulated(SPEC, Faults(overload=frozenset({13}))) as (emu, path):
-        bus = DynamixelBus(path, motors_of(SPEC))
+        bus = DynamixelBus(path, motors_of(DESC))
         with pytest.raises(BusError, match=r"motor 13 \(right_knee_drive, XM430-W210\).*hardware error: overload"), bus:
             bus.scan()
             bus.configure()
@@ -116,7 +118,7 @@ def test_overload_is_reported_with_the_motor_and_torque_goes_off():
 
 def test_an_exception_inside_the_with_block_disables_torque():
     with emulated(SPEC) as (emu, path):
-        with pytest.raises(ZeroDivisionError), DynamixelBus(path, motors_of(SPEC)) as bus:
+        with pytest.raises(ZeroDivisionError), DynamixelBus(path, motors_of(DESC)) as bus:
             bus.scan()
             bus.configure()
             bus.enable_torque()
@@ -174,7 +176,7 @@ def test_garbage_answers_never_hang_the_driver(garbage_peer, reply):
     returns or raises BusError (never another exception) within a bounded time (retries x SDK timeout); the
     scan and the 30-byte-less state read can never succeed on these answers."""
     garbage_peer.reply = reply
-    motors = motors_of(SPEC, {3})
+    motors = motors_of(DESC, {3})
     bus = DynamixelBus(garbage_peer.path, motors, retries=2)
     bus.open()
     try:
@@ -189,12 +191,12 @@ def test_garbage_answers_never_hang_the_driver(garbage_peer, reply):
             pass
         assert time.perf_counter() - start < 5.0
     finally:
-        bus.port.closePort()
+        bus.close()
 
 
 def test_sigterm_disables_torque():
     with emulated(SPEC) as (emu, path):
-        with pytest.raises(KeyboardInterrupt), DynamixelBus(path, motors_of(SPEC)) as bus:
+        with pytest.raises(KeyboardInterrupt), DynamixelBus(path, motors_of(DESC)) as bus:
             bus.scan()
             bus.enable_torque()
             assert all(m.torque_on for m in emu.motors)
@@ -215,3 +217,41 @@ def test_cli_reports_a_missing_port_in_one_line():
     assert result.returncode == 2
     assert "cannot open serial port /dev/ttyNOPE" in " ".join(result.stderr.split())
     assert "Traceback" not in result.stderr
+
+
+def test_a_signal_during_close_is_raised_only_after_torque_is_off():
+    """A second Ctrl-C (here SIGTERM) while closing must not cut the torque-off short."""
+    from toddlerbot.hardware.driver import BusInterrupt
+
+    with emulated(SPEC) as (emu, path):
+        bus = DynamixelBus(path, motors_of(DESC)).open()
+        bus.scan()
+        bus.enable_torque()
+        original = bus._torque_off_until
+
+        def interrupted(*args):
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.2)  # the handler runs here: it must only record the signal
+            return original(*args)
+
+        bus._torque_off_until = interrupted
+        with pytest.raises(BusInterrupt, match="SIGTERM"):
+            bus.close()
+        assert not any(m.torque_on for m in emu.motors) and not bus.is_open
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
+def test_a_host_stall_longer_than_the_bus_watchdog_stops_the_run():
+    """The motors held by their watchdog ignore goals, so the driver must not carry on: the next state read
+    names the stopped motors; torque still goes off at close."""
+    with emulated(SPEC) as (emu, path), DynamixelBus(path, motors_of(DESC), watchdog_s=0.1) as bus:
+        bus.scan()
+        bus.configure()
+        bus.enable_torque()
+        assert {m.get("bus_watchdog") for m in emu.motors} == {5}  # 0.1 s in 20 ms units, armed after torque-on
+        bus.read_state()
+        time.sleep(0.4)
+        with pytest.raises(BusError, match=r"host was silent for 0\.\d+ s, longer than the 0.1 s Bus Watchdog; "
+                                           r"stopped motors: motor 0 \(neck_yaw_drive"):
+            bus.read_state()
+    assert not any(m.torque_on for m in emu.motors)

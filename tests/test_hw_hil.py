@@ -46,7 +46,7 @@ def test_stand_policy_through_driver_emulator_and_simulation(tmp_path, monkeypat
     cal_file = tmp_path / "emulated.yaml"
     proc, path = _start_emulator("--hil", "--write-calibration", str(cal_file))
     try:
-        cal = load_calibration(cal_file, spec)
+        cal = load_calibration(cal_file, RobotDescription(spec))
         with RealRobot(RobotDescription(spec), path, cal, control_dt=0.02, reset_duration=0.4, retries=5) as robot:
             home = robot.description.home_motor_pos
             result = run_policy(robot, make_policy("stand", robot), CommandSchedule.parse("0:0,0,0"), 3.0)

@@ -12,6 +12,7 @@ from pathlib import Path
 import yaml
 
 from toddlerbot.errors import SpecError
+from toddlerbot.yaml_input import read_yaml
 
 DEFAULT_CATALOGUE = resources.files("toddlerbot.actuation") / "motors.yaml"
 
@@ -50,7 +51,7 @@ class ActuatorParams:
     def __post_init__(self) -> None:
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise ValueError(f"{field.name} must be a finite number >= 0, got {value!r}")
         if self.q_dot_max <= self.q_dot_tau_max:
             raise ValueError(f"q_dot_max ({self.q_dot_max}) must exceed q_dot_tau_max ({self.q_dot_tau_max})")
@@ -146,11 +147,7 @@ def load_catalogue(path: str | Path | None = None) -> Catalogue:
     if path is None:
         return default_catalogue()
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SpecError(f"{path}: cannot read motor catalogue ({exc.strerror})") from None
-    return _parse(yaml.safe_load(text), str(path))
+    return _parse(read_yaml(path, "motor catalogue", SpecError), str(path))
 
 
 @cache

@@ -12,21 +12,29 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from toddlerbot.cli.options import positive, writable
 from toddlerbot.cli.output import console
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.spec import RobotSpec, load_spec
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
 
 SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
-GripperOption = Annotated[bool, typer.Option("--gripper", help="The robot has the gripper variant.")]
+VariantOption = Annotated[str | None, typer.Option("--variant", help="Spec variant of this robot, e.g. gripper.")]
+MotorParamsOption = Annotated[list[Path] | None, typer.Option(
+    "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): fitted actuator parameters.")]
 PortOption = Annotated[str, typer.Option("--port", help="Serial device of the bus, e.g. /dev/ttyUSB0.")]
 BaudOption = Annotated[int, typer.Option("--baud", help="Bus baud rate.")]
+LatencyOption = Annotated[float, typer.Option("--latency-ms", help="USB-serial latency timer, ms: status packets "
+                                              "are awaited 2 x this + 2 ms (raise it on a loaded machine).")]
 
 
-def _spec(spec_path: Path | None, gripper: bool) -> RobotSpec:
-    spec = load_spec(spec_path)
-    return spec.with_variant("gripper") if gripper else spec
+def _description(spec_path: Path | None, variant: str | None, motor_params: list[Path] | None = None
+                 ) -> RobotDescription:
+    return RobotDescription.load(spec_path, variant, motor_params or [])
+
+
+def _raise_interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 @app.command()
@@ -40,23 +48,25 @@ def emulate(
     write_calibration: Annotated[Path | None, typer.Option("--write-calibration", help="Also write the emulated "
                                                            "robot's true zero offsets as a calibration file.")] = None,
     spec_path: SpecOption = None,
-    gripper: GripperOption = False,
+    variant: VariantOption = None,
+    motor_params: MotorParamsOption = None,
 ) -> None:
-    """Serve the spec's motors on a pseudo-terminal: prints the device path as the first line, then serves until
-    interrupted (Ctrl-C/SIGTERM), then prints one JSON line of statistics."""
+    """Serve the robot's motors on a pseudo-terminal: prints the device path as the first line, then serves until
+    interrupted (Ctrl-C, SIGTERM, SIGHUP), then prints one JSON line of statistics."""
     from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
     from toddlerbot.hardware.plant import HilPlant
 
     parsed = Faults.parse(faults or [])
-    bus = EmulatedBus(_spec(spec_path, gripper), hil=hil, faults=parsed, fast_sync_read=not no_fast_sync_read,
-                      offsets_seed=offsets_seed)
+    bus = EmulatedBus(_description(spec_path, variant, motor_params), hil=hil, faults=parsed,
+                      fast_sync_read=not no_fast_sync_read, offsets_seed=offsets_seed)
     if write_calibration is not None:
         from toddlerbot.hardware.calibration import Calibration, save_calibration, spec_label
 
         offsets = {m.name: m.mounting_offset for m in bus.motors}
-        save_calibration(Calibration("emulated", spec_label(bus.spec), offsets, {}), write_calibration)
+        save_calibration(Calibration("emulated", spec_label(bus.description), offsets, {}), write_calibration)
     server = PtyServer(bus)
-    signal.signal(signal.SIGTERM, _interrupt)
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, _raise_interrupt)
     try:
         print(server.path, flush=True)
         server.serve_forever()
@@ -80,20 +90,16 @@ def _finite(value: float) -> float | None:
     return round(value, 4) if np.isfinite(value) else None
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 @app.command()
 def scan(
-    port: PortOption, baud: BaudOption = 2_000_000, spec_path: SpecOption = None, gripper: GripperOption = False
+    port: PortOption, baud: BaudOption = 2_000_000, spec_path: SpecOption = None, variant: VariantOption = None
 ) -> None:
     """Ping every motor of the spec, check model numbers, read voltage and positions (torque stays off)."""
     from toddlerbot.hardware.control_table import model_name
     from toddlerbot.hardware.driver import DynamixelBus, motors_of
 
-    spec = _spec(spec_path, gripper)
-    with DynamixelBus(port, motors_of(spec), baudrate=baud) as bus:
+    description = _description(spec_path, variant)
+    with DynamixelBus(port, motors_of(description), baudrate=baud) as bus:
         found = bus.scan()
         voltage = bus.check_voltage()
         state = bus.read_state()
@@ -115,7 +121,7 @@ def calibrate(
     force: Annotated[bool, typer.Option("--force", help="Accept offsets far from the existing file's.")] = False,
     baud: BaudOption = 2_000_000,
     spec_path: SpecOption = None,
-    gripper: GripperOption = False,
+    variant: VariantOption = None,
 ) -> None:
     """Zero-point calibration: with a group's jigs clicked in, read its motors (torque off) and store the offsets."""
     from toddlerbot.hardware.calibration import (
@@ -128,48 +134,72 @@ def calibrate(
     )
     from toddlerbot.hardware.driver import DynamixelBus, motors_of
 
-    spec = _spec(spec_path, gripper)
+    description = _description(spec_path, variant)
     existing = load_calibration(output) if output.exists() else None
+    writable(output, "--output")
     cal = existing
     for g in group or list(GROUPS):
-        ids = {m.id for m in group_motors(spec, g)}
-        with DynamixelBus(port, motors_of(spec, ids), baudrate=baud) as bus:
+        ids = {m.id for m in group_motors(description, g)}
+        with DynamixelBus(port, motors_of(description, ids), baudrate=baud) as bus:
             offsets = measure_offsets(bus)
-        cal = merge(cal, robot, spec, g, offsets, force=force, source=str(output))
+        cal = merge(cal, robot, description, g, offsets, force=force, source=str(output))
         console.print(f"{g}: {len(offsets)} motors read")
     save_calibration(cal, output)
-    console.print(f"wrote {output} ({len(cal.offsets)} of {len(spec.motors)} motors calibrated)")
+    console.print(f"wrote {output} ({len(cal.offsets)} of {description.n_motors} motors calibrated)")
 
 
 @app.command()
 def run(
     port: PortOption,
     calibration: Annotated[Path, typer.Option("--calibration", help="Per-robot calibration file.")],
-    policy: Annotated[str, typer.Option("--policy", help="stand, replay or walk-zmp (as in `sim run`).")] = "stand",
+    policy: Annotated[str, typer.Option("--policy", help="stand, replay, walk-zmp or walk-rl (as in `sim run`).")] =
+        "stand",
     command: Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")] =
         "0:0,0,0",
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")] = None,
+    weights: Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy "
+                                                 "(.npz from `toddlerbot rl export`; default: the shipped one).")] =
+        None,
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s.")] = 5.0,
     control_dt: Annotated[float, typer.Option("--dt", help="Control period, s.")] = 0.02,
     log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
     baud: BaudOption = 2_000_000,
+    latency_ms: LatencyOption = 16.0,
     spec_path: SpecOption = None,
-    gripper: GripperOption = False,
+    variant: VariantOption = None,
+    motor_params: MotorParamsOption = None,
 ) -> None:
-    """Run a policy on the real robot (or the emulator); torque off at the end, on Ctrl-C and on any error."""
+    """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
+    command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
+    with 128 + its number."""
     from toddlerbot.hardware.calibration import load_calibration
+    from toddlerbot.hardware.driver import BusInterrupt, raise_on_stop_signals
     from toddlerbot.hardware.real_robot import RealRobot
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
 
-    spec = _spec(spec_path, gripper)
-    cal = load_calibration(calibration, spec)
-    schedule = CommandSchedule.parse(command)
-    description = RobotDescription(spec)
-    with RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
-                   calibration_source=str(calibration)) as robot:
-        result = run_policy(robot, make_policy(policy, robot, motion), schedule, seconds)
+    previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
+    try:
+        positive(seconds, "--seconds", "seconds")
+        positive(control_dt, "--dt", "seconds")
+        positive(latency_ms, "--latency-ms", "milliseconds")
+        if log is not None:
+            writable(log, "--log")
+        description = _description(spec_path, variant, motor_params)
+        cal = load_calibration(calibration, description)
+        schedule = CommandSchedule.parse(command)
+        robot = RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
+                          calibration_source=str(calibration), latency_ms=latency_ms)
+        pol = make_policy(policy, robot, motion, weights)  # bad weights or motions fail before the bus opens
+        with robot:
+            result = run_policy(robot, pol, schedule, seconds)
+    except BusInterrupt as exc:
+        console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
+        raise typer.Exit(128 + exc.signum) from None
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     steps = result.log.time.size
     error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)
     console.print(f"{policy}: {steps} steps at {steps / max(result.log.step_period.sum(), 1e-9):.0f} Hz; "

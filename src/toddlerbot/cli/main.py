@@ -36,6 +36,8 @@ def main() -> None:
         # soft_wrap: one line whatever the terminal width (rich wraps at 80 columns when not on a terminal)
         Console(stderr=True, soft_wrap=True).print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
         sys.exit(2)
+    except KeyboardInterrupt:  # Ctrl-C outside a command's own handling (e.g. while it prints its result)
+        sys.exit(130)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import positive, writable
 from toddlerbot.cli.output import console
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
@@ -57,8 +58,12 @@ def run(
 
     if policy not in POLICIES:
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
-    if seconds <= 0 or control_hz <= 0:
-        raise ToddlerbotError("--seconds and --control-hz must be > 0")
+    positive(seconds, "--seconds", "seconds")
+    positive(control_hz, "--control-hz", "Hz")
+    outputs = {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json}
+    for option, path in outputs.items():
+        if path is not None:
+            writable(path, option)
     if command is None:
         command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
     schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)

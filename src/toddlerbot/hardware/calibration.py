@@ -28,7 +28,9 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
 from toddlerbot.hardware.control_table import PULSES_PER_REV, RAD_PER_PULSE
 from toddlerbot.hardware.driver import DynamixelBus
-from toddlerbot.robot.spec import MotorSpec, RobotSpec
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.spec import MotorSpec
+from toddlerbot.yaml_input import read_yaml
 
 GROUPS = ("arm", "neck", "hip", "ankle")
 SAMPLES = 5
@@ -37,6 +39,8 @@ MAX_SPREAD_PULSES = 4
 """Largest spread of a motor's readings (about 0.35 deg): more means the joint is not held by its jig."""
 MAX_SPEED = 0.05
 """Largest speed while calibrating, rad/s."""
+MAX_FILE_BYTES = 1_000_000
+"""Largest calibration file read, bytes (a real one is about 2 kB)."""
 MAX_CHANGE_RAD = np.deg2rad(20.0)
 """Largest change from a good existing offset before the new value is called implausible (a re-seated horn
 or jig moves the zero by a few degrees; a jig left out moves it by tens of degrees)."""
@@ -46,7 +50,9 @@ class CalibrationError(ToddlerbotError):
     pass
 
 
-def spec_label(spec: RobotSpec) -> str:
+def spec_label(description: RobotDescription) -> str:
+    """The spec name a calibration file records, with the variant: ``toddlerbot_v1+gripper``."""
+    spec = description.spec
     return spec.name if spec.variant is None else f"{spec.name}+{spec.variant}"
 
 
@@ -63,10 +69,10 @@ def group_of(motor: MotorSpec) -> str:
     raise CalibrationError(f"motor {motor.id} ({motor.joint}): spec group {motor.group!r} has no calibration jig")
 
 
-def group_motors(spec: RobotSpec, group: str) -> list[MotorSpec]:
+def group_motors(description: RobotDescription, group: str) -> list[MotorSpec]:
     if group not in GROUPS:
         raise CalibrationError(f"unknown calibration group {group!r}; expected one of {', '.join(GROUPS)}")
-    return [m for m in spec.motors_by_id if group_of(m) == group]
+    return [m for m in description.motors if group_of(m) == group]
 
 
 @dataclass
@@ -77,42 +83,54 @@ class Calibration:
     """Motor name -> reading at the zero position, pulses."""
     groups: dict[str, str] = field(default_factory=dict)
 
-    def offsets_for(self, spec: RobotSpec, source: str = "calibration") -> np.ndarray:
-        """Offsets in motor-id order; raises unless the file is complete and made for this spec."""
-        if self.spec != spec_label(spec):
+    def offsets_for(self, description: RobotDescription, source: str = "calibration") -> np.ndarray:
+        """Offsets (pulses) in motor-id order; raises unless the file is complete and made for this robot."""
+        if self.spec != spec_label(description):
             raise CalibrationError(
                 f"{source}: made for spec {self.spec!r} (robot {self.robot!r}), "
-                f"but this robot uses {spec_label(spec)!r}"
+                f"but this robot uses {spec_label(description)!r}"
             )
-        missing = [m.joint for m in spec.motors_by_id if m.joint not in self.offsets]
+        unknown = sorted(set(self.offsets) - set(description.motor_names))
+        if unknown:
+            raise CalibrationError(f"{source}: offsets: unknown motor {unknown[0]!r} (not a motor of {self.spec})")
+        missing = [m.joint for m in description.motors if m.joint not in self.offsets]
         if missing:
-            groups = sorted({group_of(m) for m in spec.motors_by_id if m.joint in missing})
+            groups = sorted({group_of(m) for m in description.motors if m.joint in missing})
             raise CalibrationError(
                 f"{source}: no zero offset for {', '.join(missing)}; run `toddlerbot hw calibrate` for group(s) "
                 f"{', '.join(groups)}"
             )
-        return np.array([self.offsets[m.joint] for m in spec.motors_by_id], dtype=np.int64)
+        return np.array([self.offsets[m.joint] for m in description.motors], dtype=np.int64)
 
 
-def load_calibration(path: str | Path, spec: RobotSpec | None = None, robot: str | None = None) -> Calibration:
-    """Read a calibration file; with `spec`/`robot`, refuse a file made for another spec or robot."""
+def load_calibration(
+    path: str | Path, description: RobotDescription | None = None, robot: str | None = None
+) -> Calibration:
+    """Read a calibration file; with `description`/`robot`, refuse a file made for another robot.
+
+    Every offset must be an integer number of pulses in 0..4095 (one turn, as `measure_offsets` writes them):
+    anything else (a float, ``true``, a number of radians, a value past one turn) is refused naming the motor."""
     path = Path(path)
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise CalibrationError(f"{path}: cannot read calibration file ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise CalibrationError(f"{path}: not valid YAML ({exc})") from None
+    raw = read_yaml(path, "calibration file", CalibrationError, MAX_FILE_BYTES)
     if not isinstance(raw, dict) or not isinstance(raw.get("robot"), str) or not isinstance(raw.get("spec"), str):
         raise CalibrationError(f"{path}: expected a mapping with 'robot', 'spec' and 'offsets'")
     offsets = raw.get("offsets") or {}
-    if not isinstance(offsets, dict) or not all(isinstance(v, int) for v in offsets.values()):
+    if not isinstance(offsets, dict):
         raise CalibrationError(f"{path}: 'offsets' must map motor names to integer pulses")
-    cal = Calibration(raw["robot"], raw["spec"], dict(offsets), dict(raw.get("groups") or {}))
+    for name, value in offsets.items():
+        # bool is an int subclass: `true` must not pass as 1
+        if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < PULSES_PER_REV:
+            raise CalibrationError(
+                f"{path}: offsets.{name} is {value!r}; expected an integer number of pulses in 0..{PULSES_PER_REV - 1}"
+            )
+    groups = raw.get("groups") or {}
+    if not isinstance(groups, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in groups.items()):
+        raise CalibrationError(f"{path}: 'groups' must map group names to calibration times (text)")
+    cal = Calibration(raw["robot"], raw["spec"], {str(k): v for k, v in offsets.items()}, dict(groups))
     if robot is not None and cal.robot != robot:
         raise CalibrationError(f"{path}: calibration of robot {cal.robot!r}, not of {robot!r}")
-    if spec is not None:
-        cal.offsets_for(spec, str(path))
+    if description is not None:
+        cal.offsets_for(description, str(path))
     return cal
 
 
@@ -153,17 +171,17 @@ def measure_offsets(bus: DynamixelBus, samples: int = SAMPLES, interval: float =
     return {m.name: int(v % PULSES_PER_REV) for m, v in zip(bus.motors, mean, strict=True)}
 
 
-def merge(existing: Calibration | None, robot: str, spec: RobotSpec, group: str, offsets: dict[str, int],
-          force: bool = False, source: str = "calibration") -> Calibration:
+def merge(existing: Calibration | None, robot: str, description: RobotDescription, group: str,
+          offsets: dict[str, int], force: bool = False, source: str = "calibration") -> Calibration:
     """The calibration with one group's new offsets; refuses an existing robot/spec mismatch and, unless
     `force`, offsets that moved by more than MAX_CHANGE_RAD from the existing file's."""
     if existing is None:
-        cal = Calibration(robot, spec_label(spec))
+        cal = Calibration(robot, spec_label(description))
     else:
-        if existing.robot != robot or existing.spec != spec_label(spec):
+        if existing.robot != robot or existing.spec != spec_label(description):
             raise CalibrationError(
                 f"{source}: belongs to robot {existing.robot!r} (spec {existing.spec!r}), not to robot {robot!r} "
-                f"(spec {spec_label(spec)!r}); choose another file"
+                f"(spec {spec_label(description)!r}); choose another file"
             )
         cal = Calibration(existing.robot, existing.spec, dict(existing.offsets), dict(existing.groups))
     if not force:

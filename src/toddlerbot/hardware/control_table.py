@@ -57,6 +57,7 @@ _ENTRIES = (
     Entry("position_p_gain", 84, 2),
     Entry("feedforward_2nd_gain", 88, 2),
     Entry("feedforward_1st_gain", 90, 2),
+    Entry("bus_watchdog", 98, 1, signed=True),
     Entry("goal_current", 102, 2, signed=True, current_only=True),
     Entry("goal_position", 116, 4, signed=True),
     Entry("realtime_tick", 120, 2, writable=False),
@@ -92,6 +93,9 @@ RAD_PER_PULSE = 2.0 * math.pi / PULSES_PER_REV
 RAD_S_PER_VELOCITY_UNIT = 0.229 * 2.0 * math.pi / 60.0
 """Present velocity unit: 0.229 rev/min."""
 VOLT_PER_UNIT = 0.1
+BUS_WATCHDOG_UNIT_S = 0.02
+"""Bus Watchdog (address 98) unit: 20 ms; 0 disables it, 1..127 arm it, -1 reads back after it expired."""
+BUS_WATCHDOG_MAX = 127
 EXTENDED_POSITION_RANGE = 1_048_575
 """Goal position range in extended position mode, pulses (+-256 turns)."""
 

@@ -4,9 +4,18 @@
 number, configures the motors (return delay 0, extended-position or current-based-position mode, position
 P/I/D and feed-forward gains, goal current of grippers), refuses to run below a supply-voltage threshold, and
 runs the control cycle: one Fast Sync Read (Sync Read where unsupported) of present current, velocity and
-position for all motors, and one Sync Write of goal positions. Every transaction is retried a fixed number of
-times; after that a `BusError` names the motor(s) and the error. Torque is disabled when the bus is closed,
-on exceptions inside ``with DynamixelBus(...)``, on Ctrl-C and on SIGTERM.
+position for all motors, and one Sync Write of goal positions.
+
+Safety policy (docs/hardware.md, "Safety"):
+
+* every single-motor transaction is retried `retries` times, then a `BusError` names the motor and the error;
+* a motor whose state answer is missing in a cycle keeps its last reading; after `max_missed_cycles`
+  consecutive silent cycles the read raises `BusError` naming it (the caller stops and torque goes off);
+* the Bus Watchdog (address 98) is armed, so the motors stop by themselves if the host goes silent;
+* torque goes off when the bus is closed, on any exception inside ``with DynamixelBus(...)`` and on SIGINT,
+  SIGTERM, SIGHUP and SIGQUIT (which raise `BusInterrupt`); closing releases the SDK port even if a
+  transaction was interrupted, blocks those signals while it works, and retries torque-off until every motor
+  confirms or `torque_off_deadline` passes, then raises `TorqueOffError` naming the unconfirmed motors.
 
 Positions here are raw motor readings (pulses, multi-turn); `real_robot` converts them to calibrated angles.
 """
@@ -14,19 +23,32 @@ Positions here are raw motor readings (pulses, multi-turn); `real_robot` convert
 from __future__ import annotations
 
 import contextlib
+import math
 import signal
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import MotorModel, default_catalogue
+from toddlerbot.actuation.catalogue import MotorModel
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.hardware import control_table as ct
-from toddlerbot.robot.spec import MotorSpec, RobotSpec
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.spec import MotorSpec
 
 DEFAULT_BAUDRATE = 2_000_000
-DEFAULT_RETRIES = 3
+DEFAULT_RETRIES = 5
+"""Attempts per single-motor transaction (a 5 % packet loss then fails one in 3 million transactions)."""
+MAX_MISSED_CYCLES = 5
+"""Consecutive control cycles a motor may stay silent (its last reading reused) before the run stops."""
+BUS_WATCHDOG_S = 0.5
+"""Bus Watchdog period, s: a motor that hears nothing for this long stops (holds) by itself."""
+TORQUE_OFF_DEADLINE_S = 1.5
+"""How long closing keeps retrying torque-off for motors that have not confirmed it, s."""
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
+                     if hasattr(signal, name))
+"""Signals that stop a run with torque off (SIGHUP: the SSH session dropped; SIGQUIT: Ctrl-\\)."""
 MIN_SUPPLY_VOLTAGE = 10.5
 """Below this supply voltage (V) the driver refuses to enable torque (a 4-cell battery at ~2.6 V/cell)."""
 GRIPPER_GOAL_CURRENT_A = 0.3
@@ -46,6 +68,18 @@ class BusError(HardwareError):
     pass
 
 
+class TorqueOffError(HardwareError):
+    """Some motors did not confirm torque off before the deadline: they may still be powered."""
+
+
+class BusInterrupt(KeyboardInterrupt):
+    """A stop signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) arrived; raised like Ctrl-C so cleanup runs."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
 @dataclass(frozen=True)
 class BusMotor:
     id: int
@@ -60,9 +94,8 @@ class BusMotor:
     kff2: int
 
     @classmethod
-    def from_spec(cls, m: MotorSpec) -> BusMotor:
-        return cls(m.id, m.joint, default_catalogue()[m.model], ct.OPERATING_MODES[m.control_mode],
-                   m.kp, m.ki, m.kd, m.kff1, m.kff2)
+    def from_spec(cls, m: MotorSpec, model: MotorModel) -> BusMotor:
+        return cls(m.id, m.joint, model, ct.OPERATING_MODES[m.control_mode], m.kp, m.ki, m.kd, m.kff1, m.kff2)
 
     @property
     def label(self) -> str:
@@ -79,10 +112,47 @@ class MotorState:
     """Present velocity, rad/s."""
     torque: np.ndarray
     """Estimated output torque from present current/load, N*m."""
+    fresh: np.ndarray | None = None
+    """Per motor: True if read this cycle, False if its answer was missing and the last reading is repeated
+    (None: all fresh)."""
 
 
-def motors_of(spec: RobotSpec, ids: set[int] | None = None) -> list[BusMotor]:
-    return [BusMotor.from_spec(m) for m in spec.motors_by_id if ids is None or m.id in ids]
+def motors_of(description: RobotDescription, ids: set[int] | None = None) -> list[BusMotor]:
+    """The description's motors (catalogue models with any fitted parameters), optionally only `ids`."""
+    return [BusMotor.from_spec(m, model) for m, model in zip(description.motors, description.motor_models, strict=True)
+            if ids is None or m.id in ids]
+
+
+_deferring = 0
+"""How many torque-off sequences are running; while > 0 a stop signal is recorded instead of raised."""
+_deferred: list[int] = []
+
+
+def _raise_bus_interrupt(signum: int, frame: object) -> None:
+    if _deferring:
+        _deferred.append(signum)  # raised once the torque-off is done (see `DynamixelBus.close`)
+        return
+    raise BusInterrupt(signum)
+
+
+def raise_on_stop_signals() -> dict[int, object]:
+    """Make every stop signal raise `BusInterrupt` in the main thread (even one the parent process ignored, as a
+    shell does for background jobs); returns the previous handlers."""
+    return {signum: signal.signal(signum, _raise_bus_interrupt) for signum in STOP_SIGNALS}
+
+
+def _port_handler(port: str, latency_ms: float | None):
+    """The SDK's port handler, with status timeouts computed for a USB-serial latency timer of `latency_ms`
+    (None: the SDK's module-wide ``LATENCY_TIMER``, 16 ms, FTDI's factory setting)."""
+    if latency_ms is None:
+        return sdk.PortHandler(port)
+
+    class Port(sdk.PortHandler):
+        def setPacketTimeout(self, packet_length: int) -> None:  # the SDK names it
+            self.packet_start_time = self.getCurrentTime()
+            self.packet_timeout = self.tx_time_per_byte * packet_length + 2.0 * latency_ms + 2.0
+
+    return Port(port)
 
 
 class DynamixelBus:
@@ -95,25 +165,45 @@ class DynamixelBus:
         baudrate: int = DEFAULT_BAUDRATE,
         retries: int = DEFAULT_RETRIES,
         min_voltage: float = MIN_SUPPLY_VOLTAGE,
+        max_missed_cycles: int = MAX_MISSED_CYCLES,
+        watchdog_s: float = BUS_WATCHDOG_S,
+        torque_off_deadline: float = TORQUE_OFF_DEADLINE_S,
+        latency_ms: float | None = None,
     ) -> None:
+        """`watchdog_s`: Bus Watchdog period (0 leaves it off), rounded up to 20 ms, at most 2.54 s;
+        `torque_off_deadline`: s of torque-off retries when closing; `latency_ms`: the USB-serial adapter's
+        latency timer, which sets how long a status packet is waited for (2 x latency + 2 ms)."""
         if sdk is None:
             raise HardwareError("the Dynamixel driver needs the [hw] extra: pip install 'toddlerbot[hw]'")
-        if retries < 1:
-            raise ValueError(f"retries must be >= 1, got {retries}")
+        if retries < 1 or max_missed_cycles < 1:
+            raise ValueError(f"retries and max_missed_cycles must be >= 1, got {retries}, {max_missed_cycles}")
+        if not 0 <= watchdog_s <= ct.BUS_WATCHDOG_MAX * ct.BUS_WATCHDOG_UNIT_S:
+            raise ValueError(f"watchdog_s must lie in [0, {ct.BUS_WATCHDOG_MAX * ct.BUS_WATCHDOG_UNIT_S}] s")
         self.port_name = port
         self.motors = motors
         self.ids = [m.id for m in motors]
         self.baudrate = baudrate
         self.retries = retries
         self.min_voltage = min_voltage
-        self.port = sdk.PortHandler(port)
+        self.max_missed_cycles = max_missed_cycles
+        self.watchdog_units = math.ceil(round(watchdog_s / ct.BUS_WATCHDOG_UNIT_S, 6))
+        self.torque_off_deadline = torque_off_deadline
+        self._powered: set[int] = set()
+        """Ids that were sent torque-enable since the port was opened: closing must confirm them off."""
+        self.missed = np.zeros(len(motors), dtype=int)
+        """Consecutive cycles each motor's state answer has been missing."""
+        self._last_state: MotorState | None = None
+        self._last_contact = time.perf_counter()
+        if latency_ms is not None and not (math.isfinite(latency_ms) and 0 < latency_ms <= 1000):
+            raise ValueError(f"latency_ms must lie in (0, 1000] ms, got {latency_ms}")
+        self.port = _port_handler(port, latency_ms)
         self.ph = sdk.PacketHandler(2.0)
         self.fast_sync_read = True
         self.torque_enabled = False
         self.bytes_tx = 0
         self.bytes_rx = 0
         self.is_open = False
-        self._old_sigterm = None
+        self._old_handlers: dict[int, object] = {}
         self._state_reader = sdk.GroupSyncRead(self.port, self.ph, *ct.STATE_BLOCK)
         self._goal_writer = sdk.GroupSyncWrite(self.port, self.ph, ct.ENTRIES["goal_position"].address, 4)
         self._gain_writer = sdk.GroupSyncWrite(self.port, self.ph, *ct.GAINS_BLOCK)
@@ -122,6 +212,7 @@ class DynamixelBus:
 
     # ---- lifecycle -------------------------------------------------------------------------------------
     def open(self) -> DynamixelBus:
+        """Open the port and install the stop-signal handlers (main thread only)."""
         try:
             ok = self.port.openPort() and self.port.setBaudRate(self.baudrate)
         except Exception as exc:  # pyserial raises SerialException/OSError for a missing device
@@ -129,17 +220,38 @@ class DynamixelBus:
         if not ok:
             raise HardwareError(f"cannot open serial port {self.port_name} at {self.baudrate} baud")
         self.is_open = True
+        self._install_signals()
         return self
 
     def close(self) -> None:
-        """Disable torque (best effort, every motor) and close the port."""
+        """Disable torque on every motor (retried until confirmed or the deadline), close the port.
+
+        A stop signal arriving meanwhile is held back and raised afterwards, so a second Ctrl-C cannot cut the
+        torque-off short (blocking the signal would not do: numpy's BLAS threads would still receive it). Raises
+        `TorqueOffError` naming the motors that never confirmed torque off."""
+        global _deferring
         if not self.is_open:
             return
-        with contextlib.suppress(HardwareError):
-            self.disable_torque()
-        self.port.closePort()
-        self.is_open = False
-        self._restore_signals()
+        _deferring += 1
+        try:
+            self._release_port()
+            unconfirmed = self._torque_off_until(time.perf_counter() + self.torque_off_deadline, self._powered)
+            self.port.closePort()
+            self.is_open = False
+        finally:
+            _deferring -= 1
+            self._restore_signals()
+        signals: list[int] = []
+        if not _deferring:  # the outermost close raises what arrived meanwhile
+            signals = list(_deferred)
+            _deferred.clear()
+        if unconfirmed:  # louder than the signal that may have arrived meanwhile
+            raise TorqueOffError(
+                f"bus {self.port_name}: TORQUE MAY STILL BE ON: no torque-off confirmation within "
+                f"{self.torque_off_deadline:g} s from {'; '.join(unconfirmed)}; cut the motor power"
+            )
+        if signals:
+            raise BusInterrupt(signals[0])
 
     def __enter__(self) -> DynamixelBus:
         return self.open()
@@ -148,19 +260,21 @@ class DynamixelBus:
         self.close()
 
     def _install_signals(self) -> None:
-        """SIGTERM raises KeyboardInterrupt like Ctrl-C, so `with` blocks and `close()` disable torque."""
-        if threading.current_thread() is not threading.main_thread() or self._old_sigterm is not None:
-            return
-
-        def _interrupt(signum: int, frame: object) -> None:
-            raise KeyboardInterrupt(f"signal {signum}")
-
-        self._old_sigterm = signal.signal(signal.SIGTERM, _interrupt)
+        """SIGINT/SIGTERM/SIGHUP/SIGQUIT raise `BusInterrupt`, so `with` blocks and `close()` disable torque."""
+        if threading.current_thread() is threading.main_thread() and not self._old_handlers:
+            self._old_handlers = raise_on_stop_signals()
 
     def _restore_signals(self) -> None:
-        if self._old_sigterm is not None and threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGTERM, self._old_sigterm)
-            self._old_sigterm = None
+        if self._old_handlers and threading.current_thread() is threading.main_thread():
+            for signum, handler in self._old_handlers.items():
+                signal.signal(signum, handler)
+            self._old_handlers = {}
+
+    def _release_port(self) -> None:
+        """Undo what an interrupted SDK transaction leaves behind: the in-use flag and half-read answers."""
+        self.port.is_using = False
+        with contextlib.suppress(OSError, AttributeError):  # port already gone: the writes below report it
+            self.port.clearPort()
 
     # ---- single-motor transactions ---------------------------------------------------------------------
     def _result(self, comm: int, error: int) -> str | None:
@@ -180,8 +294,13 @@ class DynamixelBus:
             except IndexError:  # the SDK indexes past the end of a short (but CRC-valid) status packet
                 problem = "malformed status packet"
                 continue
+            except OSError as exc:  # the serial device went away (USB unplugged)
+                self._release_port()
+                problem = f"serial port error ({exc})"
+                continue
             problem = self._result(comm, error)
             if problem is None:
+                self._last_contact = time.perf_counter()
                 if error & 0x80 and not allow_alert:
                     raise BusError(f"{motor.label}: {what}: {self._hardware_error(motor)}")
                 return tuple(values)
@@ -257,9 +376,11 @@ class DynamixelBus:
         return readings[low_id]
 
     def configure(self) -> None:
-        """Torque off, then write return delay, operating mode, gains and (grippers) goal current."""
+        """Torque off, then clear the Bus Watchdog (an expired one makes the goal registers read-only) and write
+        return delay, operating mode, gains and (grippers) goal current."""
         self.disable_torque()
         for m in self.motors:
+            self.write(m, "bus_watchdog", 0)
             self.write(m, "return_delay_time", 0)
             self.write(m, "operating_mode", m.mode)
             self.write(m, "position_p_gain", m.kp)
@@ -285,85 +406,197 @@ class DynamixelBus:
         self.torque_enabled = True
         try:
             for m in self.motors:
+                self._powered.add(m.id)
                 self.write(m, "torque_enable", 1)
+            self._arm_watchdog()
         except BaseException:
             self.disable_torque()
             raise
 
-    def disable_torque(self) -> None:
-        """Torque off for every motor: one broadcast sync write, then a checked write per motor."""
-        writer = sdk.GroupSyncWrite(self.port, self.ph, ct.ENTRIES["torque_enable"].address, 1)
-        for i in self.ids:
-            writer.addParam(i, [0])
-        writer.txPacket()
-        failures = []
-        for m in self.motors:
+    def _arm_watchdog(self) -> None:
+        """Set every motor's Bus Watchdog with one broadcast Sync Write (armed one by one, the first motor could
+        expire while the others are written), then confirm it by a Sync Read; retried for missing answers."""
+        if not self.watchdog_units:
+            return
+        address = ct.ENTRIES["bus_watchdog"].address
+        pending = list(self.ids)
+        for _ in range(self.retries):
+            writer = sdk.GroupSyncWrite(self.port, self.ph, address, 1)
+            for i in pending:
+                writer.addParam(i, [self.watchdog_units])
+            self._send(writer, "bus watchdog")
             try:
-                self.write(m, "torque_enable", 0, allow_alert=True)
-            except BusError as exc:
-                failures.append(str(exc))
-        self.torque_enabled = False
-        if failures:
-            raise BusError("could not confirm torque off: " + "; ".join(failures))
+                answers, _ = self._sync_read(pending, address, 1)
+            except (IndexError, OSError):
+                self._release_port()
+                continue
+            pending = [i for i in pending if answers.get(i) != bytes([self.watchdog_units])]
+            if not pending:
+                return
+        labels = ", ".join(m.label for m in self.motors if m.id in pending)
+        raise BusError(f"bus {self.port_name}: could not arm the Bus Watchdog of {labels}")
+
+    def disable_torque(self) -> None:
+        """Torque off for every motor, confirmed motor by motor; raises `TorqueOffError` naming the motors that
+        did not confirm within `torque_off_deadline` s."""
+        self._release_port()
+        unconfirmed = self._torque_off_until(time.perf_counter() + self.torque_off_deadline, set(self.ids))
+        if unconfirmed:
+            raise TorqueOffError(f"bus {self.port_name}: could not confirm torque off: {'; '.join(unconfirmed)}")
+
+    def _torque_off_until(self, deadline: float, must_confirm: set[int]) -> list[str]:
+        """Rounds of (broadcast torque-off, one checked write per unconfirmed motor) until every motor in
+        `must_confirm` confirms or the deadline passes; returns '<motor>: <last problem>' for each of those that
+        never confirmed (the others get one round, best effort)."""
+        address = ct.ENTRIES["torque_enable"].address
+        pending = {m.id: "not tried" for m in self.motors}
+        while True:
+            try:
+                writer = sdk.GroupSyncWrite(self.port, self.ph, address, 1)
+                for i in pending:
+                    writer.addParam(i, [0])
+                writer.txPacket()
+            except OSError:
+                self._release_port()
+            for m in self.motors:
+                if m.id not in pending:
+                    continue
+                try:
+                    comm, error = self.ph.write1ByteTxRx(self.port, m.id, address, 0)
+                    problem = self._result(comm, error)
+                except (IndexError, OSError) as exc:
+                    self._release_port()
+                    problem = f"{type(exc).__name__}: {exc}"
+                if problem is None:
+                    del pending[m.id]
+                else:
+                    pending[m.id] = problem
+            self._powered &= set(pending)
+            self.torque_enabled = bool(self._powered)
+            if not pending.keys() & must_confirm or time.perf_counter() >= deadline:
+                break
+        labels = {m.id: m.label for m in self.motors}
+        return [f"{labels[i]}: {problem}" for i, problem in pending.items() if i in must_confirm]
 
     # ---- control cycle ---------------------------------------------------------------------------------
     def read_state(self) -> MotorState:
-        """Present current/velocity/position of every motor in one transaction (retried)."""
-        problem = ""
-        for _ in range(self.retries):
-            try:
-                ok, problem = self._read_state_once()
-            except IndexError:
-                ok, problem = False, "malformed status packet"
-            if ok:
+        """Present current/velocity/position of every motor in one transaction.
+
+        A failed group read is retried once (`retries` times for the very first read) for the motors whose answers
+        are missing; motors still missing keep their last reading
+        (``fresh`` False) for up to `max_missed_cycles` consecutive cycles, after which `BusError` names them.
+        Without an earlier reading, every motor must answer."""
+        self._check_watchdog_gap()
+        answers, problem = self._group_read(self.ids)
+        # a control cycle retries once (time matters); the first read, which has no earlier reading, `retries` times
+        for _ in range(1 if self._last_state is not None else self.retries):
+            missing = [i for i in self.ids if i not in answers]
+            if not missing:
                 break
-        else:
+            retried, problem = self._group_read(missing, fast=False)
+            answers |= retried
+        fresh = np.array([i in answers for i in self.ids])
+        self.missed = np.where(fresh, 0, self.missed + 1)
+        silent = [m.label for m, n in zip(self.motors, self.missed, strict=True) if n >= self.max_missed_cycles]
+        if silent or (not fresh.all() and self._last_state is None):
+            labels = silent or [m.label for m, ok in zip(self.motors, fresh, strict=True) if not ok]
             raise BusError(
-                f"bus {self.port_name}: state read failed after {self.retries} attempts: {problem}"
-                f"{self._silent_motors()}"
+                f"bus {self.port_name}: no state answer from {', '.join(labels)}"
+                f"{f' for {self.max_missed_cycles} consecutive cycles' if silent else ''} ({problem})"
             )
-        address = ct.STATE_BLOCK[0]
-        get = self._state_reader.getData
-        raw_load = [ct.decode(ct.encode(get(i, address, 2), 2), True) for i in self.ids]
-        vel = [ct.decode(ct.encode(get(i, address + 2, 4), 4), True) for i in self.ids]
-        pos = [ct.decode(ct.encode(get(i, address + 6, 4), 4), True) for i in self.ids]
-        torque = np.array([ct.load_to_torque(r, m.model) for r, m in zip(raw_load, self.motors, strict=True)])
-        return MotorState(np.array(pos, dtype=np.int64), ct.velocity_to_rad_s(vel), torque)
+        self._last_contact = time.perf_counter()
+        last = self._last_state
+        n = len(self.ids)
+        position = last.position.copy() if last is not None else np.zeros(n, dtype=np.int64)
+        velocity = last.velocity.copy() if last is not None else np.zeros(n)
+        torque = last.torque.copy() if last is not None else np.zeros(n)
+        for k, (i, m) in enumerate(zip(self.ids, self.motors, strict=True)):
+            if i in answers:  # the state block: present current/load (2), velocity (4), position (4)
+                data = answers[i]
+                torque[k] = ct.load_to_torque(ct.decode(data[0:2], True), m.model)
+                velocity[k] = float(ct.velocity_to_rad_s(ct.decode(data[2:6], True)))
+                position[k] = ct.decode(data[6:10], True)
+        state = MotorState(position, velocity, torque, None if fresh.all() else fresh)
+        self._last_state = state
+        return state
+
+    def _group_read(self, ids: list[int], fast: bool = True) -> tuple[dict[int, bytes], str]:
+        """One group read of the state block from `ids`: (answers by id, description of what went wrong)."""
+        try:
+            if fast and self.fast_sync_read:
+                ok, problem = self._read_state_once()
+                if ok:
+                    return {i: bytes(self._state_reader.data_dict[i]) for i in self.ids}, ""
+                return {}, problem
+            return self._sync_read(ids, *ct.STATE_BLOCK)
+        except IndexError:
+            return {}, "malformed status packet"
+        except OSError as exc:
+            self._release_port()
+            return {}, f"serial port error ({exc})"
+
+    def _sync_read(self, ids: list[int], address: int, length: int) -> tuple[dict[int, bytes], str]:
+        """Sync Read of `length` bytes at `address`: every status packet that arrives before the timeout counts,
+        whatever its position (a missing motor does not hide the ones after it)."""
+        reader = sdk.GroupSyncRead(self.port, self.ph, address, length)
+        for i in ids:
+            reader.addParam(i)
+        comm = reader.txPacket()
+        self.bytes_tx += 14 + len(ids)
+        if comm != sdk.COMM_SUCCESS:
+            return {}, f"sync read: {self.ph.getTxRxResult(comm)}"
+        answers: dict[int, bytes] = {}
+        problem = ""
+        wanted = set(ids)
+        while len(answers) < len(ids):
+            rx, comm = self.ph.rxPacket(self.port, False)
+            if comm != sdk.COMM_SUCCESS:
+                problem = f"sync read: {self.ph.getTxRxResult(comm)}"
+                break
+            dxl_id = rx[sdk.PKT_ID]
+            if dxl_id not in wanted or sdk.DXL_MAKEWORD(rx[sdk.PKT_LENGTH_L], rx[sdk.PKT_LENGTH_H]) != length + 4:
+                problem = f"sync read: unexpected answer from id {dxl_id}"
+                continue
+            k = self.ids.index(dxl_id)
+            self._check_alert(k, rx[sdk.PKT_ERROR])
+            answers[dxl_id] = bytes(rx[sdk.PKT_PARAMETER0 + 1 : sdk.PKT_PARAMETER0 + 1 + length])
+            self.bytes_rx += 11 + length
+        self.port.is_using = False
+        return answers, problem
+
+    def _check_watchdog_gap(self) -> None:
+        """After a host stall longer than the Bus Watchdog, the motors have stopped and ignore goals: find
+        out which and stop the run instead of sending goals into the void."""
+        if not self.watchdog_units or not self.torque_enabled:
+            return
+        gap = time.perf_counter() - self._last_contact
+        if gap <= self.watchdog_units * ct.BUS_WATCHDOG_UNIT_S:
+            return
+        expired = [m.label for m in self.motors if self.read(m, "bus_watchdog", allow_alert=True) < 0]
+        if expired:
+            raise BusError(
+                f"bus {self.port_name}: the host was silent for {gap:.2f} s, longer than the "
+                f"{self.watchdog_units * ct.BUS_WATCHDOG_UNIT_S:g} s Bus Watchdog; stopped motors: {', '.join(expired)}"
+            )
 
     def _read_state_once(self) -> tuple[bool, str]:
+        """One Fast Sync Read of the state block from every motor."""
         reader = self._state_reader
         n, length = len(self.ids), ct.STATE_BLOCK[1]
         self.bytes_tx += 14 + n
-        if self.fast_sync_read:
-            comm = reader.fastSyncReadTxPacket()
-            if comm == sdk.COMM_SUCCESS:
-                raw, comm, _ = self.ph.fastSyncReadRx(self.port, sdk.BROADCAST_ID, (length + 4) * n)
-            if comm != sdk.COMM_SUCCESS:
-                return False, f"fast sync read: {self.ph.getTxRxResult(comm)}"
-            if len(raw) != (length + 4) * n:
-                return False, f"fast sync read: answer of {len(raw)} bytes, expected {(length + 4) * n}"
-            self.bytes_rx += 8 + len(raw)
-            for k in range(n):
-                error, dxl_id = raw[k * (length + 4)], raw[k * (length + 4) + 1]
-                if dxl_id != self.ids[k]:
-                    return False, f"fast sync read: answer {k} comes from id {dxl_id}, expected {self.ids[k]}"
-                reader.data_dict[dxl_id] = bytearray(raw[k * (length + 4) + 2 : k * (length + 4) + 2 + length])
-                self._check_alert(k, error)
-            reader.last_result = True
-            return True, ""
-        comm = reader.txPacket()
+        comm = reader.fastSyncReadTxPacket()
+        if comm == sdk.COMM_SUCCESS:
+            raw, comm, _ = self.ph.fastSyncReadRx(self.port, sdk.BROADCAST_ID, (length + 4) * n)
         if comm != sdk.COMM_SUCCESS:
-            return False, f"sync read: {self.ph.getTxRxResult(comm)}"
-        for k, dxl_id in enumerate(self.ids):
-            data, comm, error = self.ph.readRx(self.port, dxl_id, length)
-            if comm != sdk.COMM_SUCCESS:
-                reader.last_result = False
-                return False, f"sync read: {self.motors[k].label}: {self.ph.getTxRxResult(comm)}"
-            if len(data) != length:
-                reader.last_result = False
-                return False, f"sync read: {self.motors[k].label}: {len(data)} data bytes, expected {length}"
-            self.bytes_rx += 11 + length
-            reader.data_dict[dxl_id] = data
+            return False, f"fast sync read: {self.ph.getTxRxResult(comm)}"
+        if len(raw) != (length + 4) * n:
+            return False, f"fast sync read: answer of {len(raw)} bytes, expected {(length + 4) * n}"
+        self.bytes_rx += 8 + len(raw)
+        for k in range(n):
+            error, dxl_id = raw[k * (length + 4)], raw[k * (length + 4) + 1]
+            if dxl_id != self.ids[k]:
+                return False, f"fast sync read: answer {k} comes from id {dxl_id}, expected {self.ids[k]}"
+            reader.data_dict[dxl_id] = bytearray(raw[k * (length + 4) + 2 : k * (length + 4) + 2 + length])
             self._check_alert(k, error)
         reader.last_result = True
         return True, ""
@@ -372,21 +605,16 @@ class DynamixelBus:
         if error & 0x80:
             raise BusError(f"{self.motors[k].label}: {self._hardware_error(self.motors[k])}")
 
-    def _silent_motors(self) -> str:
-        """After a failed group read: which motors do not answer a ping (names them in the error)."""
-        silent = []
-        for m in self.motors:
-            _number, comm, _ = self.ph.ping(self.port, m.id)
-            if comm != sdk.COMM_SUCCESS:
-                silent.append(m.label)
-        return f" (not answering: {', '.join(silent)})" if silent else ""
-
     def write_goal_positions(self, pulses: np.ndarray) -> None:
         """One Sync Write of goal positions (pulses, multi-turn); no status packets, so nothing to retry."""
+        values = np.asarray(pulses)
+        if values.shape != (len(self.ids),) or not np.all(np.isfinite(values)):
+            raise BusError(f"bus {self.port_name}: refusing goal positions {values!r}: expected {len(self.ids)} "
+                           "finite pulse counts")
         writer = self._goal_writer
         writer.clearParam()
         limit = ct.EXTENDED_POSITION_RANGE
-        for dxl_id, value in zip(self.ids, np.clip(np.asarray(pulses, dtype=np.int64), -limit, limit), strict=True):
+        for dxl_id, value in zip(self.ids, np.clip(values, -limit, limit).astype(np.int64), strict=True):
             writer.addParam(dxl_id, list(ct.encode(int(value), 4)))
         self._send(writer, "goal positions")
         self.bytes_tx += 14 + 5 * len(self.ids)
@@ -402,7 +630,11 @@ class DynamixelBus:
 
     def _send(self, writer, what: str) -> None:
         for _ in range(self.retries):
-            comm = writer.txPacket()
+            try:
+                comm = writer.txPacket()
+            except OSError:
+                self._release_port()
+                comm = sdk.COMM_TX_FAIL
             if comm == sdk.COMM_SUCCESS:
                 return
         raise BusError(f"bus {self.port_name}: sync write of {what} failed: {self.ph.getTxRxResult(comm)}")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 from toddlerbot.actuation.catalogue import MotorModel
 from toddlerbot.hardware import protocol as p
 from toddlerbot.hardware.control_table import (
@@ -43,6 +45,8 @@ class EmulatedMotor:
         """Reading (pulses) at motor angle 0 before the multi-turn count is dropped."""
         self.turn_offset = 0
         self.overloaded = False
+        self.last_heard = 0.0
+        """time.perf_counter() of the last instruction packet this motor heard (Bus Watchdog)."""
         self.memory = bytearray(TABLE_SIZE)
         self.factory_reset(keep_id=False, dxl_id=dxl_id)
 
@@ -80,6 +84,11 @@ class EmulatedMotor:
         if self.overloaded:
             self.set("torque_enable", 0)
 
+    def watchdog_expire(self) -> None:
+        """The Bus Watchdog expired: hold where it is (goal = present position), register -1, goals locked."""
+        self.set("goal_position", self.get("present_position"))
+        self.set("bus_watchdog", -1)
+
     def error_flags(self, voltage: float) -> int:
         status = 0x20 if self.overloaded else 0
         if voltage * 10 < self.get("min_voltage_limit") or voltage * 10 > self.get("max_voltage_limit"):
@@ -116,6 +125,10 @@ class EmulatedMotor:
                 return p.ERR_DATA_RANGE
         if values.get("torque_enable", 0) not in (0, 1):
             return p.ERR_DATA_RANGE
+        if not 0 <= values.get("bus_watchdog", 0) <= 127:
+            return p.ERR_DATA_RANGE
+        if self.get("bus_watchdog") == -1 and ({"goal_position", "goal_current"} & values.keys()):
+            return p.ERR_DATA_RANGE  # goal registers are read-only after the Bus Watchdog expired
         goal = values.get("goal_position")
         if goal is not None and abs(goal) > 1_048_575:
             return p.ERR_DATA_LIMIT
@@ -125,4 +138,6 @@ class EmulatedMotor:
         self.memory[address:end] = data
         if self.overloaded:
             self.set("torque_enable", 0)
+        if values.get("torque_enable") == 1:
+            self.last_heard = time.perf_counter()  # the watchdog counts from torque-on
         return 0

@@ -17,32 +17,46 @@ reading lies in 0..4095.
 Faults (`Faults`): dropped instruction packets, corrupted status packets, missing ids, a low supply voltage
 and motors that report an overload (hardware error status bit 5, alert flag in every status packet, torque
 forced off).
+
+Bus Watchdog (address 98, as the X-series firmware): while torque is on and the register holds 1..127, a motor
+that hears no instruction packet (addressed to it or broadcast) for that many 20 ms units stops: its goal
+position becomes its present position (torque stays on, it holds), the register reads -1, and goal writes are
+refused with a data range error until the register is written again (0 clears it).
+
+Malformed packets never stop the emulator: a read outside the control table is answered with an access error
+(Read, Sync Read), a Fast Sync Read whose answer would not fit a packet is ignored, and instructions too short
+for their parameters get a data length error or are ignored (broadcasts).
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import random
 import select
 import threading
+import time
 import tty
 from dataclasses import dataclass, field
 
-from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.hardware import protocol as p
 from toddlerbot.hardware.control_table import (
+    BUS_WATCHDOG_UNIT_S,
     PULSES_PER_REV,
+    TABLE_SIZE,
     decode,
     encode,
 )
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
 from toddlerbot.hardware.plant import HilPlant, SimplePlant
-from toddlerbot.robot.spec import RobotSpec
+from toddlerbot.robot.description import RobotDescription
 
 SUPPLY_VOLTAGE = 12.0
 """Default emulated supply voltage, V."""
+MAX_VOLTAGE = 30.0
+"""Largest supply voltage a fault may set, V (X-series motors are rated to 14.8 V; 30 V catches typos)."""
 
 
 class FaultSpecError(ToddlerbotError):
@@ -65,6 +79,19 @@ class Faults:
     """Ids that report an overload hardware error."""
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        for name in ("drop", "corrupt"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):  # also refuses NaN
+                raise FaultSpecError(f"fault {name}={value}: a probability must lie in [0, 1]")
+        if not (isinstance(self.voltage, (int, float)) and math.isfinite(self.voltage)
+                and 0.0 <= self.voltage <= MAX_VOLTAGE):
+            raise FaultSpecError(f"fault voltage={self.voltage}: expected a supply voltage in [0, {MAX_VOLTAGE:g}] V")
+        for name in ("missing", "overload"):
+            bad = sorted(i for i in getattr(self, name) if not 0 <= i <= p.MAX_ID)
+            if bad:
+                raise FaultSpecError(f"fault {name}={bad[0]}: motor ids lie in 0..{p.MAX_ID}")
+
     @classmethod
     def parse(cls, items: list[str]) -> Faults:
         """From ``key=value`` strings: drop=0.1, corrupt=0.05, missing=7 (or 7+8), voltage=9.5, overload=13."""
@@ -76,12 +103,14 @@ class Faults:
                     raise ValueError("expected key=value")
                 if key in ("drop", "corrupt"):
                     values[key] = float(value)
-                    if not 0.0 <= values[key] <= 1.0:
+                    if not 0.0 <= values[key] <= 1.0:  # also refuses NaN
                         raise ValueError("a probability must lie in [0, 1]")
                 elif key in ("missing", "overload"):
                     values[key] = values.get(key, frozenset()) | {int(v) for v in value.split("+")}
                 elif key == "voltage":
                     values[key] = float(value)
+                    if not 0.0 <= values[key] <= MAX_VOLTAGE:  # also refuses NaN and inf
+                        raise ValueError(f"expected a supply voltage in [0, {MAX_VOLTAGE:g}] V")
                 elif key == "seed":
                     values[key] = int(value)
                 else:
@@ -101,31 +130,31 @@ class BusStats:
 
 
 class EmulatedBus:
-    """The motors of a spec on one Protocol 2.0 bus: `handle` maps an instruction packet to the bytes sent back."""
+    """The motors of a robot on one Protocol 2.0 bus: `handle` maps an instruction packet to the bytes sent back."""
 
     def __init__(
         self,
-        spec: RobotSpec,
+        description: RobotDescription,
         hil: bool = False,
         faults: Faults | None = None,
         fast_sync_read: bool = True,
         offsets_seed: int = 0,
     ) -> None:
-        self.spec = spec
+        self.description = description
+        self.spec = description.spec
         self.faults = faults or Faults()
         self.fast_sync_read = fast_sync_read
         self._rng = random.Random(self.faults.seed)
-        catalogue = default_catalogue()
         offset_rng = random.Random(offsets_seed)
         self.motors = []
-        for ms in spec.motors_by_id:
-            motor = EmulatedMotor(ms.id, ms.joint, catalogue[ms.model], offset_rng.randrange(0, PULSES_PER_REV))
+        for ms, model in zip(description.motors, description.motor_models, strict=True):
+            motor = EmulatedMotor(ms.id, ms.joint, model, offset_rng.randrange(0, PULSES_PER_REV))
             motor.overloaded = ms.id in self.faults.overload
             motor.overloaded_refresh()
             self.motors.append(motor)
         self.lock = threading.Lock()
         self.stats = BusStats()
-        self.plant: SimplePlant | HilPlant = HilPlant(self.motors, spec) if hil else SimplePlant(self.motors)
+        self.plant: SimplePlant | HilPlant = HilPlant(self.motors, description) if hil else SimplePlant(self.motors)
         for motor in self.motors:
             self._power_up(motor)
 
@@ -167,6 +196,14 @@ class EmulatedBus:
     def handle(self, packet: p.Packet | p.CrcMismatch) -> bytes:
         with self.lock:
             self.plant.update()
+            now = time.perf_counter()
+            if isinstance(packet, p.Packet):
+                # heard first, then expire: a packet that waited in the pty while this thread was descheduled
+                # proves the host was alive
+                for m in self.motors:
+                    if packet.id in (m.id, p.BROADCAST_ID):
+                        m.last_heard = now
+            self._expire_watchdogs(now)
             for m in self.motors:
                 m.set("present_input_voltage", round(self.faults.voltage * 10))
             self.stats.packets_in += 1
@@ -178,6 +215,18 @@ class EmulatedBus:
             out = self._dispatch(packet)
             self.stats.bytes_out += len(out)
             return out
+
+    def check_watchdogs(self) -> None:
+        """Let Bus Watchdogs expire while no packet arrives (the server calls this when the bus is idle)."""
+        with self.lock:
+            self.plant.update()
+            self._expire_watchdogs(time.perf_counter())
+
+    def _expire_watchdogs(self, now: float) -> None:
+        for m in self.motors:
+            period = m.get("bus_watchdog")
+            if m.torque_on and period > 0 and now - m.last_heard > period * BUS_WATCHDOG_UNIT_S:
+                m.watchdog_expire()
 
     def _dispatch(self, pk: p.Packet) -> bytes:
         inst, params = pk.instruction, pk.params
@@ -266,8 +315,11 @@ class EmulatedBus:
 
     def _fast_sync_read(self, ids: list[int], address: int, length: int) -> bytes:
         """One status packet for all ids: per motor ERR, ID, DATA, CRC, where each CRC covers the packet so far
-        (the last one is the packet's CRC). A motor that does not answer breaks the chain: the packet ends there."""
+        (the last one is the packet's CRC). A motor that does not answer breaks the chain: the packet ends there.
+        A request outside the control table, or one whose answer would not fit a packet, is ignored."""
         n = len(ids)
+        if length < 1 or address + length > TABLE_SIZE or 1 + n * (length + 4) > p.MAX_LENGTH:
+            return b""
         head = p.HEADER + bytes([p.BROADCAST_ID]) + (1 + n * (length + 4)).to_bytes(2, "little") + bytes([p.STATUS])
         packet, crc = bytearray(head), p.crc16(head)
         for dxl_id in ids:
@@ -306,8 +358,9 @@ class PtyServer:
         self.bus.start()
         try:
             while not self._stop.is_set():
-                ready, _, _ = select.select([self.master], [], [], 0.05)
+                ready, _, _ = select.select([self.master], [], [], 0.02)
                 if not ready:
+                    self.bus.check_watchdogs()
                     continue
                 try:
                     data = os.read(self.master, 4096)

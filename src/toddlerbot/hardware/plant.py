@@ -26,14 +26,19 @@ from toddlerbot.hardware.control_table import (
     traits,
 )
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
-from toddlerbot.robot.builder import build_model
-from toddlerbot.robot.spec import RobotSpec
+from toddlerbot.robot.description import RobotDescription
 
 LOAD_INERTIA = 0.002
 """Load inertia added to the armature of each motor in `SimplePlant`, kg*m^2."""
 MAX_LAG = 0.05
 """Largest lag (s) of the hardware-in-the-loop simulation behind wall-clock time; beyond it, time is dropped
 (reported by `HilPlant.realtime_factor`)."""
+REST_SPEED = 1e-3
+"""Largest joint or base speed (rad/s, m/s) at which an unpowered robot counts as at rest."""
+SETTLE_S = 2.0
+"""Simulated seconds after which an unpowered robot counts as settled even if contacts still jitter."""
+IDLE_POLL_S = 0.02
+"""How often a paused simulation (robot unpowered and at rest) checks whether torque came on, s."""
 
 
 class SimplePlant:
@@ -128,13 +133,15 @@ class HilPlant:
     """The whole robot in MuJoCo (floating base, floor), motors driven by the actuator model every physics step.
 
     The simulation holds still (robot hanging on its stand) until the first motor's torque is enabled, then
-    runs in real time in a background thread; `realtime_factor` reports how well it kept up.
+    runs in real time in a background thread; `realtime_factor` reports how well it kept up. Once every motor
+    is unpowered and the robot has come to rest, the simulation pauses (no CPU) until torque comes back.
+    The model and the actuator parameters come from the description, so fitted params.json files apply.
     """
 
-    def __init__(self, motors: list[EmulatedMotor], spec: RobotSpec) -> None:
+    def __init__(self, motors: list[EmulatedMotor], description: RobotDescription) -> None:
         self.motors = motors
         self.params = [m.model.actuator for m in motors]
-        self.model = build_model(spec, base="floating", scene=True)
+        self.model = description.model(base="floating", scene=True)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
         mujoco.mj_forward(self.model, self.data)
@@ -181,18 +188,26 @@ class HilPlant:
     def update(self) -> None:
         pass  # the physics thread publishes
 
-    def _run(self) -> None:
+    def _any_torque(self) -> bool:
         assert self._lock is not None
+        with self._lock:
+            return any(mo.torque_on for mo in self.motors)
+
+    def _wait_for_torque(self) -> None:
+        """Sleep (the world paused) until a motor's torque is enabled or the plant stops."""
+        while not self._stop.is_set() and not self._any_torque():
+            time.sleep(IDLE_POLL_S)
+
+    def _at_rest(self) -> bool:
+        return float(np.abs(self.data.qvel).max(initial=0.0)) < REST_SPEED
+
+    def _run(self) -> None:
         m, d = self.model, self.data
         dt = m.opt.timestep
-        while not self._stop.is_set():
-            with self._lock:
-                started = any(mo.torque_on for mo in self.motors)
-            if started:
-                break
-            time.sleep(0.002)
+        self._wait_for_torque()
         t0 = time.perf_counter()
         lost = 0.0  # wall-clock time the simulation gave up on (host too slow)
+        unpowered_since = None  # sim time at which the last motor lost torque
         while not self._stop.is_set():
             self.wall_time = time.perf_counter() - t0
             behind = self.wall_time - lost - self.sim_time
@@ -201,6 +216,7 @@ class HilPlant:
             if behind < dt:
                 time.sleep(min(dt, 0.002))
                 continue
+            assert self._lock is not None
             with self._lock:
                 cmd = commands(self.motors, self.params)
             for _ in range(min(int(behind / dt), 10)):
@@ -214,4 +230,13 @@ class HilPlant:
                 self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
             with self._lock:
                 self._publish()
+            if cmd.torque_on.any():
+                unpowered_since = None
+            else:
+                unpowered_since = self.sim_time if unpowered_since is None else unpowered_since
+                if self._at_rest() or self.sim_time - unpowered_since > SETTLE_S:
+                    paused = time.perf_counter()
+                    self._wait_for_torque()
+                    t0 += time.perf_counter() - paused  # paused time is neither simulated nor lost
+                    unpowered_since = None
             time.sleep(0)  # let the serving thread answer between batches

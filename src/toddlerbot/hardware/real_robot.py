@@ -4,20 +4,40 @@ Motor angles are ``q = (reading - offset - turns * 4096) * 2*pi/4096``: `offset`
 file, `turns` chosen once at start-up so that each motor lies within half a turn of the middle of its joint range
 (the multi-turn count is lost at every power-up). Policies command motor angles (rad) and firmware gains, as
 in the simulator; the spec's transmission map gives the joint-space view.
+
+Before torque is enabled, every motor's calibrated angle must lie within its joint range widened by
+`startup_margin` (a wrong calibration offset or a robot assembled off by a turn is caught while the motors are
+still limp); otherwise `StartupCheckError` names the motors and torque stays off.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 
 from toddlerbot.hardware.calibration import Calibration
 from toddlerbot.hardware.control_table import PULSES_PER_REV, pulses_to_rad, rad_to_pulses
-from toddlerbot.hardware.driver import DEFAULT_BAUDRATE, DEFAULT_RETRIES, DynamixelBus, MotorState, motors_of
+from toddlerbot.hardware.driver import (
+    DEFAULT_BAUDRATE,
+    DEFAULT_RETRIES,
+    DynamixelBus,
+    HardwareError,
+    MotorState,
+    motors_of,
+)
 from toddlerbot.hardware.imu import Imu, StaticImu
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
+
+STARTUP_MARGIN = 0.25
+"""How far (rad) outside its joint range a limp motor may read at start-up before the calibration or the
+robot's pose is called implausible (a joint resting on its hard stop sits a little past the spec's range)."""
+
+
+class StartupCheckError(HardwareError):
+    """At start-up a motor read an angle far outside its joint range: torque was not enabled."""
 
 
 class RealRobot(Robot):
@@ -34,12 +54,16 @@ class RealRobot(Robot):
         reset_duration: float = 2.0,
         calibration_source: str = "calibration",
         retries: int = DEFAULT_RETRIES,
+        startup_margin: float = STARTUP_MARGIN,
+        latency_ms: float | None = None,
     ) -> None:
         # slew limit: no target moves faster than the motor's no-load speed
         super().__init__(description, control_dt, max_step=description.max_motor_speed * control_dt)
-        spec = description.spec
-        self.offsets = calibration.offsets_for(spec, calibration_source)
-        self.bus = DynamixelBus(port, motors_of(spec), baudrate=baudrate, retries=retries)
+        self.offsets = calibration.offsets_for(description, calibration_source)
+        self.calibration_source = calibration_source
+        self.bus = DynamixelBus(port, motors_of(description), baudrate=baudrate, retries=retries,
+                                latency_ms=latency_ms)
+        self.startup_margin = startup_margin
         self.imu = imu or StaticImu()
         self.reset_duration = reset_duration
         self.turns = np.zeros(len(self.offsets), dtype=np.int64)
@@ -87,6 +111,7 @@ class RealRobot(Robot):
             bus.check_voltage()
             state = bus.read_state()
             self.resolve_turns(state.position)
+            self.check_startup_pose(self._angles(state.position))
             bus.enable_torque(state.position)
             self._gains = (self.default_kp.copy(), self.default_kd.copy())
             self._t0 = self._deadline = time.perf_counter()
@@ -100,7 +125,23 @@ class RealRobot(Robot):
             bus.close()
             raise
         self._t0 = time.perf_counter()
-        return obs
+        self._last = dataclasses.replace(obs, time=0.0)  # time counts from the end of the reset
+        return self._last
+
+    def check_startup_pose(self, angles: np.ndarray) -> None:
+        """Refuse (`StartupCheckError`) if any motor angle (rad) lies beyond its range +- `startup_margin`."""
+        low, high = self.lower - self.startup_margin, self.upper + self.startup_margin
+        bad = np.flatnonzero((angles < low) | (angles > high))
+        if bad.size:
+            worst = ", ".join(
+                f"{self.motor_names[i]} reads {angles[i]:+.2f} rad, range [{self.lower[i]:+.2f}, {self.upper[i]:+.2f}]"
+                for i in bad[:3]
+            )
+            raise StartupCheckError(
+                f"start-up check failed, torque stays off: {bad.size} motor(s) outside their range +-"
+                f"{self.startup_margin:g} rad ({worst}{' ...' if bad.size > 3 else ''}); "
+                f"check {self.calibration_source} and the robot's pose"
+            )
 
     def observe(self) -> Observation:
         if self._last is None:

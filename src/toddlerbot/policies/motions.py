@@ -23,12 +23,14 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.yaml_input import read_yaml
 
 MOTIONS_DIR = resources.files("toddlerbot.policies") / "motions"
+MAX_MOTION_BYTES = 1_000_000
+"""Largest motion file read, bytes (the packaged ones are under 2 kB)."""
 INTERPOLATIONS = ("smooth", "linear")
 
 
@@ -78,11 +80,7 @@ def motion_path(name_or_path: str) -> Path:
 
 def load_motion(name_or_path: str, description: RobotDescription) -> Motion:
     path = motion_path(name_or_path)
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise MotionError(f"{path}: not valid YAML ({exc})") from None
-    return parse_motion(raw, description, str(path))
+    return parse_motion(read_yaml(path, "motion file", MotionError, MAX_MOTION_BYTES), description, str(path))
 
 
 def parse_motion(raw: object, description: RobotDescription, source: str) -> Motion:
@@ -119,7 +117,7 @@ def parse_motion(raw: object, description: RobotDescription, source: str) -> Mot
         pose = []
         for j in joints:
             value = frame[j]
-            if not isinstance(value, (int, float)) or not np.isfinite(value):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
                 raise MotionError(f"{where}: {j} must be a number of degrees, got {value!r}")
             lo, hi = description.joint_range[valid.index(j)]
             rad = np.deg2rad(value)
@@ -127,7 +125,10 @@ def parse_motion(raw: object, description: RobotDescription, source: str) -> Mot
                 raise MotionError(f"{where}: {j} = {value} deg is out of range "
                                   f"[{np.rad2deg(lo):.1f}, {np.rad2deg(hi):.1f}] deg")
             pose.append(rad)
-        times.append(float(frame["t"]))
+        t = frame["t"]
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not np.isfinite(t):
+            raise MotionError(f"{where}: t must be a finite number of seconds, got {t!r}")
+        times.append(float(t))
         poses.append(pose)
     if times[0] != 0.0 or any(b <= a for a, b in itertools.pairwise(times)):
         raise MotionError(f"{source}: keyframe times must start at 0 and increase, got {times}")

@@ -112,27 +112,82 @@ def _swish(x: np.ndarray) -> np.ndarray:
     return x * (0.5 + 0.5 * np.tanh(0.5 * x))
 
 
+MAX_POLICY_BYTES = 256 << 20
+"""Largest exported policy file read, bytes (the shipped one is well under 1 MiB)."""
+
+
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """Every array of an .npz file (no pickled objects), or a one-line `ToddlerbotError` naming the file."""
+    import zipfile
+
+    try:
+        size = path.stat().st_size
+        if size == 0:
+            raise ToddlerbotError(f"{path}: empty file, not an exported RL policy")
+        if size > MAX_POLICY_BYTES:
+            raise ToddlerbotError(f"{path}: {size} bytes; an exported policy has at most {MAX_POLICY_BYTES} bytes")
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            raise ToddlerbotError(f"{path}: a single .npy array, not an exported RL policy (.npz)")
+        with loaded as data:
+            return {key: data[key] for key in data.files}
+    except ToddlerbotError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise ToddlerbotError(f"{path}: not a readable .npz file ({reason})") from None
+
+
+def _check_policy_arrays(policy: RLPolicyFile, path: Path) -> None:
+    """Shapes chain through the network, every number is finite, indices and names fit the motors."""
+    if not policy.kernels:
+        raise ToddlerbotError(f"{path}: no network layers (layer0_kernel)")
+    width = policy.kernels[0].shape[0] if policy.kernels[0].ndim == 2 else -1
+    for i, (kernel, bias) in enumerate(zip(policy.kernels, policy.biases, strict=True)):
+        if kernel.ndim != 2 or kernel.shape[0] != width or bias.shape != (kernel.shape[1],):
+            raise ToddlerbotError(f"{path}: layer{i} has kernel {kernel.shape} and bias {bias.shape}; expected "
+                                  f"({width}, n) and (n,)")
+        width = kernel.shape[1]
+    n_motors, n_legs = len(policy.home_motor_pos), len(policy.leg_motor_index)
+    if width < n_legs or len(policy.motor_names) != n_motors or policy.home_motor_pos.shape != (n_motors,):
+        raise ToddlerbotError(f"{path}: network output {width}, {len(policy.motor_names)} motor names and home pose "
+                              f"{policy.home_motor_pos.shape} do not fit {n_legs} commanded of {n_motors} motors")
+    if policy.leg_motor_index.ndim != 1 or np.any((policy.leg_motor_index < 0) | (policy.leg_motor_index >= n_motors)):
+        raise ToddlerbotError(f"{path}: leg_motor_index must hold motor indices in 0..{n_motors - 1}")
+    arrays = {"obs_mean": policy.obs_mean, "obs_std": policy.obs_std, "home_motor_pos": policy.home_motor_pos}
+    arrays |= {f"layer{i}_kernel": k for i, k in enumerate(policy.kernels)}
+    arrays |= {f"layer{i}_bias": b for i, b in enumerate(policy.biases)}
+    for name, array in arrays.items():
+        if not np.all(np.isfinite(array)):
+            raise ToddlerbotError(f"{path}: {name} holds non-finite values (NaN or inf)")
+    if policy.obs_std.shape != policy.obs_mean.shape or np.any(policy.obs_std <= 0):
+        raise ToddlerbotError(f"{path}: obs_std must be positive and shaped like obs_mean {policy.obs_mean.shape}")
+
+
 class RLPolicyFile:
-    """An exported policy loaded for numpy inference."""
+    """An exported policy loaded for numpy inference (validated: finite numbers, consistent shapes)."""
 
     def __init__(self, path: str | Path) -> None:
         path = Path(path)
         if not path.is_file():
             raise ToddlerbotError(f"{path}: exported policy not found (run `toddlerbot rl export`)")
-        with np.load(path) as data:
-            try:
-                n_layers = len([k for k in data.files if k.endswith("_kernel")])
-                self.kernels = [data[f"layer{i}_kernel"].astype(np.float32) for i in range(n_layers)]
-                self.biases = [data[f"layer{i}_bias"].astype(np.float32) for i in range(n_layers)]
-                self.obs_mean = data["obs_mean"].astype(np.float32)
-                self.obs_std = data["obs_std"].astype(np.float32)
-                self.home_motor_pos = data["home_motor_pos"].astype(float)
-                self.leg_motor_index = data["leg_motor_index"].astype(int)
-                self.motor_names = tuple(str(n) for n in data["motor_names"])
-                self.obs_config = ObsConfig.from_json(str(data["obs_config"]))
-                self.meta = json.loads(str(data["meta"]))
-            except KeyError as exc:
-                raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from exc
+        data = _read_npz(path)
+        try:
+            n_layers = len([k for k in data if k.endswith("_kernel")])
+            self.kernels = [data[f"layer{i}_kernel"].astype(np.float32) for i in range(n_layers)]
+            self.biases = [data[f"layer{i}_bias"].astype(np.float32) for i in range(n_layers)]
+            self.obs_mean = data["obs_mean"].astype(np.float32)
+            self.obs_std = data["obs_std"].astype(np.float32)
+            self.home_motor_pos = data["home_motor_pos"].astype(float)
+            self.leg_motor_index = data["leg_motor_index"].astype(int)
+            self.motor_names = tuple(str(n) for n in data["motor_names"].reshape(-1))
+            self.obs_config = ObsConfig.from_json(str(data["obs_config"]))
+            self.meta = json.loads(str(data["meta"]))
+        except KeyError as exc:
+            raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from None
+        except (ValueError, TypeError) as exc:  # wrong dtypes, malformed JSON or config fields
+            raise ToddlerbotError(f"{path}: malformed exported policy ({' '.join(str(exc).split())})") from None
+        _check_policy_arrays(self, path)
         self.path = path
         frame = self.obs_config.frame_size(len(self.home_motor_pos), len(self.leg_motor_index))
         expected = self.obs_config.history * frame

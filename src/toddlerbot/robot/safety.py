@@ -40,14 +40,19 @@ class CommandGuard:
 
     def targets(self, motor_targets: object, previous: np.ndarray | None = None) -> np.ndarray:
         """Validated, clamped (and slew-limited against `previous`) motor targets, rad."""
-        q = self._finite(motor_targets, "motor target")
+        q = self._in_range(self._finite(motor_targets, "motor target"))
+        if self.max_step is not None and previous is not None:
+            # the ranges win over the slew limit when the previous target lay outside them (start-up pose)
+            q = self._in_range(np.clip(q, previous - self.max_step, previous + self.max_step))
+        return q
+
+    def _in_range(self, q: np.ndarray) -> np.ndarray:
+        """Clamp to the motor joints' ranges and, through the transmission map, the output joints' ranges."""
         q = np.clip(q, self.motor_range[:, 0], self.motor_range[:, 1])
         joint = self.matrix @ q
         clipped = np.clip(joint, self.joint_range[:, 0], self.joint_range[:, 1])
         if np.any(clipped != joint):
             q = np.clip(self.inverse @ clipped, self.motor_range[:, 0], self.motor_range[:, 1])
-        if self.max_step is not None and previous is not None:
-            q = np.clip(q, previous - self.max_step, previous + self.max_step)
         return q
 
     def gains(self, gains: object, what: str) -> np.ndarray:

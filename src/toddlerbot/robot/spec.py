@@ -11,11 +11,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from toddlerbot.actuation.catalogue import Catalogue, default_catalogue
 from toddlerbot.errors import SpecError
+from toddlerbot.yaml_input import read_yaml
 
 DEFAULT_SPEC = resources.files("toddlerbot.robot") / "specs" / "toddlerbot_v1.yaml"
 
@@ -25,7 +25,8 @@ IDENTITY: Quat = (1.0, 0.0, 0.0, 0.0)
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # allow_inf_nan: a NaN centre of mass or an infinite mass must never reach the model builder
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class JointSpec(_Strict):
@@ -392,19 +393,12 @@ def _validate(data: object, source: str) -> RobotSpec:
             elif err["type"] == "extra_forbidden":
                 message = "unknown field"
             problems.append(f"{source}: {_entry_label(data, err['loc'])}: {message}")
-        raise SpecError("\n".join(problems)) from None
+        raise SpecError("; ".join(problems)) from None
 
 
 def load_spec(path: str | Path | None = None, variant: str | None = None) -> RobotSpec:
     """Load and validate a robot spec (the packaged ToddlerBot v1 by default), optionally applying a variant."""
-    source = Path(path) if path is not None else DEFAULT_SPEC
-    try:
-        text = source.read_text()
-    except OSError as exc:
-        raise SpecError(f"{source}: cannot read robot spec ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise SpecError(f"{source}: not valid YAML: {exc}") from None
+    source = Path(path) if path is not None else Path(str(DEFAULT_SPEC))
+    data = read_yaml(source, "robot spec", SpecError)
     spec = _validate(data, str(source if path is not None else source.name))
     return spec.with_variant(variant) if variant else spec

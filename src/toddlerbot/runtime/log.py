@@ -28,6 +28,7 @@ policy              ()          str
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -43,6 +44,24 @@ STEP_KEYS = (
 )
 OPTIONAL_STEP_KEYS = ("motor_kp", "motor_kd")
 """Recorded when given to `LogRecorder.append`; logs written before they existed load with None."""
+
+
+def _check_shapes(values: dict, path: Path) -> None:
+    """Every per-step array has one row per time step; motor/joint arrays one column per name; time and the
+    control period are finite and time increases (NaN elsewhere is allowed: e.g. no ground truth on hardware)."""
+    n, motors, joints = len(values["time"]), len(values["motor_names"]), len(values["joint_names"])
+    if not np.isfinite(values["control_dt"]) or values["control_dt"] <= 0:
+        raise ToddlerbotError(f"{path}: control_dt must be a finite period > 0 s")
+    time_ = np.asarray(values["time"], dtype=float) if values["time"].dtype.kind in "fiu" else None
+    if time_ is None or time_.ndim != 1 or not np.all(np.isfinite(time_)) or np.any(np.diff(time_) < 0):
+        raise ToddlerbotError(f"{path}: 'time' must be finite and non-decreasing")
+    widths = {"motor_pos": motors, "motor_vel": motors, "motor_torque": motors, "motor_target": motors,
+              "joint_pos": joints, "joint_vel": joints, "joint_target": joints}
+    for name in STEP_KEYS:
+        array = values[name]
+        if array.dtype.kind not in "fiub" or len(array) != n or (name in widths and array.shape[1:] != (widths[name],)):
+            raise ToddlerbotError(f"{path}: '{name}' has shape {array.shape} ({array.dtype}); expected {n} rows"
+                                  + (f" of {widths[name]}" if name in widths else ""))
 
 
 @dataclass(frozen=True)
@@ -85,13 +104,15 @@ class RunLog:
             with np.load(path, allow_pickle=False) as data:
                 values = {f.name: data[f.name] for f in fields(cls) if f.name in data or f.name not in
                           OPTIONAL_STEP_KEYS}
-        except (OSError, KeyError, ValueError) as exc:
-            raise ToddlerbotError(f"{path} is not a run log (.npz with the keys of toddlerbot.runtime.log): {exc}") \
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            reason = " ".join(str(exc).split()) or f"{type(exc).__name__}: empty or truncated"
+            raise ToddlerbotError(f"{path} is not a run log (.npz with the keys of toddlerbot.runtime.log): {reason}") \
                 from None
-        values["motor_names"] = tuple(str(s) for s in values["motor_names"])
-        values["joint_names"] = tuple(str(s) for s in values["joint_names"])
-        values["control_dt"] = float(values["control_dt"])
+        values["motor_names"] = tuple(str(s) for s in values["motor_names"].reshape(-1))
+        values["joint_names"] = tuple(str(s) for s in values["joint_names"].reshape(-1))
+        values["control_dt"] = float(values["control_dt"]) if values["control_dt"].size == 1 else float("nan")
         values["policy"] = str(values["policy"])
+        _check_shapes(values, path)
         return cls(**values)
 
 

@@ -3,6 +3,10 @@
 ``realtime=True`` locks each step to wall-clock time (sleeping off the remainder of the control period; a real
 robot's backend blocks on its bus instead). The run stops early when the policy is done, or when the robot falls
 (backends with a ``fallen`` property, e.g. the simulator) unless ``stop_on_fall`` is False.
+
+A command the robot's guard refuses (`UnsafeCommandError`) or a policy that raises stops the run at once: the
+error propagates (a policy's own exception wrapped in `PolicyError`, which names the policy and the time) and
+the caller's ``with robot:`` turns torque off.
 """
 
 from __future__ import annotations
@@ -13,11 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.base import Policy
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.runtime.log import LogRecorder, RunLog
 
 NAN3, NAN4 = np.full(3, np.nan), np.full(4, np.nan)
+
+
+class PolicyError(ToddlerbotError):
+    """The policy raised while computing an action; the run stopped before sending it."""
 
 
 @dataclass(frozen=True)
@@ -51,7 +60,13 @@ def run_policy(
     for _ in range(n_steps):
         start = time.perf_counter()
         command = np.asarray(commands(obs.time), dtype=float)
-        action = policy.act(obs, command)
+        try:
+            action = policy.act(obs, command)
+        except ToddlerbotError:
+            raise
+        except Exception as exc:  # a policy bug must stop the robot with a clear message, not a traceback
+            raise PolicyError(f"policy {policy.name} failed at t={obs.time:.3f} s: {type(exc).__name__}: {exc}"
+                              ) from exc
         base_pos = robot.base_pos if has_ground_truth else NAN3
         base_quat = robot.base_quat if has_ground_truth else NAN4
         new_obs = robot.step(action.motor_targets, action.kp, action.kd)

@@ -1,0 +1,71 @@
+"""CLI options that typer accepts but no run can use (NaN, inf, <= 0, unwritable outputs, empty weights) are
+refused with one line before anything starts: no bus is opened, no simulation is built."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from toddlerbot.cli import hw, sim
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.hardware.calibration import Calibration, save_calibration
+from toddlerbot.robot.description import RobotDescription
+
+NO_PORT = "/dev/ttyNOPE"  # reaching the bus would fail differently ("cannot open serial port")
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cal") / "cal.yaml"
+    save_calibration(Calibration("tb", "toddlerbot_v1", {n: 2048 for n in RobotDescription.load().motor_names}),
+                     path)
+    return path
+
+
+def _error(app, args: list[str]) -> str:
+    result = CliRunner().invoke(app, args)
+    assert isinstance(result.exception, ToddlerbotError), result.output
+    message = str(result.exception)
+    assert "\n" not in message and "cannot open serial port" not in message
+    return message
+
+
+@pytest.mark.parametrize(("option", "value", "expected"), [
+    ("--seconds", "nan", "--seconds nan: expected a finite number of seconds > 0"),
+    ("--seconds", "inf", "--seconds inf: expected a finite number of seconds > 0"),
+    ("--seconds", "0", "--seconds 0.0: expected"),
+    ("--seconds", "-1", "--seconds -1.0: expected"),
+    ("--dt", "nan", "--dt nan: expected a finite number of seconds > 0"),
+    ("--dt", "1e400", "--dt inf: expected"),
+    ("--latency-ms", "0", "--latency-ms 0.0: expected a finite number of milliseconds > 0"),
+])
+def test_hw_run_refuses_unusable_numbers(calibration, option, value, expected):
+    assert expected in _error(hw.app, ["run", "--port", NO_PORT, "--calibration", str(calibration), option, value])
+
+
+@pytest.mark.parametrize(("option", "value", "expected"), [
+    ("--seconds", "nan", "--seconds nan: expected"),
+    ("--control-hz", "nan", "--control-hz nan: expected a finite number of Hz > 0"),
+    ("--control-hz", "inf", "--control-hz inf: expected"),
+    ("--control-hz", "-50", "--control-hz -50.0: expected"),
+])
+def test_sim_run_refuses_unusable_numbers(option, value, expected):
+    assert expected in _error(sim.app, ["run", "--policy", "stand", option, value])
+
+
+def test_unwritable_log_is_reported_before_the_run(calibration, tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    log = blocker / "run.npz"
+    message = _error(hw.app, ["run", "--port", NO_PORT, "--calibration", str(calibration), "--log", str(log)])
+    assert f"--log {log}: cannot write there" in message
+    message = _error(sim.app, ["run", "--policy", "stand", "--log", str(tmp_path)])
+    assert f"--log {tmp_path}: is a directory" in message
+
+
+def test_empty_weights_file_is_one_line_before_the_bus(calibration, tmp_path):
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    message = _error(hw.app, ["run", "--port", NO_PORT, "--calibration", str(calibration), "--policy", "walk-rl",
+                              "--weights", str(empty)])
+    assert message == f"{empty}: empty file, not an exported RL policy"

@@ -1,0 +1,207 @@
+"""Hostile input files, table-driven: robot spec, motor catalogue, motion files and exported policies.
+
+Each bad file gets a one-line `ToddlerbotError` subclass that starts with the file's path; nothing else
+(traceback, MemoryError, minutes of parsing) happens."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from toddlerbot.actuation.catalogue import DEFAULT_CATALOGUE, load_catalogue
+from toddlerbot.errors import SpecError, ToddlerbotError
+from toddlerbot.policies.motions import MotionError, load_motion
+from toddlerbot.policies.rl_inference import RLPolicyFile
+from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS
+from toddlerbot.robot.spec import DEFAULT_SPEC, load_spec
+
+SPEC_TEXT = Path(str(DEFAULT_SPEC)).read_text()
+CATALOGUE_TEXT = Path(str(DEFAULT_CATALOGUE)).read_text()
+ALIAS_BOMB = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(7)
+)
+"""Ten to the eighth power leaves from 8 lines of text."""
+
+
+def _one_line_error(exc: BaseException, path: Path) -> str:
+    message = str(exc)
+    assert message.startswith(str(path)) and "\n" not in message, message
+    return message
+
+
+TORSO = "bodies[0] (torso)."
+FINITE = "Input should be a finite number"
+SPEC_CASES = [
+    ("nan_com", SPEC_TEXT.replace("com: [-0.00261802,", "com: [.nan,", 1), TORSO + "com[0]: " + FINITE),
+    ("inf_mass", SPEC_TEXT.replace("mass: 1.08507", "mass: .inf", 1), TORSO + "mass: " + FINITE),
+    ("nan_inertia", SPEC_TEXT.replace("inertia: [0.00283944,", "inertia: [.nan,", 1), TORSO + "inertia[0]: " + FINITE),
+    ("inf_inertia", SPEC_TEXT.replace("inertia: [0.00283944,", "inertia: [.inf,", 1), TORSO + "inertia[0]: " + FINITE),
+    ("nan_range", SPEC_TEXT.replace("range: [-1.74533, 0.785398]", "range: [.nan, 0.785398]", 1),
+     "range[0]: " + FINITE),
+    ("negative_mass", SPEC_TEXT.replace("mass: 1.08507", "mass: -1.0", 1), TORSO + "mass: Input should be greater"),
+    ("truncated", SPEC_TEXT[: len(SPEC_TEXT) // 3] + "\n  - [", "not valid YAML"),
+    ("empty", "", "expected a mapping at the top level"),
+    ("alias_bomb", ALIAS_BOMB, "YAML aliases expand to more than 1000000 nodes"),
+]
+
+
+@pytest.mark.parametrize(("name", "text", "expected"), SPEC_CASES, ids=[c[0] for c in SPEC_CASES])
+def test_hostile_specs_get_one_line_errors(tmp_path, name, text, expected):
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    with pytest.raises(SpecError) as info:
+        load_spec(path)
+    assert expected in _one_line_error(info.value, path)
+
+
+def test_binary_and_oversized_specs_are_refused_quickly(tmp_path):
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"name: x\n\xff\xfe\x00\x81")
+    with pytest.raises(SpecError, match=r"not UTF-8 text \(byte 8\)"):
+        load_spec(binary)
+    huge = tmp_path / "huge.yaml"
+    with huge.open("w") as f:
+        f.write(SPEC_TEXT)
+        f.write("# padding\n" * 5_000_000)  # 50 MB
+    start = time.perf_counter()
+    with pytest.raises(SpecError, match=r"50\d{6} bytes is too large for a robot spec \(at most 4000000 bytes\)"):
+        load_spec(huge)
+    assert time.perf_counter() - start < 1.0
+
+
+CATALOGUE_CASES = [
+    ("nan_damping", CATALOGUE_TEXT.replace("damping: 0.0036", "damping: .nan", 1), "damping"),
+    ("inf_armature", CATALOGUE_TEXT.replace("armature: 0.0040", "armature: .inf", 1), "armature"),
+    ("bool_param", CATALOGUE_TEXT.replace("tau_max: 0.76", "tau_max: true", 1), "tau_max"),
+    ("alias_bomb", ALIAS_BOMB, "YAML aliases expand"),
+    ("empty", "", ""),
+]
+
+
+@pytest.mark.parametrize(("name", "text", "expected"), CATALOGUE_CASES, ids=[c[0] for c in CATALOGUE_CASES])
+def test_hostile_motor_catalogues_get_one_line_errors(tmp_path, name, text, expected):
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    with pytest.raises(SpecError) as info:
+        load_catalogue(path)
+    assert expected in _one_line_error(info.value, path)
+
+
+MOTION = """name: m
+joints: [left_knee]
+keyframes:
+  - {t: 0.0, left_knee: 0}
+  - {t: T1, left_knee: A1}
+  - {t: 2.0, left_knee: -10}
+"""
+MOTION_CASES = [
+    ("nan_time", {"T1": ".nan", "A1": "-5"}, "keyframe 1: t must be a finite number of seconds, got nan"),
+    ("inf_time", {"T1": ".inf", "A1": "-5"}, "keyframe 1: t must be a finite number of seconds, got inf"),
+    ("text_time", {"T1": "soon", "A1": "-5"}, "keyframe 1: t must be a finite number of seconds, got 'soon'"),
+    ("bool_time", {"T1": "true", "A1": "-5"}, "got True"),
+    ("decreasing", {"T1": "3.0", "A1": "-5"}, "keyframe times must start at 0 and increase"),
+    ("repeated", {"T1": "0.0", "A1": "-5"}, "keyframe times must start at 0 and increase"),
+    ("nan_angle", {"T1": "1.0", "A1": ".nan"}, "left_knee must be a number of degrees, got nan"),
+    ("bool_angle", {"T1": "1.0", "A1": "true"}, "left_knee must be a number of degrees, got True"),
+]
+
+
+@pytest.mark.parametrize(("name", "fields", "expected"), MOTION_CASES, ids=[c[0] for c in MOTION_CASES])
+def test_hostile_motion_files_get_one_line_errors(tmp_path, name, fields, expected):
+    text = MOTION.replace("T1", fields["T1"]).replace("A1", fields["A1"])
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    with pytest.raises(MotionError) as info:
+        load_motion(str(path), load_spec())
+    assert expected in _one_line_error(info.value, path)
+
+
+def _weights(**changes) -> dict[str, np.ndarray]:
+    data = dict(np.load(DEFAULT_WEIGHTS, allow_pickle=False))
+    return data | changes
+
+
+WEIGHT_CASES = [
+    ("nan_last_layer", lambda d: d | {"layer3_kernel": np.full_like(d["layer3_kernel"], np.nan)},
+     "layer3_kernel holds non-finite values"),
+    ("inf_bias", lambda d: d | {"layer0_bias": np.full_like(d["layer0_bias"], np.inf)},
+     "layer0_bias holds non-finite values"),
+    ("zero_std", lambda d: d | {"obs_std": np.zeros_like(d["obs_std"])}, "obs_std must be positive"),
+    ("wrong_shape", lambda d: d | {"layer2_kernel": d["layer2_kernel"][:, :7]},
+     "layer2 has kernel (256, 7) and bias (128,)"),
+    ("missing_layer", lambda d: {k: v for k, v in d.items() if k != "layer1_bias"}, "missing 'layer1_bias'"),
+    ("bad_index", lambda d: d | {"leg_motor_index": d["leg_motor_index"] + 100}, "leg_motor_index must hold"),
+    ("bad_json", lambda d: d | {"meta": np.array("{not json")}, "malformed exported policy"),
+]
+
+
+@pytest.mark.parametrize(("name", "change", "expected"), WEIGHT_CASES, ids=[c[0] for c in WEIGHT_CASES])
+def test_hostile_policy_weights_get_one_line_errors(tmp_path, name, change, expected):
+    path = tmp_path / f"{name}.npz"
+    np.savez(path, **change(_weights()))
+    with pytest.raises(ToddlerbotError) as info:
+        RLPolicyFile(path)
+    assert expected in _one_line_error(info.value, path)
+
+
+def test_empty_truncated_pickled_and_foreign_weight_files(tmp_path):
+    cases = {"empty.npz": b"", "truncated.npz": DEFAULT_WEIGHTS.read_bytes()[:5000], "text.npz": b"hello\n"}
+    for name, content in cases.items():
+        (tmp_path / name).write_bytes(content)
+    np.savez(tmp_path / "pickled.npz", obj=np.array([{"a": 1}], dtype=object))
+    np.save(tmp_path / "single.npy", np.zeros(3))
+    expected = {"empty.npz": "empty file", "truncated.npz": "not a readable .npz file",
+                "text.npz": "not a readable .npz file", "pickled.npz": "not a readable .npz file",
+                "single.npy": "a single .npy array"}
+    for name, message in expected.items():
+        with pytest.raises(ToddlerbotError) as info:
+            RLPolicyFile(tmp_path / name)
+        assert message in _one_line_error(info.value, tmp_path / name)
+
+
+def _run_log(n: int = 5):
+    from toddlerbot.runtime.log import LogRecorder
+
+    recorder = LogRecorder()
+    names = ("a", "b")
+    for k in range(n):
+        recorder.append(time=0.02 * k, command=np.zeros(3), motor_pos=np.zeros(2), motor_vel=np.zeros(2),
+                        motor_torque=np.zeros(2), joint_pos=np.zeros(2), joint_vel=np.zeros(2),
+                        motor_target=np.zeros(2), joint_target=np.zeros(2), imu_quat=np.array([1.0, 0, 0, 0]),
+                        imu_ang_vel=np.zeros(3), imu_lin_acc=np.zeros(3), foot_contact=np.zeros(2, bool),
+                        base_pos=np.full(3, np.nan), base_quat=np.full(4, np.nan), compute_time=0.001,
+                        step_period=0.02)
+    return recorder.finish(names, names, 0.02, "stand")
+
+
+def test_hostile_run_logs_get_one_line_errors(tmp_path):
+    from toddlerbot.runtime.log import RunLog
+
+    good = _run_log().save(tmp_path / "good.npz")
+    assert RunLog.load(good).time.size == 5  # NaN ground truth (hardware) is allowed
+    arrays = dict(np.load(good, allow_pickle=False))
+    cases = {
+        "empty.npz": b"", "truncated.npz": good.read_bytes()[:200],
+        "nan_time.npz": arrays | {"time": np.array([0.0, np.nan, 0.04, 0.06, 0.08])},
+        "backwards.npz": arrays | {"time": arrays["time"][::-1]},
+        "short_rows.npz": arrays | {"motor_pos": arrays["motor_pos"][:3]},
+        "wide.npz": arrays | {"joint_pos": np.zeros((5, 7))},
+        "bad_dt.npz": arrays | {"control_dt": np.array(np.inf)},
+        "pickled.npz": arrays | {"policy": np.array([{"x": 1}], dtype=object)},
+    }
+    expected = {"empty.npz": "is not a run log", "truncated.npz": "is not a run log",
+                "nan_time.npz": "'time' must be finite and non-decreasing", "backwards.npz": "'time' must be finite",
+                "short_rows.npz": "'motor_pos' has shape (3, 2)", "wide.npz": "'joint_pos' has shape (5, 7)",
+                "bad_dt.npz": "control_dt must be a finite period", "pickled.npz": "is not a run log"}
+    for name, content in cases.items():
+        path = tmp_path / name
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            np.savez(path, **content)
+        with pytest.raises(ToddlerbotError) as info:
+            RunLog.load(path)
+        assert expected[name] in _one_line_error(info.value, path)
