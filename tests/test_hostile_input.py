@@ -110,12 +110,12 @@ MOTION_CASES = [
 
 
 @pytest.mark.parametrize(("name", "fields", "expected"), MOTION_CASES, ids=[c[0] for c in MOTION_CASES])
-def test_hostile_motion_files_get_one_line_errors(tmp_path, name, fields, expected):
+def test_hostile_motion_files_get_one_line_errors(tmp_path, name, fields, expected, description):
     text = MOTION.replace("T1", fields["T1"]).replace("A1", fields["A1"])
     path = tmp_path / f"{name}.yaml"
     path.write_text(text)
     with pytest.raises(MotionError) as info:
-        load_motion(str(path), load_spec())
+        load_motion(str(path), description)
     assert expected in _one_line_error(info.value, path)
 
 
