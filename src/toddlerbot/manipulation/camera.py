@@ -22,6 +22,13 @@ class CameraGeometry:
     """Height after resizing, px (width keeps the aspect ratio); then the centre IMAGE_SIZE columns are kept."""
 
 
+def fast_scene(scene: mujoco.MjvScene) -> None:
+    """Skip shadows and reflections: software (OSMesa) rendering is 10x faster without them, and the policy
+    image does not need them."""
+    scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+    scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+
+
 def resize_and_crop(frame: np.ndarray, size: int = IMAGE_SIZE) -> np.ndarray:
     """Resize an (H, W, 3) uint8 frame so its height is `size` (area filter), then keep the centre `size` columns."""
     h, w = frame.shape[:2]
@@ -46,8 +53,10 @@ class HeadCamera:
         if self._recorder is None:
             w, h = self.geometry.render_size
             self._recorder = Recorder(self.model, self.data, self.camera, w, h)
-        self._recorder.renderer.update_scene(self.data, self.camera)
-        return self._recorder.renderer.render().copy()
+        renderer = self._recorder.renderer
+        renderer.update_scene(self.data, self.camera)
+        fast_scene(renderer.scene)
+        return renderer.render().copy()
 
     def image(self) -> np.ndarray:
         return resize_and_crop(self.raw(), self.geometry.resized_height)

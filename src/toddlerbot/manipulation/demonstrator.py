@@ -3,8 +3,10 @@
 Phases (times in s from the episode start, `DemoConfig`): ``approach`` to a pre-grasp point above the cube,
 ``descend`` onto it, ``close`` the gripper, ``lift``, ``hold``. The grasp point (midway between the finger pads)
 follows minimum-jerk segments between waypoints, pointing down with the fingers closing across two cube faces.
-The pre-grasp waypoint is perturbed per episode (`waypoint_noise`), and a task-space integral term removes the
-sag of the low-gain arm, so the recorded actions contain the corrections a demonstrator makes.
+The pre-grasp waypoint is perturbed per episode (`waypoint_noise`). The low-gain arm sags under gravity, so the
+targets lead the IK solution by the gravity torque over the motor stiffness (what an operator does without
+thinking), and a slow task-space integral term removes what is left: the recorded actions differ from the
+follower's angles as they do in teleoperated data.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ PHASES = ("approach", "descend", "close", "lift", "hold")
 @dataclass(frozen=True)
 class DemoConfig:
     approach_s: float = 1.2
-    descend_s: float = 1.0
+    descend_s: float = 1.5
     close_s: float = 0.6
     lift_s: float = 1.0
     hold_s: float = 1.5
@@ -69,6 +71,8 @@ class ScriptedPicker:
         side = task.config.arm
         self.ik = ArmIK(task.description, task.model, side, IKConfig(), site=grasp_site(side))
         self.open, self.closed = task.gripper_range()
+        self._stiffness = task.description.actuator_arrays(task.kp).kp[self.ik.arm]
+        """Physical position gains of the arm motors at the follower's gains, N*m/rad."""
         self.ready_pose = self._ready_pose()
         self._targets = self.ready_pose.copy()
         self._correction = np.zeros(3)
@@ -126,7 +130,10 @@ class ScriptedPicker:
         measured, _ = self.ik.forward(obs.motor_pos, self.task.robot.data.qpos)
         self._correction = np.clip(self._correction + cfg.correction_gain * (desired - measured),
                                    -cfg.max_correction, cfg.max_correction)
-        q, _ = self.ik.solve(self._targets, desired + self._correction, self._rotation, self.task.robot.data.qpos)
+        base = self.task.robot.data.qpos
+        q, _ = self.ik.solve(self._targets, desired + self._correction, self._rotation, base)
+        self._targets = q.copy()
+        q[self.ik.arm] += self.ik.gravity_torque(q, base) / self._stiffness
         phase = self.phase(t)
         if phase == "close":
             s = min_jerk((t - cfg.approach_s - cfg.descend_s) / cfg.close_s)
@@ -135,5 +142,5 @@ class ScriptedPicker:
             q[self.task.gripper_motor] = self.closed
         else:
             q[self.task.gripper_motor] = self.open
-        self._targets = q
-        return q.copy()
+        self._targets[self.task.gripper_motor] = q[self.task.gripper_motor]
+        return q

@@ -57,6 +57,14 @@ class ArmIK:
         mujoco.mj_comPos(self.model, d)
         return d.site_xpos[self.site].copy(), d.site_xmat[self.site].reshape(3, 3).copy()
 
+    def gravity_torque(self, q_motor: np.ndarray, base_qpos: np.ndarray | None = None) -> np.ndarray:
+        """Motor torques (N*m, this arm's motors) that hold the arm still against gravity at `q_motor`."""
+        self.forward(q_motor, base_qpos)
+        self.data.qvel[:] = 0.0
+        bias = np.zeros(self.model.nv)
+        mujoco.mj_rne(self.model, self.data, 0, bias)
+        return (self._map[:, self.arm].T @ bias[self._dadr]).copy()
+
     def solve(self, q_motor: np.ndarray, target_pos: np.ndarray, target_rot: np.ndarray | None,
               base_qpos: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """Motor angles (rad, all motors; only this arm's change) that bring the hand site to `target_pos` (m,

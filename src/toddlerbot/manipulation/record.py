@@ -19,8 +19,8 @@ from toddlerbot.manipulation.tasks import PickTask
 from toddlerbot.manipulation.video import SideBySideVideo
 
 DATASET_FPS = 10
-CAMERA_EVERY = 2
-"""Render the head camera every this many control steps (25 Hz at 50 Hz control)."""
+CAMERA_EVERY = 3
+"""Render the head camera every this many control steps (16.7 Hz at 50 Hz control: the dataset takes the nearest frame)."""
 
 
 @dataclass

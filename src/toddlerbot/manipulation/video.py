@@ -6,7 +6,9 @@ from pathlib import Path
 
 import av
 import numpy as np
+from PIL import Image
 
+from toddlerbot.manipulation.camera import fast_scene
 from toddlerbot.sim.render import Recorder
 from toddlerbot.sim.scenes import WORKSPACE_CAMERA
 
@@ -22,13 +24,12 @@ class SideBySideVideo:
         self.frames: list[np.ndarray] = []
 
     def add(self, task, head_image: np.ndarray) -> np.ndarray:
-        scene = self._recorder.capture()
-        self._recorder.frames.clear()
+        renderer = self._recorder.renderer
+        renderer.update_scene(self._recorder.data, self._recorder.camera)
+        fast_scene(renderer.scene)
+        scene = renderer.render().copy()
         height = scene.shape[0]
-        scale = height // head_image.shape[0]
-        head = np.repeat(np.repeat(head_image, scale, axis=0), scale, axis=1)
-        pad = height - head.shape[0]
-        head = np.pad(head, ((pad // 2, pad - pad // 2), (0, 0), (0, 0)))
+        head = np.asarray(Image.fromarray(head_image).resize((height, height), Image.Resampling.NEAREST))
         frame = np.concatenate([scene, head], axis=1)
         self.frames.append(frame)
         return frame
@@ -47,8 +48,6 @@ class SideBySideVideo:
         return path
 
     def write_png(self, path: str | Path, index: int = -1) -> Path:
-        from PIL import Image
-
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         Image.fromarray(self.frames[index]).save(path)
