@@ -49,7 +49,8 @@ class RawEpisode:
             problems.append(f"time {self.time.shape}, state {self.state.shape}, action {self.action.shape} and "
                             f"{len(self.names)} names disagree")
         if self.images.ndim != 4 or self.images.shape[0] != self.image_time.shape[0] or self.images.dtype != np.uint8:
-            problems.append(f"images {self.images.shape} {self.images.dtype} do not match {self.image_time.shape} times")
+            problems.append(f"images {self.images.shape} {self.images.dtype} do not match "
+                            f"{self.image_time.shape} times")
         if t < 2 or self.image_time.shape[0] < 1:
             problems.append(f"needs at least 2 control steps and 1 image, got {t} and {self.image_time.shape[0]}")
         if not (np.isfinite(self.state).all() and np.isfinite(self.action).all() and np.isfinite(self.time).all()):

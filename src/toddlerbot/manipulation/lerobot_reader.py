@@ -75,7 +75,7 @@ class Dataset:
             "root": str(self.root), "codebase_version": self.info["codebase_version"], "fps": self.fps,
             "episodes": self.n_episodes, "frames": len(self), "tasks": list(self.tasks),
             "state_dim": int(self.state.shape[1]), "action_dim": int(self.action.shape[1]),
-            "image_shape": list(self.images.shape[1:]),
+            "image_shape": list(self.info["features"][IMAGE_KEY]["shape"]),
             "episode_seconds": {"min": float(lengths.min() / self.fps), "mean": float(lengths.mean() / self.fps),
                                 "max": float(lengths.max() / self.fps)},
         }

@@ -75,7 +75,6 @@ def _write(root: Path, episodes: list[Episode], names: tuple[str, ...], fps: int
     lengths = np.array([len(e) for e in episodes])
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
     total = int(lengths.sum())
-    dim = len(names)
     height, width = episodes[0].images.shape[1:3]
 
     state = np.concatenate([e.state for e in episodes]).astype(np.float32)

@@ -20,7 +20,8 @@ from toddlerbot.manipulation.video import SideBySideVideo
 
 DATASET_FPS = 10
 CAMERA_EVERY = 3
-"""Render the head camera every this many control steps (16.7 Hz at 50 Hz control: the dataset takes the nearest frame)."""
+"""Render the head camera every this many control steps (16.7 Hz at 50 Hz control; the 10 Hz dataset takes
+the nearest frame)."""
 
 
 @dataclass
@@ -69,15 +70,19 @@ def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = Tru
 
 def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | None = None,
                  video_path: str | Path | None = None, overwrite: bool = False,
-                 on_episode: Callable[[int, bool], None] | None = None) -> DemoReport:
+                 on_episode: Callable[[int, bool], None] | None = None,
+                 snapshot_path: str | Path | None = None) -> DemoReport:
     """Record `episodes` successful demonstrations (seeds from `seed` upwards, at most 2*episodes+5 attempts)
-    into a dataset at `out` (raw 50 Hz episodes under ``out/raw``)."""
+    into a dataset at `out` (raw 50 Hz episodes under ``out/raw``); optionally a side-by-side video of all
+    attempts and a PNG of the first attempt's hold phase."""
     import time
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     task = task or PickTask()
     demo = ScriptedPicker(task, DemoConfig())
+    if snapshot_path is not None and video_path is None:
+        raise ValueError("a snapshot needs a video (video_path)")
     video = SideBySideVideo(task) if video_path else None
     report = DemoReport()
     raws: list[RawEpisode] = []
@@ -98,5 +103,8 @@ def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | Non
                       overwrite=overwrite, raw_episodes=raws)
     if video is not None and video_path is not None:
         video.write(video_path, fps=round(1 / (task.robot.control_dt * CAMERA_EVERY)))
+        if snapshot_path is not None:
+            frames_per_episode = len(video.frames) // attempts
+            video.write_png(snapshot_path, index=int(0.55 * frames_per_episode))
     task.camera.close()
     return report

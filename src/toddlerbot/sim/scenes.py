@@ -84,10 +84,8 @@ def scene_model(description: RobotDescription, scene: str) -> mujoco.MjModel:
         raise ValueError(f"the {scene} scene needs the gripper variant, got variant {description.spec.variant!r}")
     mj = build_mjspec(description.spec, "floating", scene=True, catalogue=description.catalogue)
     home = np.array(mj.key("home").qpos, dtype=float)
-    if scene == "pick":
-        extra_qpos = _add_pick(mj, description, home, PickLayout())
-    else:
-        extra_qpos = _add_wagon(mj, WagonLayout())
+    add = _add_pick if scene == "pick" else _add_wagon
+    extra_qpos = add(mj, description, home)
     mj.key("home").qpos = np.concatenate([home, extra_qpos]).tolist()
     _add_grasp_sites_and_pads(mj, description)
     _add_workspace_camera(mj)
@@ -95,7 +93,8 @@ def scene_model(description: RobotDescription, scene: str) -> mujoco.MjModel:
     return mj.compile()
 
 
-def _add_pick(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray, layout: PickLayout) -> np.ndarray:
+def _add_pick(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray,
+              layout: PickLayout = PickLayout()) -> np.ndarray:
     # Hold the torso where the home keyframe puts it: relpose = world seen from the torso.
     model = mj.compile()
     adr = model.joint(FREEJOINT).qposadr[0]
@@ -130,7 +129,8 @@ def _add_pick(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray
     return np.array([cx, cy, h + s, 1.0, 0.0, 0.0, 0.0])
 
 
-def _add_wagon(mj: mujoco.MjSpec, layout: WagonLayout) -> np.ndarray:
+def _add_wagon(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray,
+               layout: WagonLayout = WagonLayout()) -> np.ndarray:
     bx, by, bz = layout.body_half_size
     r = layout.wheel_radius
     body_x = layout.handle_x + 0.03 + bx
@@ -203,7 +203,7 @@ def _rack_travel(description: RobotDescription, drive: str) -> float:
 
 
 def _add_workspace_camera(mj: mujoco.MjSpec) -> None:
-    pos, target = np.array([0.6, -0.45, 0.55]), np.array([0.1, 0.0, 0.2])
+    pos, target = np.array([0.5, -0.45, 0.55]), np.array([0.1, -0.06, 0.25])
     forward = (target - pos) / np.linalg.norm(target - pos)
     right = np.cross(forward, (0.0, 0.0, 1.0))
     right /= np.linalg.norm(right)
