@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -94,7 +95,7 @@ class RawEpisode:
                 )
         except EpisodeError as exc:
             raise EpisodeError(f"{path}: {exc}") from None
-        except (OSError, ValueError, KeyError, EOFError) as exc:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             raise EpisodeError(f"{path}: not a readable raw episode ({exc})") from None
 
 
