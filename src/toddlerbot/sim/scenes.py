@@ -190,7 +190,7 @@ def _add_grasp_sites_and_pads(mj: mujoco.MjSpec, description: RobotDescription) 
             mj.body(model.body(finger).name).add_geom(
                 name=pad, type=mujoco.mjtGeom.mjGEOM_BOX, size=PAD_HALF_SIZE,
                 pos=(finger_rot.T @ (pad_world - data.xpos[finger])).tolist(), quat=quat.tolist(),
-                rgba=(0.15, 0.15, 0.15, 1.0), friction=(1.5, 0.01, 0.001), condim=4, contype=1, conaffinity=0,
+                rgba=(0.15, 0.15, 0.15, 1.0), friction=(2.0, 0.02, 0.001), condim=4, contype=1, conaffinity=0,
                 mass=0.0,
             )
 
