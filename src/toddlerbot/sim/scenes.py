@@ -30,8 +30,9 @@ WORKSPACE_CAMERA = "workspace"
 SIDES = ("left", "right")
 
 
-PAD_HALF_SIZE = (0.012, 0.0115, 0.0015)
-"""Finger pad box half extents in the grasp-site frame (across the finger, along it, thickness), m."""
+PAD_HALF_SIZE = (0.018, 0.0115, 0.0015)
+"""Finger pad box half extents in the grasp-site frame (across the finger, along it, thickness), m: as wide as
+the finger (the spec's finger box), so an off-centre cube is not squeezed out sideways."""
 
 
 def grasp_site(side: str) -> str:
