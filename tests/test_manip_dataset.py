@@ -12,7 +12,7 @@ av = pytest.importorskip("av")
 pq = pytest.importorskip("pyarrow.parquet")
 
 from toddlerbot.manipulation.episode import EpisodeError, RawEpisode, resample  # noqa: E402
-from toddlerbot.manipulation.lerobot_reader import DatasetError, Windows, WindowConfig, load_dataset  # noqa: E402
+from toddlerbot.manipulation.lerobot_reader import DatasetError, WindowConfig, Windows, load_dataset  # noqa: E402
 from toddlerbot.manipulation.lerobot_writer import DATA_FILE, VIDEO_FILE, write_dataset  # noqa: E402
 
 NAMES = ("a", "b")
@@ -118,7 +118,7 @@ def test_nan_rows_are_rejected_naming_the_file_and_row(tmp_path):
 
 
 def test_video_with_too_few_frames_is_rejected(tmp_path):
-    root, raws = _dataset(tmp_path)
+    root, _ = _dataset(tmp_path)
     other, _ = _dataset(tmp_path / "short", lengths=(1.0,))
     (root / VIDEO_FILE).write_bytes((other / VIDEO_FILE).read_bytes())
     _expect_rejected(root, r"file-000\.mp4: 11 video frames, but the data has 17 rows")
