@@ -160,9 +160,10 @@ class PickTask:
         q[self.neck_pitch_motor] = self.config.neck_pitch
         return q
 
-    def step(self, motor_targets: np.ndarray) -> Observation:
-        """One control step through the `Robot` interface (CommandGuard applies) at the follower gains."""
-        obs = self.robot.step(motor_targets, kp=self.kp)
+    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None) -> Observation:
+        """One control step through the `Robot` interface (CommandGuard applies) at the follower gains (or
+        `kp`, firmware units)."""
+        obs = self.robot.step(motor_targets, kp=self.kp if kp is None else kp)
         self.tracker.update(self.cube_lift(), self.config.lift_height, self.pinched(), self.robot.control_dt)
         return obs
 
