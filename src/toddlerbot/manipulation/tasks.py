@@ -70,8 +70,10 @@ class PickConfig:
     hold_seconds: float = 1.0
     """...and held between both fingers, continuously for this long."""
     upper_body_kp_scale: float = 0.5
-    neck_pitch: float = -0.75
-    """Neck pitch drive angle (rad, negative looks down) so the head camera sees the table."""
+    neck_pitch: float = -0.9
+    """Neck pitch drive angle (rad, negative looks down) so the head camera sees the table..."""
+    neck_yaw: float = -0.3
+    """...and neck yaw drive angle (rad, negative looks right, towards the cube region)."""
     ready_height: float = 0.07
     """Start pose: grasp point this far above the table's cube region centre."""
     control_dt: float = 0.02
@@ -127,6 +129,7 @@ class PickTask:
         names = description.motor_names
         self.gripper_motor = names.index(f"{side}_gripper_drive")
         self.neck_pitch_motor = names.index("neck_pitch_drive")
+        self.neck_yaw_motor = names.index("neck_yaw_drive")
         self.camera = HeadCamera(m, self.robot.data, description.handles.head_camera or "head_camera")
         self.tracker = SuccessTracker(self.config.hold_seconds)
         self.ready_pose: np.ndarray | None = None
@@ -158,6 +161,7 @@ class PickTask:
     def home_pose(self) -> np.ndarray:
         q = self.description.home_motor_pos.copy()
         q[self.neck_pitch_motor] = self.config.neck_pitch
+        q[self.neck_yaw_motor] = self.config.neck_yaw
         return q
 
     def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None) -> Observation:
