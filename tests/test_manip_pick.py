@@ -122,3 +122,22 @@ def test_scripted_demonstrator_lifts_and_holds_the_cube(task):
             obs = task.step(demo.act(obs))
         assert task.succeeded, f"seed {seed}: max lift {task.tracker.max_lift:.3f} m"
         assert task.tracker.max_lift > 0.03
+
+
+def test_wagon_handle_is_at_hand_height_and_the_wagon_rolls():
+    import mujoco
+
+    from toddlerbot.sim.scenes import WAGON_BODY, WAGON_HANDLE_GEOM, WagonLayout
+
+    model = scene_model(RobotDescription.load(variant="gripper"), "wagon")
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    mujoco.mj_forward(model, data)
+    assert data.geom(WAGON_HANDLE_GEOM).xpos[2] == pytest.approx(WagonLayout().handle_height, abs=1e-6)
+    wagon = model.body(WAGON_BODY).id
+    start = data.xpos[wagon].copy()
+    for _ in range(500):  # 0.5 s pushed forward with 1 N
+        data.xfrc_applied[wagon, 0] = 1.0
+        mujoco.mj_step(model, data)
+    moved = data.xpos[wagon] - start
+    assert moved[0] > 0.05 and abs(moved[1]) < 0.01

@@ -104,6 +104,7 @@ class TeleopSession:
         self.active = True
         self.last_command = TeleopCommand()
         self._noted_squat = False
+        self._events_logged = 0
 
     def reset(self) -> Observation:
         self.obs = self.robot.reset()
@@ -154,6 +155,9 @@ class TeleopSession:
                 self.arm_targets = follower.targets(
                     self.arm_targets, None if message is None else message.names,
                     None if message is None else message.values, subscriber.age())
+            for event in follower.events[self._events_logged:]:
+                self.log(f"arms: {event}")
+            self._events_logged = len(follower.events)
         targets[self._arms] = self.arm_targets[self._arms]
 
         if self.skill_hook is not None and cmd.skills:
