@@ -74,7 +74,7 @@ def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | Non
                  snapshot_path: str | Path | None = None) -> DemoReport:
     """Record `episodes` successful demonstrations (seeds from `seed` upwards, at most 2*episodes+5 attempts)
     into a dataset at `out` (raw 50 Hz episodes under ``out/raw``); optionally a side-by-side video of all
-    attempts and a PNG of the first attempt's hold phase."""
+    attempts and a PNG of the first attempt's approach (cube and gripper in view)."""
     import time
 
     if episodes < 1:
@@ -105,6 +105,6 @@ def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | Non
         video.write(video_path, fps=round(1 / (task.robot.control_dt * CAMERA_EVERY)))
         if snapshot_path is not None:
             frames_per_episode = len(video.frames) // attempts
-            video.write_png(snapshot_path, index=int(0.55 * frames_per_episode))
+            video.write_png(snapshot_path, index=int(0.2 * frames_per_episode))
     task.camera.close()
     return report

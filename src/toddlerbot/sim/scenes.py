@@ -204,7 +204,7 @@ def _rack_travel(description: RobotDescription, drive: str) -> float:
 
 
 def _add_workspace_camera(mj: mujoco.MjSpec) -> None:
-    pos, target = np.array([0.42, -0.5, 0.5]), np.array([0.1, -0.1, 0.27])
+    pos, target = np.array([0.3, -0.42, 0.36]), np.array([0.1, -0.1, 0.27])
     forward = (target - pos) / np.linalg.norm(target - pos)
     right = np.cross(forward, (0.0, 0.0, 1.0))
     right /= np.linalg.norm(right)
