@@ -141,3 +141,19 @@ def test_wagon_handle_is_at_hand_height_and_the_wagon_rolls():
         mujoco.mj_step(model, data)
     moved = data.xpos[wagon] - start
     assert moved[0] > 0.05 and abs(moved[1]) < 0.01
+
+
+def test_side_by_side_video_encodes_every_frame(task, tmp_path):
+    av = pytest.importorskip("av")
+    from toddlerbot.manipulation.video import SideBySideVideo
+
+    task.reset(0)
+    video = SideBySideVideo(task, tmp_path / "v.mp4", fps=10, keep={1})
+    for _ in range(3):
+        video.add(task.head_image())
+    video.close()
+    with av.open(str(tmp_path / "v.mp4")) as container:
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+    assert len(frames) == 3 and frames[0].shape == (240, 560, 3)
+    assert set(video.kept) == {1}
+    assert list(tmp_path.iterdir()) == [tmp_path / "v.mp4"]  # no temporary file left behind

@@ -43,6 +43,8 @@ def demo(
     from toddlerbot.manipulation.record import record_demos
 
     _check_task(task)
+    if snapshot is not None and video is None:
+        raise ToddlerbotError("--snapshot takes a frame of the video: give --video too")
     if out.exists() and any(out.iterdir()) and not overwrite:
         raise ToddlerbotError(f"{out} exists and is not empty; pass --overwrite to replace it")
     with Progress(console=console, transient=True) as progress:

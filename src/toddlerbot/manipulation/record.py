@@ -6,6 +6,7 @@ up to a bounded number of attempts.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,7 @@ from toddlerbot.manipulation.demonstrator import DemoConfig, ScriptedPicker
 from toddlerbot.manipulation.episode import RawEpisode, resample
 from toddlerbot.manipulation.lerobot_writer import write_dataset
 from toddlerbot.manipulation.tasks import PickTask
-from toddlerbot.manipulation.video import SideBySideVideo
+from toddlerbot.manipulation.video import SideBySideVideo, write_png
 
 DATASET_FPS = 10
 CAMERA_EVERY = 3
@@ -53,7 +54,7 @@ def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = Tru
             image_times.append(obs.time)
             images.append(image)
             if video is not None:
-                video.add(task, image)
+                video.add(image)
         targets = demo.act(obs)
         times.append(obs.time)
         states.append(obs.motor_pos[space.indices])
@@ -75,36 +76,43 @@ def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | Non
     """Record `episodes` successful demonstrations (seeds from `seed` upwards, at most 2*episodes+5 attempts)
     into a dataset at `out` (raw 50 Hz episodes under ``out/raw``); optionally a side-by-side video of all
     attempts and a PNG of the first attempt's approach (cube and gripper in view)."""
-    import time
-
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    task = task or PickTask()
-    demo = ScriptedPicker(task, DemoConfig())
     if snapshot_path is not None and video_path is None:
         raise ValueError("a snapshot needs a video (video_path)")
-    video = SideBySideVideo(task) if video_path else None
+    task = task or PickTask()
+    demo = ScriptedPicker(task, DemoConfig())
+    frames_per_episode = -(-round(demo.config.duration / task.robot.control_dt) // CAMERA_EVERY)
+    snapshot_frame = int(0.2 * frames_per_episode)
+    video = None
+    if video_path is not None:
+        fps = round(1 / (task.robot.control_dt * CAMERA_EVERY))
+        video = SideBySideVideo(task, video_path, fps, keep={snapshot_frame})
     report = DemoReport()
     raws: list[RawEpisode] = []
     started = time.perf_counter()
     attempt_seed = seed
-    while len(raws) < episodes and attempt_seed < seed + 2 * episodes + 5:
-        raw = run_demo(task, demo, attempt_seed, video=video)
-        (report.succeeded_seeds if raw.success else report.failed_seeds).append(attempt_seed)
-        if raw.success:
-            raws.append(raw)
-        if on_episode:
-            on_episode(attempt_seed, raw.success)
-        attempt_seed += 1
+    try:
+        while len(raws) < episodes and attempt_seed < seed + 2 * episodes + 5:
+            raw = run_demo(task, demo, attempt_seed, video=video)
+            (report.succeeded_seeds if raw.success else report.failed_seeds).append(attempt_seed)
+            if raw.success:
+                raws.append(raw)
+            if on_episode:
+                on_episode(attempt_seed, raw.success)
+            attempt_seed += 1
+    except BaseException:
+        if video is not None:
+            video.abort()
+        raise
     attempts = len(report.succeeded_seeds) + len(report.failed_seeds)
     report.seconds_per_episode = (time.perf_counter() - started) / attempts
     if raws:
         write_dataset(out, [resample(r, DATASET_FPS) for r in raws], task.space.names, DATASET_FPS,
                       overwrite=overwrite, raw_episodes=raws)
-    if video is not None and video_path is not None:
-        video.write(video_path, fps=round(1 / (task.robot.control_dt * CAMERA_EVERY)))
+    if video is not None:
+        video.close()
         if snapshot_path is not None:
-            frames_per_episode = len(video.frames) // attempts
-            video.write_png(snapshot_path, index=int(0.2 * frames_per_episode))
+            write_png(snapshot_path, video.kept[snapshot_frame])
     task.camera.close()
     return report
