@@ -38,6 +38,17 @@ def stream_leader(leader: LeaderArms, publisher: LinkPublisher, stop: threading.
     return sent
 
 
+def follow_leader(subscriber: LinkSubscriber, follower: ArmFollower, current: np.ndarray) -> np.ndarray:
+    """The follower's next motor targets from the newest leader message (held when stale or failed)."""
+    message = subscriber.poll()
+    if message is not None and message.kind == "error":
+        follower.lost("bus error on the leader side")
+        return current
+    if message is None:
+        return follower.targets(current, None, None, subscriber.age())
+    return follower.targets(current, message.names, message.values, subscriber.age())
+
+
 class FollowerLoop:
     """One control step of the follower: newest leader message -> rate-limited targets -> `Robot.step`."""
 
@@ -52,11 +63,5 @@ class FollowerLoop:
     def step(self) -> Observation:
         if self.targets is None:
             raise RuntimeError("call start() with the robot's first observation")
-        message = self.subscriber.poll()
-        if message is not None and message.kind == "error":
-            self.follower.lost("bus error on the leader side")
-        else:
-            names = None if message is None else message.names
-            values = None if message is None else message.values
-            self.targets = self.follower.targets(self.targets, names, values, self.subscriber.age())
+        self.targets = follow_leader(self.subscriber, self.follower, self.targets)
         return self.robot.step(self.targets, kp=self.kp)

@@ -19,6 +19,7 @@ import numpy as np
 from toddlerbot.manipulation.episode import RawEpisode
 from toddlerbot.manipulation.follower import ArmFollower
 from toddlerbot.manipulation.gamepad import TeleopCommand
+from toddlerbot.manipulation.leader_follower import follow_leader
 from toddlerbot.manipulation.link import LinkSubscriber
 from toddlerbot.manipulation.tasks import UPPER_BODY_GROUPS, ManipulationSpace, follower_gains
 from toddlerbot.policies.base import Policy
@@ -148,13 +149,7 @@ class TeleopSession:
 
         if self.leader is not None:
             subscriber, follower = self.leader
-            message = subscriber.poll()
-            if message is not None and message.kind == "error":
-                follower.lost("bus error on the leader side")
-            else:
-                self.arm_targets = follower.targets(
-                    self.arm_targets, None if message is None else message.names,
-                    None if message is None else message.values, subscriber.age())
+            self.arm_targets = follow_leader(subscriber, follower, self.arm_targets)
             for event in follower.events[self._events_logged:]:
                 self.log(f"arms: {event}")
             self._events_logged = len(follower.events)
