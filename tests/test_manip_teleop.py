@@ -155,3 +155,51 @@ def test_virtual_controller_walks_the_simulated_robot_and_records_an_episode(joy
     root = write_dataset(tmp_path / "teleop", [resample(episode, 10)], space.names, 10, raw_episodes=[episode])
     ds = load_dataset(root)
     assert len(ds) == 31 and ds.n_episodes == 1
+
+
+def test_leader_arms_drive_the_simulated_pick_robot_and_staleness_is_reported():
+    pytest.importorskip("zmq")
+    import socket
+    import time
+
+    from toddlerbot.manipulation.follower import ArmFollower
+    from toddlerbot.manipulation.gamepad import TeleopCommand
+    from toddlerbot.manipulation.link import LinkPublisher, LinkSubscriber
+    from toddlerbot.manipulation.tasks import PickTask
+    from toddlerbot.manipulation.teleop import TeleopSession
+
+    class Idle:
+        def poll(self) -> TeleopCommand:
+            return TeleopCommand()
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+    task = PickTask()
+    robot = task.robot
+    publisher, subscriber = LinkPublisher(endpoint), LinkSubscriber(endpoint)
+    follower = ArmFollower(robot.motor_names, task.space.names)
+    messages: list[str] = []
+    session = TeleopSession(robot, Idle(), leader=(subscriber, follower), log=messages.append)
+    try:
+        obs = session.reset()
+        goal = obs.motor_pos[task.space.indices].copy()
+        elbow = task.space.names.index("right_elbow_roll")
+        goal[elbow] += 0.4
+        deadline = time.monotonic() + 3
+        while subscriber.poll() is None and time.monotonic() < deadline:
+            publisher.send(task.space.names, goal)
+            time.sleep(0.01)
+        for _ in range(12):  # 0.4 rad at 0.05 rad per step: reached after 8 steps
+            publisher.send(task.space.names, goal)
+            session.step()
+        motor = task.space.indices[elbow]
+        assert session.arm_targets[motor] == pytest.approx(goal[elbow], abs=1e-9)
+        time.sleep(0.25)  # the leader goes quiet
+        session.step()
+        assert follower.holding
+        assert messages[0] == "arms: following leader"
+        assert messages[-1].startswith("arms: leader stale") and messages[-1].endswith("holding last safe targets")
+    finally:
+        publisher.close()
+        subscriber.close()
