@@ -37,7 +37,7 @@ def test_demo_dataset_reads_back_with_consistent_counts(tmp_path):
     grip = names.index("right_gripper_drive")
     ep = np.array(data.column("episode_index").to_pylist())
     for e in range(4):
-        assert action[ep == e, grip].max() > 2.5  # every episode closes the gripper...
+        assert action[ep == e, grip].max() > 1.9  # every episode closes the gripper (to 0.75 of its range)...
         assert action[ep == e][0, grip] < 0.1  # ...from open
     # the low-gain follower lags its targets: actions and observations differ (what the policy learns from)
     assert np.abs(action - state)[:, names.index("right_shoulder_pitch")].mean() > 0.01
