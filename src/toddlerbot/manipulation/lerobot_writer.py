@@ -93,7 +93,7 @@ def _write(root: Path, episodes: list[Episode], names: tuple[str, ...], fps: int
     images = np.concatenate([e.images for e in episodes])
     _write_video(root / VIDEO_FILE, images, fps)
     _write_parquet(root / TASKS_FILE, {"task_index": pa.array(np.arange(len(tasks), dtype=np.int64)),
-                                       "task": pa.array(tasks)})
+                                       "task": pa.array(tasks)}, metadata={b"pandas": _TASKS_PANDAS_METADATA})
 
     ends = starts + lengths
     episode_rows = {
@@ -123,6 +123,21 @@ def _write(root: Path, episodes: list[Episode], names: tuple[str, ...], fps: int
     _write_json(root / "meta/stats.json", {k: {s: v.tolist() for s, v in d.items()} for k, d in stats.items()})
     _write_json(root / "meta/info.json", info_dict(names, fps, len(episodes), total, len(tasks), height, width,
                                                    robot_type))
+
+
+# LeRobot reads tasks.parquet with pandas and takes the task strings from the index: this pandas metadata makes
+# the "task" column that index, as pandas itself would have written it.
+_TASKS_PANDAS_METADATA = json.dumps({
+    "index_columns": ["task"],
+    "column_indexes": [{"name": None, "field_name": None, "pandas_type": "unicode", "numpy_type": "object",
+                        "metadata": {"encoding": "UTF-8"}}],
+    "columns": [
+        {"name": "task_index", "field_name": "task_index", "pandas_type": "int64", "numpy_type": "int64",
+         "metadata": None},
+        {"name": "task", "field_name": "task", "pandas_type": "unicode", "numpy_type": "object", "metadata": None},
+    ],
+    "creator": {"library": "pyarrow", "version": pa.__version__},
+}).encode()
 
 
 def info_dict(names: Sequence[str], fps: int, episodes: int, frames: int, tasks: int, height: int, width: int,
@@ -165,9 +180,9 @@ def _vector_column(values: np.ndarray) -> pa.Array:
     return pa.FixedSizeListArray.from_arrays(pa.array(values.ravel()), values.shape[1])
 
 
-def _write_parquet(path: Path, columns: dict[str, pa.Array]) -> None:
+def _write_parquet(path: Path, columns: dict[str, pa.Array], metadata: dict[bytes, bytes] | None = None) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(pa.table(columns), path)
+    pq.write_table(pa.table(columns, metadata=metadata), path)
 
 
 def _write_json(path: Path, content: dict) -> None:
