@@ -10,7 +10,7 @@ order) are the observation state, and the same motors' commanded targets are the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -93,8 +93,10 @@ class SuccessTracker:
 
     hold_seconds: float
     held_for: float = 0.0
+    """Seconds the current uninterrupted lifted pinch has lasted."""
     succeeded: bool = False
-    max_lift: float = field(default=0.0)
+    max_lift: float = 0.0
+    """Highest lift seen, m (for failure reports)."""
 
     def update(self, lifted: float, lift_needed: float, pinched: bool, dt: float) -> bool:
         self.max_lift = max(self.max_lift, lifted)
