@@ -39,7 +39,7 @@ def main() -> None:
 
     task = PickTask()
     demo = ScriptedPicker(task)
-    obs = task.reset(0, demo.ready_pose)
+    obs = task.reset(0)
     demo.reset(obs, np.random.default_rng(0))
     step_ms = _per_call_ms(lambda: task.step(obs.motor_pos), 100)
     print(f"pick task control step (20 ms, 20 physics steps): {step_ms:.1f} ms")

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from toddlerbot.manipulation.camera import resize_and_crop
-from toddlerbot.manipulation.demonstrator import ScriptedPicker, top_down_rotation
-from toddlerbot.manipulation.ik import ArmIK
+from toddlerbot.manipulation.demonstrator import ScriptedPicker
+from toddlerbot.manipulation.ik import ArmIK, top_down_rotation
 from toddlerbot.manipulation.tasks import PickTask, SuccessTracker, follower_gains
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.scenes import grasp_site, scene_model
@@ -116,7 +116,7 @@ def test_head_camera_sees_the_cube(task):
 def test_scripted_demonstrator_lifts_and_holds_the_cube(task):
     demo = ScriptedPicker(task)
     for seed in (0, 1):
-        obs = task.reset(seed, demo.ready_pose)
+        obs = task.reset(seed)
         demo.reset(obs, np.random.default_rng(seed))
         for _ in range(round(demo.config.duration / task.robot.control_dt)):
             obs = task.step(demo.act(obs))

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from toddlerbot.manipulation.ik import ArmIK, IKConfig
+from toddlerbot.manipulation.ik import ArmIK, IKConfig, top_down_rotation
 from toddlerbot.manipulation.tasks import PickTask
 from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.scenes import grasp_site
@@ -51,15 +51,6 @@ class DemoConfig:
         return self.approach_s + self.descend_s + self.close_s + self.lift_s + self.hold_s
 
 
-def top_down_rotation(closing_axis: np.ndarray) -> np.ndarray:
-    """Grasp-site orientation (world) with the fingers pointing down (site y = -z) and closing along
-    `closing_axis` (site z, horizontal)."""
-    approach = np.array([0.0, 0.0, -1.0])
-    close = np.array([closing_axis[0], closing_axis[1], 0.0])
-    close /= np.linalg.norm(close)
-    return np.column_stack([np.cross(approach, close), approach, close])
-
-
 def min_jerk(s: float) -> float:
     s = min(max(s, 0.0), 1.0)
     return s**3 * (10 - 15 * s + 6 * s**2)
@@ -77,20 +68,10 @@ class ScriptedPicker:
         self.closed = self.open + self.config.grip_fraction * (fully_closed - self.open)
         self._stiffness = task.description.actuator_arrays(task.kp).kp[self.ik.arm]
         """Physical position gains of the arm motors at the follower's gains, N*m/rad."""
-        self.ready_pose = self._ready_pose()
-        self._targets = self.ready_pose.copy()
+        self._targets = task.ready_pose.copy()
         self._correction = np.zeros(3)
         self._waypoints: list[np.ndarray] = []
         self._rotation = np.eye(3)
-
-    def _ready_pose(self) -> np.ndarray:
-        cfg = self.task.config
-        centre = np.array([np.mean(cfg.cube_x), np.mean(cfg.cube_y), self.task.table_top + cfg.ready_height])
-        q = self.task.home_pose()
-        base = self.task.model.key("home").qpos
-        for _ in range(6):
-            q, _ = self.ik.solve(q, centre, top_down_rotation(np.array([0.0, 1.0])), base)
-        return q
 
     def reset(self, task_obs: Observation, rng: np.random.Generator) -> None:
         """Plan the episode's waypoints from the cube's pose (call right after `PickTask.reset`)."""

@@ -89,6 +89,15 @@ class ArmIK:
         return q, float(np.linalg.norm(target_pos - pos))
 
 
+def top_down_rotation(closing_axis: np.ndarray) -> np.ndarray:
+    """Grasp-site orientation (world) with the fingers pointing down (site y = -z) and closing along
+    `closing_axis` (site z, horizontal)."""
+    approach = np.array([0.0, 0.0, -1.0])
+    close = np.array([closing_axis[0], closing_axis[1], 0.0])
+    close /= np.linalg.norm(close)
+    return np.column_stack([np.cross(approach, close), approach, close])
+
+
 def _rotation_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
     """Axis-angle (world frame, rad) rotating `current` onto `target`."""
     quat_err = np.zeros(4)

@@ -43,7 +43,7 @@ def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = Tru
              video: SideBySideVideo | None = None) -> RawEpisode:
     """One scripted episode of `task` for `seed`: 50 Hz follower state and commanded targets, head-camera
     images every `CAMERA_EVERY` steps (if `render`)."""
-    obs = task.reset(seed, demo.ready_pose)
+    obs = task.reset(seed)
     demo.reset(obs, np.random.default_rng(seed))
     space = task.space
     steps = round(demo.config.duration / task.robot.control_dt)

@@ -11,15 +11,25 @@ order) are the observation state, and the same motors' commanded targets are the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import mujoco
 import numpy as np
 
 from toddlerbot.manipulation.camera import HeadCamera
+from toddlerbot.manipulation.ik import ArmIK, top_down_rotation
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-from toddlerbot.sim.scenes import CUBE_BODY, CUBE_GEOM, TABLE_GEOM, finger_pads, place_cube, scene_model
+from toddlerbot.sim.scenes import (
+    CUBE_BODY,
+    CUBE_GEOM,
+    TABLE_GEOM,
+    finger_pads,
+    grasp_site,
+    place_cube,
+    scene_model,
+)
 
 TASKS = ("pick",)
 UPPER_BODY_GROUPS = ("neck", "waist", "arm")
@@ -70,12 +80,13 @@ class PickConfig:
     hold_seconds: float = 1.0
     """...and held between both fingers, continuously for this long."""
     upper_body_kp_scale: float = 0.5
-    neck_pitch: float = -0.9
+    neck_pitch: float = -1.15
     """Neck pitch drive angle (rad, negative looks down) so the head camera sees the table..."""
-    neck_yaw: float = -0.3
+    neck_yaw: float = -0.4
     """...and neck yaw drive angle (rad, negative looks right, towards the cube region)."""
-    ready_height: float = 0.07
-    """Start pose: grasp point this far above the table's cube region centre."""
+    ready_offset: tuple[float, float, float] = (0.0, -0.05, 0.10)
+    """Start pose: grasp point at this offset from the cube region's centre on the table top (outside and above,
+    so the gripper does not hide the cube from the head camera)."""
     control_dt: float = 0.02
 
     def __post_init__(self) -> None:
@@ -134,8 +145,6 @@ class PickTask:
         self.neck_yaw_motor = names.index("neck_yaw_drive")
         self.camera = HeadCamera(m, self.robot.data, description.handles.head_camera or "head_camera")
         self.tracker = SuccessTracker(self.config.hold_seconds)
-        self.ready_pose: np.ndarray | None = None
-        """Motor angles of the start pose (set by the demonstrator's IK, or the home pose)."""
 
     @property
     def table_top(self) -> float:
@@ -147,15 +156,27 @@ class PickTask:
         lo, hi = self.description.motor_range[self.gripper_motor]
         return float(lo), float(hi)
 
+    @cached_property
+    def ready_pose(self) -> np.ndarray:
+        """Start pose (motor angles, rad): the home pose with the neck looking at the table and the task's arm
+        holding its grasp point at `ready_offset` from the middle of the cube region, fingers down (by IK)."""
+        cfg = self.config
+        ik = ArmIK(self.description, self.model, cfg.arm, site=grasp_site(cfg.arm))
+        centre = np.array([np.mean(cfg.cube_x), np.mean(cfg.cube_y), self.table_top]) + np.array(cfg.ready_offset)
+        q = self.home_pose()
+        for _ in range(6):
+            q, _ = ik.solve(q, centre, top_down_rotation(np.array([0.0, 1.0])), self.model.key("home").qpos)
+        return q
+
     def reset(self, seed: int, start_pose: np.ndarray | None = None) -> Observation:
         """Reset to the home keyframe, place the cube for `seed`, put the robot in `start_pose` (motor angles,
-        rad; default: home with the neck looking down) and return the first observation."""
+        rad; default: `ready_pose`) and return the first observation."""
         cfg = self.config
         rng = np.random.default_rng(seed)
         self.robot.reset()
         xy = np.array([rng.uniform(*cfg.cube_x), rng.uniform(*cfg.cube_y)])
         place_cube(self.model, self.robot.data, xy, float(rng.uniform(*cfg.cube_yaw)))
-        q = self.home_pose() if start_pose is None else np.asarray(start_pose, dtype=float)
+        q = self.ready_pose if start_pose is None else np.asarray(start_pose, dtype=float)
         self._set_motor_pos(q)
         self.tracker = SuccessTracker(cfg.hold_seconds)
         return self.robot.observe()
