@@ -89,7 +89,7 @@ def load_mapping(path: str | Path | None = None) -> TeleopMapping:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}, column {mark.column + 1}:" if mark else ""
-        problem = getattr(exc, "problem", None) or "syntax error"
+        problem = " ".join((getattr(exc, "problem", None) or "syntax error").split())
         raise MappingError(f"{path}:{where} not valid YAML ({problem})") from None
     try:
         mapping = TeleopMapping.model_validate(raw)
