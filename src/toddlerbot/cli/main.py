@@ -8,7 +8,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from toddlerbot.cli import actuator, design, dp, hw, model, rl, sim, sysid
+from toddlerbot.cli import actuator, design, dp, hw, manip, model, rl, sim, sysid, teleop
 from toddlerbot.cli import eval as eval_cli
 from toddlerbot.errors import ToddlerbotError
 
@@ -26,6 +26,8 @@ app.add_typer(hw.app, name="hw")
 app.add_typer(rl.app, name="rl")
 app.add_typer(eval_cli.app, name="eval")
 app.add_typer(dp.app, name="dp")
+app.add_typer(manip.app, name="manip")
+app.add_typer(teleop.app, name="teleop")
 
 
 def main() -> None:

@@ -1,0 +1,125 @@
+"""`toddlerbot manip ...`: scripted demonstrations, their success rate, and LeRobot v3.0 dataset checks."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
+
+app = typer.Typer(help="Manipulation: scripted demonstrations, datasets (LeRobot v3.0).", no_args_is_help=True)
+dataset_app = typer.Typer(help="Inspect and validate LeRobot v3.0 datasets.", no_args_is_help=True)
+app.add_typer(dataset_app, name="dataset")
+
+TASK_HELP = "Task: pick (lift the cube and hold it for 1 s)."
+
+
+def _check_task(task: str) -> None:
+    from toddlerbot.manipulation.tasks import TASKS
+
+    if task not in TASKS:
+        raise ToddlerbotError(f"unknown task {task!r}; expected one of {', '.join(TASKS)}")
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option("-o", "--out", help="Dataset directory to write (LeRobot v3.0 + raw/).")],
+    task: Annotated[str, typer.Option("--task", help=TASK_HELP)] = "pick",
+    episodes: Annotated[int, typer.Option("--episodes", min=1, help="Successful episodes to record.")] = 10,
+    seed: Annotated[int, typer.Option("--seed", help="First scene seed (then seed+1, ...).")] = 0,
+    video: Annotated[Path | None, typer.Option("--video", help="MP4: scene camera and head camera side by side.")]
+        = None,
+    snapshot: Annotated[Path | None, typer.Option("--snapshot", help="PNG of one video frame (needs --video).")]
+        = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
+) -> None:
+    """Record scripted demonstrations of a task (50 Hz raw episodes, 10 Hz LeRobot v3.0 dataset)."""
+    from rich.progress import Progress
+
+    from toddlerbot.manipulation.record import record_demos
+
+    _check_task(task)
+    if snapshot is not None and video is None:
+        raise ToddlerbotError("--snapshot takes a frame of the video: give --video too")
+    if out.exists() and any(out.iterdir()) and not overwrite:
+        raise ToddlerbotError(f"{out} exists and is not empty; pass --overwrite to replace it")
+    with Progress(console=console, transient=True) as progress:
+        bar = progress.add_task(f"recording {task} demonstrations", total=episodes)
+
+        def on_episode(episode_seed: int, success: bool) -> None:
+            if success:
+                progress.advance(bar)
+            else:
+                progress.console.print(f"seed {episode_seed}: demonstration failed, not recorded")
+
+        report = record_demos(out, episodes, seed, video_path=video, overwrite=overwrite, on_episode=on_episode,
+                              snapshot_path=snapshot)
+    if not report.succeeded_seeds:
+        raise ToddlerbotError(f"no successful demonstration in seeds {seed}..{seed + len(report.failed_seeds) - 1}")
+    console.print(f"wrote {out}: {len(report.succeeded_seeds)} episodes (seeds {report.succeeded_seeds[0]}.."
+                  f"{report.succeeded_seeds[-1]}, {len(report.failed_seeds)} failed seed(s) skipped), "
+                  f"{report.seconds_per_episode:.1f} s per episode")
+    for path in (video, snapshot):
+        if path:
+            console.print(f"wrote {path}")
+
+
+@app.command("demo-rate")
+def demo_rate(
+    task: Annotated[str, typer.Option("--task", help=TASK_HELP)] = "pick",
+    episodes: Annotated[int, typer.Option("--episodes", min=1, help="Seeds to try.")] = 50,
+    seed: Annotated[int, typer.Option("--seed", help="First seed.")] = 0,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Success rate of the scripted demonstrator over consecutive seeds (no rendering)."""
+    import time
+
+    from rich.progress import Progress
+
+    from toddlerbot.manipulation.demonstrator import ScriptedPicker
+    from toddlerbot.manipulation.record import run_demo
+    from toddlerbot.manipulation.tasks import make_task
+
+    _check_task(task)
+    sim_task = make_task(task)
+    demonstrator = ScriptedPicker(sim_task)
+    failed: list[int] = []
+    started = time.perf_counter()
+    with Progress(console=console, transient=True) as progress:
+        bar = progress.add_task(f"{task} demonstrations", total=episodes)
+        for s in range(seed, seed + episodes):
+            if not run_demo(sim_task, demonstrator, s, render=False).success:
+                failed.append(s)
+            progress.advance(bar)
+    result = {"task": task, "episodes": episodes, "success_rate": 1 - len(failed) / episodes,
+              "failed_seeds": failed, "seconds_per_episode": (time.perf_counter() - started) / episodes}
+    if as_json:
+        print(json.dumps(result))
+    else:
+        console.print(f"{task}: success {result['success_rate']:.0%} over seeds {seed}..{seed + episodes - 1} "
+                      f"(failed: {failed or 'none'}), {result['seconds_per_episode']:.1f} s per episode")
+
+
+@dataset_app.command()
+def info(
+    root: Annotated[Path, typer.Argument(help="Dataset directory.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Validate a LeRobot v3.0 dataset (files, row and frame counts, NaN rows) and print its summary."""
+    from toddlerbot.manipulation.lerobot_reader import load_dataset
+
+    summary = load_dataset(root, decode_video=False).summary()
+    if as_json:
+        print(json.dumps(summary))
+        return
+    ep = summary["episode_seconds"]
+    console.print(
+        f"{summary['root']}: LeRobot {summary['codebase_version']}, {summary['episodes']} episodes, "
+        f"{summary['frames']} frames at {summary['fps']} Hz (episodes {ep['min']:.1f}-{ep['max']:.1f} s, "
+        f"mean {ep['mean']:.1f} s); state {summary['state_dim']}-d, action {summary['action_dim']}-d, "
+        f"video {summary['image_shape']}; tasks: {', '.join(summary['tasks'])}"
+    )
