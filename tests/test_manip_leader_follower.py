@@ -77,7 +77,7 @@ def test_follower_rate_limits_and_holds_when_the_leader_goes_stale():
 
 def _calibration(emu) -> tuple[Calibration, dict[str, int]]:
     offsets = {m.name: m.mounting_offset for m in emu.motors}
-    return Calibration("tb", spec_label(SPEC), offsets), offsets
+    return Calibration("tb", spec_label(DESCRIPTION), offsets), offsets
 
 
 def test_leader_follower_on_two_emulated_buses():
@@ -96,7 +96,7 @@ def test_leader_follower_on_two_emulated_buses():
                 leader_emu.plant.q[i] = pose[names.index(motor.name)]
                 leader_emu.plant.qd[i] = 0.0
 
-        leader = LeaderArms(SPEC, leader_path, leader_offsets).open()
+        leader = LeaderArms(DESCRIPTION, leader_path, leader_offsets).open()
         assert not any(m.torque_on for m in leader_emu.motors)
         reading = leader.read()
         np.testing.assert_allclose(reading.positions, [pose[names.index(n)] for n in leader.names], atol=2e-3)

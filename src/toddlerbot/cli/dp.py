@@ -52,11 +52,15 @@ def train(
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
     preset = PRESETS[config]
+    previous_threads = torch.get_num_threads()
     torch.set_num_threads(threads)
-    windows = open_window_dataset(dataset, preset.n_obs_steps, preset.horizon)
-    console.print(f"dataset {dataset}: {len(windows)} windows; run directory {out}")
-    result = run_training(windows, preset, out, minutes=minutes, resume=resume,
-                          schedule=TrainSchedule(max_steps=steps), imagenet_weights=imagenet_weights)
+    try:
+        windows = open_window_dataset(dataset, preset.n_obs_steps, preset.horizon)
+        console.print(f"dataset {dataset}: {len(windows)} windows; run directory {out}")
+        result = run_training(windows, preset, out, minutes=minutes, resume=resume,
+                              schedule=TrainSchedule(max_steps=steps), imagenet_weights=imagenet_weights)
+    finally:
+        torch.set_num_threads(previous_threads)  # in-process callers (tests, notebooks) keep their setting
     last = result.history[-1] if result.history else {}
     val = last.get("val_loss")
     console.print(f"step {result.step}: train loss {last.get('train_loss', float('nan')):.4f}, validation loss "

@@ -85,7 +85,7 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
         from toddlerbot.hardware.calibration import load_calibration
         from toddlerbot.hardware.real_robot import RealRobot
 
-        robot = RealRobot(description, port, load_calibration(calibration, description.spec))
+        robot = RealRobot(description, port, load_calibration(calibration, description))
         return robot, None, True
     from toddlerbot.manipulation.camera import HeadCamera
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -199,19 +199,16 @@ def leader(
     """Leader side: read the leader arms (torque off) and publish their angles until Ctrl-C."""
     import threading
 
-    import yaml
-
+    from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.leader import LeaderArms
     from toddlerbot.manipulation.leader_follower import stream_leader
     from toddlerbot.manipulation.link import LinkPublisher
-    from toddlerbot.robot.spec import load_spec
+    from toddlerbot.robot.description import RobotDescription
 
-    try:
-        offsets = yaml.safe_load(calibration.read_text())["offsets"]
-    except (OSError, KeyError, TypeError, yaml.YAMLError) as exc:
-        raise ToddlerbotError(f"{calibration}: not a calibration file with 'offsets' ({exc})") from None
+    description = RobotDescription.load(variant="gripper")
+    offsets = load_calibration(calibration, description).offsets
     stop = threading.Event()
-    with LeaderArms(load_spec(variant="gripper"), port, offsets) as arms:
+    with LeaderArms(description, port, offsets) as arms:
         publisher = LinkPublisher(link)
         console.print(f"leader: publishing {len(arms.names)} joints on {link} at {rate:g} Hz; Ctrl-C stops")
         started = time.monotonic()

@@ -15,7 +15,7 @@ import numpy as np
 
 from toddlerbot.hardware.control_table import pulses_to_rad
 from toddlerbot.hardware.driver import DynamixelBus, motors_of
-from toddlerbot.robot.spec import RobotSpec
+from toddlerbot.robot.description import RobotDescription
 
 LEADER_GROUPS = ("arm", "gripper")
 
@@ -31,9 +31,10 @@ class LeaderReading:
 class LeaderArms:
     """Reads the leader arms (same motor ids and names as the follower's arm and gripper motors)."""
 
-    def __init__(self, spec: RobotSpec, port: str, offsets: dict[str, int], baudrate: int = 2_000_000,
+    def __init__(self, description: RobotDescription, port: str, offsets: dict[str, int], baudrate: int = 2_000_000,
                  retries: int = 3) -> None:
-        motors = [m for m in motors_of(spec) if _group(spec, m.name) in LEADER_GROUPS]
+        ids = {m.id for m in description.motors if m.group in LEADER_GROUPS}
+        motors = motors_of(description, ids)
         missing = [m.name for m in motors if m.name not in offsets]
         if missing:
             raise ValueError(f"leader calibration has no zero offset for {', '.join(missing)}")
@@ -63,6 +64,3 @@ class LeaderArms:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-
-def _group(spec: RobotSpec, joint: str) -> str:
-    return next(m.group for m in spec.motors_by_id if m.joint == joint)
