@@ -64,7 +64,7 @@ def test_resume_restores_optimizer_state_and_continues(smoke_run):
     run, first, ckpt1, final, _ = smoke_run
     assert len(ckpt1) == 1 and len(train.checkpoint_paths(run)) == 2
     restored, _, hist = train.load_checkpoint(ckpt1[0], final)
-    adam = lambda s: s.optimizer_state[1][0]  # noqa: E731 - (clip, adam) chain -> adam's ScaleByAdamState
+    adam = lambda s: train.adam_moments(s.optimizer_state)  # noqa: E731
     # the first checkpoint holds Adam's moments and step count, not just the parameters
     assert int(adam(restored).count) == config.SMOKE.num_minibatches * config.SMOKE.num_updates_per_batch
     mu = jax.tree.leaves(adam(restored).mu)

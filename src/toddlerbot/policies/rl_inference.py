@@ -2,8 +2,11 @@
 
 An exported policy is one ``.npz`` file holding
 
-* ``layer{i}_kernel`` / ``layer{i}_bias``: the actor MLP (swish hidden activations, linear output whose first
-  half is the mean of a tanh-Normal; the deterministic action is ``tanh(mean)``),
+* ``layer{i}_kernel`` / ``layer{i}_bias``: the actor MLP (swish hidden activations, linear output),
+* ``distribution``: ``normal`` (the output is the mean of a Gaussian whose samples the environment clips to
+  [-1, 1], so the deterministic action is ``clip(mean, -1, 1)``; ``action_std`` holds its standard deviation)
+  or, in files without this entry, ``tanh_normal`` (the output's first half is the pre-tanh mean; the
+  deterministic action is ``tanh(mean)``),
 * ``obs_mean`` / ``obs_std``: the observation normalisation learned during training,
 * ``home_motor_pos``: motor angles of the home pose (rad, motor-id order), ``leg_motor_index``: the 12
   commanded motors, ``motor_names``,
@@ -25,6 +28,8 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.spec import RobotSpec, load_spec
 
+ACTION_DISTRIBUTION = "normal"
+"""The action distribution `toddlerbot.rl` trains; exports before it record none and are ``tanh_normal``."""
 LEG_GROUP = "leg"
 """The spec's motor group an RL walking policy commands."""
 
@@ -116,6 +121,7 @@ class RLPolicyFile:
                 self.motor_names = tuple(str(n) for n in data["motor_names"])
                 self.obs_config = ObsConfig.from_json(str(data["obs_config"]))
                 self.meta = json.loads(str(data["meta"]))
+                self.distribution = str(data["distribution"]) if "distribution" in data.files else "tanh_normal"
             except KeyError as exc:
                 raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from exc
         self.path = path
@@ -125,14 +131,16 @@ class RLPolicyFile:
                                   f"config ({expected} = {self.obs_config.history} frames)")
 
     def action(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic action in [-1, 1]^12 for one normalised-on-the-fly observation vector."""
+        """Deterministic action in [-1, 1]^12 (what the environment applies for the policy's mean) for one
+        observation vector, normalised on the fly."""
         x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
         for i, (k, b) in enumerate(zip(self.kernels, self.biases, strict=True)):
             # einsum runs single-threaded: a threaded BLAS gemv stalls for milliseconds on a busy CPU
             x = np.einsum("i,ij->j", x, k) + b
             if i < len(self.kernels) - 1:
                 x = _swish(x)
-        return np.tanh(x[: len(self.leg_motor_index)])
+        mean = x[: len(self.leg_motor_index)]
+        return np.tanh(mean) if self.distribution == "tanh_normal" else np.clip(mean, -1.0, 1.0)
 
 
 class RLController:

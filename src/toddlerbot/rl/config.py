@@ -83,6 +83,10 @@ class RandomizationConfig:
     """m/s; largest horizontal velocity kick of a push."""
 
 
+CONTACT_SETS = ("feet_hands", "all")
+JACOBIANS = ("dense", "sparse")
+
+
 @dataclass(frozen=True)
 class EnvConfig:
     ctrl_dt: float = 0.02
@@ -91,6 +95,14 @@ class EnvConfig:
     """MJX physics timestep, s (ctrl_dt / sim_dt substeps)."""
     solver_iterations: int = 4
     solver_ls_iterations: int = 8
+    contacts: str = "feet_hands"
+    """Collisions the training model keeps: ``feet_hands`` (feet and hands against the floor, the foot-foot pair)
+    or ``all`` (every robot collision geom against the floor and the spec's self-collision pairs)."""
+    jacobian: str = "dense"
+    """Constraint Jacobian layout of the training model: ``dense`` or ``sparse``."""
+    motor_params: tuple[str, ...] = ()
+    """Fitted actuator parameter files (sysID ``params.json``) the robot is built with; domain randomisation
+    scales around them."""
     min_torso_height: float = 0.2
     """m; the episode ends (fall) when the torso origin drops below this..."""
     max_tilt: float = 1.0
@@ -100,6 +112,12 @@ class EnvConfig:
     reward: RewardConfig = field(default_factory=RewardConfig)
     randomization: RandomizationConfig = field(default_factory=RandomizationConfig)
     randomize: bool = True
+
+    def __post_init__(self) -> None:
+        if self.contacts not in CONTACT_SETS:
+            raise ValueError(f"contacts {self.contacts!r}: expected one of {', '.join(CONTACT_SETS)}")
+        if self.jacobian not in JACOBIANS:
+            raise ValueError(f"jacobian {self.jacobian!r}: expected one of {', '.join(JACOBIANS)}")
 
     @property
     def n_substeps(self) -> int:
@@ -121,7 +139,16 @@ class PPOConfig:
     num_minibatches: int = 4
     num_updates_per_batch: int = 4
     discounting: float = 0.97
-    learning_rate: float = 1e-4
+    learning_rate: float = 3e-4
+    """Initial Adam step size; with ``desired_kl`` set it is then adapted after every minibatch."""
+    desired_kl: float | None = 0.01
+    """Adaptive learning rate: divided by ``lr_factor`` when the minibatch's KL(behaviour || current policy)
+    exceeds twice this, multiplied by it below half of it (RSL-RL's rule). None keeps the rate fixed."""
+    lr_factor: float = 1.5
+    lr_bounds: tuple[float, float] = (1e-5, 1e-2)
+    init_std: float = 0.5
+    """Initial standard deviation of the state-independent Gaussian policy (unsquashed; the env clips actions
+    to [-1, 1])."""
     entropy_cost: float = 5e-4
     clipping_epsilon: float = 0.2
     policy_hidden: tuple[int, ...] = (512, 256, 128)

@@ -8,20 +8,24 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies.rl_inference import LEG_MOTORS, leg_motor_names
+from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION, LEG_MOTORS, leg_motor_names
 from toddlerbot.rl.config import EnvConfig, PPOConfig
 from toddlerbot.rl.reference import home_motor_pos, leg_motor_indices
 from toddlerbot.robot.spec import RobotSpec, load_spec
 
 
 def policy_arrays(policy_params: dict, normalizer_params, normalize: bool, obs_size: int) -> dict[str, np.ndarray]:
-    """Actor MLP layers and the actor-observation normalisation as numpy arrays."""
-    layers = policy_params["params"]
-    names = sorted(layers, key=lambda n: int(n.rsplit("_", 1)[1]))
-    arrays = {}
-    for i, name in enumerate(names):
-        arrays[f"layer{i}_kernel"] = np.asarray(layers[name]["kernel"], dtype=np.float32)
-        arrays[f"layer{i}_bias"] = np.asarray(layers[name]["bias"], dtype=np.float32)
+    """Actor MLP layers (hidden layers, then the action-mean head), the policy's standard deviation and the
+    actor-observation normalisation as numpy arrays."""
+    params = policy_params["params"]
+    hidden = params["MLP_0"]
+    names = sorted(hidden, key=lambda n: int(n.rsplit("_", 1)[1]))
+    layers = [hidden[n] for n in names] + [params["Dense_0"]]
+    arrays = {"distribution": np.array(ACTION_DISTRIBUTION),
+              "action_std": np.exp(np.asarray(params["std_logparam"]["log_value"], dtype=np.float32))}
+    for i, layer in enumerate(layers):
+        arrays[f"layer{i}_kernel"] = np.asarray(layer["kernel"], dtype=np.float32)
+        arrays[f"layer{i}_bias"] = np.asarray(layer["bias"], dtype=np.float32)
     if normalize:
         arrays["obs_mean"] = np.asarray(normalizer_params.mean["state"], dtype=np.float32)
         arrays["obs_std"] = np.asarray(normalizer_params.std["state"], dtype=np.float32)
@@ -78,7 +82,6 @@ def run_reference_source(run_dir: Path) -> str | None:
 def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig):
     """(TrainingState, metric history) of a checkpoint written with this configuration."""
     import jax
-    import optax
 
     from toddlerbot.rl import train
 
@@ -86,8 +89,7 @@ def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig):
     obs_size = {"state": (env_cfg.obs.history * env_cfg.obs.frame_size(len(home_motor_pos(load_spec()))),),
                 "privileged_state": (_critic_width(path),)}
     networks = train.make_networks(obs_size, len(LEG_MOTORS), ppo_cfg)
-    optimizer = optax.chain(optax.clip_by_global_norm(ppo_cfg.max_grad_norm), optax.adam(ppo_cfg.learning_rate))
-    template = train._initial_state(networks, optimizer, obs_size, jax.random.PRNGKey(0))
+    template = train._initial_state(networks, train.make_optimizer(ppo_cfg), obs_size, jax.random.PRNGKey(0))
     state, _, history = train.load_checkpoint(path, template)
     return state, history
 

@@ -1,0 +1,55 @@
+"""The training variant of the robot's MuJoCo model: the spec's model, post-processed for fast MJX stepping.
+
+Built from `toddlerbot.robot.builder.build_mjspec` (the same bodies, joints, transmissions and actuator
+parameters as the CPU simulator) with, per `EnvConfig`:
+
+* the MJX timestep and Newton solver / line-search iterations;
+* collisions pruned to the ones walking needs (``contacts="feet_hands"``): the feet and hands against the floor
+  and the two feet against each other. Every other robot geom stops colliding; the spec's self-collision pairs
+  (thighs, ankle links) are dropped. Fewer candidate contacts make every MJX step cheaper;
+* the constraint Jacobian layout (dense or sparse).
+
+The fitted actuator parameters of the description's catalogue (damping, armature, friction loss) are in it.
+"""
+
+from __future__ import annotations
+
+import mujoco
+
+from toddlerbot.rl.config import EnvConfig
+from toddlerbot.robot.builder import build_mjspec
+from toddlerbot.robot.description import RobotDescription
+
+_JACOBIANS = {"dense": mujoco.mjtJacobian.mjJAC_DENSE, "sparse": mujoco.mjtJacobian.mjJAC_SPARSE}
+
+
+def contact_geoms(description: RobotDescription) -> tuple[str, ...]:
+    """Collision geoms that keep touching the floor in the pruned model: the soles and the hands' geoms."""
+    handles = description.handles
+    hand_bodies = {b.name for b in description.spec.bodies for s in b.sites if s.name in handles.hand_sites}
+    hands = tuple(g.name for b in description.spec.bodies if b.name in hand_bodies for g in b.collision)
+    return (*handles.feet_geoms, *hands)
+
+
+def training_mjspec(description: RobotDescription, cfg: EnvConfig) -> mujoco.MjSpec:
+    """The robot's MjSpec (with floor) carrying the training options of ``cfg``."""
+    mj = build_mjspec(description.spec, scene=True, catalogue=description.catalogue)
+    mj.option.timestep = cfg.sim_dt
+    mj.option.iterations = cfg.solver_iterations
+    mj.option.ls_iterations = cfg.solver_ls_iterations
+    mj.option.jacobian = _JACOBIANS[cfg.jacobian]
+    if cfg.contacts == "feet_hands":
+        keep = set(contact_geoms(description))
+        for geom in mj.geoms:
+            if geom.contype and geom.name not in keep:
+                geom.contype = geom.conaffinity = 0
+        for pair in list(mj.pairs):
+            mj.delete(pair)
+        left, right = description.handles.feet_geoms
+        mj.add_pair(name="feet", geomname1=left, geomname2=right)
+    return mj
+
+
+def training_model(description: RobotDescription, cfg: EnvConfig) -> mujoco.MjModel:
+    """The compiled training variant (see the module docstring)."""
+    return training_mjspec(description, cfg).compile()
