@@ -19,21 +19,25 @@ import numpy as np
 
 
 def bench_inference(repeats: int = 2000) -> None:
-    from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig, RLController, RLPolicyFile
+    from toddlerbot.policies.rl_inference import ObsConfig, RLController, RLPolicyFile
     from toddlerbot.rl.config import FULL, EnvConfig
     from toddlerbot.rl.export import write_policy
+    from toddlerbot.robot.description import RobotDescription
 
+    description = RobotDescription.load()
+    legs = len(description.groups["leg"])
     obs = ObsConfig(gait_period=0.72)
-    n_in = obs.history * obs.frame_size(30)
+    n_in = obs.history * obs.frame_size(description.n_motors, legs)
     rng = np.random.default_rng(0)
-    sizes = [n_in, *FULL.policy_hidden, 2 * len(LEG_MOTORS)]
+    sizes = [n_in, *FULL.policy_hidden, legs]
     arrays = {}
     for i, (a, b) in enumerate(itertools.pairwise(sizes)):
         arrays[f"layer{i}_kernel"] = (rng.normal(size=(a, b)) / np.sqrt(a)).astype(np.float32)
         arrays[f"layer{i}_bias"] = np.zeros(b, np.float32)
     arrays["obs_mean"], arrays["obs_std"] = np.zeros(n_in, np.float32), np.ones(n_in, np.float32)
+    arrays["distribution"], arrays["action_std"] = np.array("normal"), np.full(legs, 0.5, np.float32)
     with tempfile.TemporaryDirectory() as tmp:
-        path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {})
+        path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {}, description)
         ctrl = RLController(RLPolicyFile(path))
     home = ctrl.policy.home_motor_pos
     quat = np.array([1.0, 0, 0, 0])

@@ -13,13 +13,14 @@ jnp = jax.numpy
 from toddlerbot.rl.config import smoke_env_config  # noqa: E402
 from toddlerbot.rl.env import WalkEnv  # noqa: E402
 from toddlerbot.rl.reference import standing_table  # noqa: E402
-from toddlerbot.robot.spec import load_spec  # noqa: E402
+from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def env():
     cfg = smoke_env_config()
-    return WalkEnv(cfg, reference=standing_table(load_spec(), cfg.command, period=0.72))
+    description = RobotDescription.load()
+    return WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.72))
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +48,7 @@ def test_each_env_gets_its_own_randomisation_draw(env, states):
 
 
 def test_observations_have_history_and_privileged_extras(env, states):
-    frame = env.cfg.obs.frame_size(30)
+    frame = env.frame_size
     actor = np.asarray(states.obs["state"])
     assert actor.shape == (4, env.cfg.obs.history * frame)
     np.testing.assert_array_equal(actor[:, :frame], actor[:, frame:2 * frame])  # history filled with frame 0

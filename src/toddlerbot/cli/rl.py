@@ -39,6 +39,9 @@ def train(
                                                        "later with --resume).")] = None,
     epochs: Annotated[int | None, typer.Option(help="Stop after this many epochs (resume later with --resume).")]
     = None,
+    motor_params: Annotated[list[Path] | None, typer.Option(
+        "--motor-params", help="Fitted actuator parameters (sysID params.json; repeat for several motor models): "
+                               "the robot trains on them, domain randomisation scales around them.")] = None,
 ) -> None:
     """Run PPO (Table 5 hyperparameters unless --smoke) with checkpoints, evaluation and a training curve."""
     import os
@@ -60,9 +63,16 @@ def train(
         run_dir, env_cfg, ppo_cfg = resume, None, None
         if not (resume / "config.json").is_file():
             raise ToddlerbotError(f"{resume}: no training run to resume (config.json missing)")
+        if motor_params:
+            raise ToddlerbotError("--motor-params: a resumed run keeps the parameters it started with")
     else:
         run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
         env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
+        if motor_params:
+            from toddlerbot.actuation.params_file import catalogue_with_params
+
+            catalogue_with_params(motor_params)  # bad files fail here, before anything compiles
+            env_cfg = replace(env_cfg, motor_params=tuple(str(p) for p in motor_params))
         ppo_cfg = replace(config.SMOKE if smoke else config.FULL, seed=seed)
         try:
             if timesteps is not None:

@@ -26,21 +26,11 @@ from types import ModuleType
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.robot.spec import RobotSpec, load_spec
 
 ACTION_DISTRIBUTION = "normal"
 """The action distribution `toddlerbot.rl` trains; exports before it record none and are ``tanh_normal``."""
 LEG_GROUP = "leg"
-"""The spec's motor group an RL walking policy commands."""
-
-
-def leg_motor_names(spec: RobotSpec) -> tuple[str, ...]:
-    """Motor joint names of the spec's leg group, in motor-id order (the policy's action order)."""
-    return tuple(m.joint for m in spec.motors_by_id if m.group == LEG_GROUP)
-
-
-LEG_MOTORS = leg_motor_names(load_spec())
-"""The leg motors of the packaged robot (12 for ToddlerBot v1)."""
+"""The spec's motor group an RL walking policy commands (its actions, in motor-id order)."""
 
 
 @dataclass(frozen=True)
@@ -65,10 +55,10 @@ class ObsConfig:
     noise_gyro: float = 0.1
     noise_gravity: float = 0.05
 
-    def frame_size(self, n_motors: int) -> int:
+    def frame_size(self, n_motors: int, n_actions: int) -> int:
         """Features per frame: phase 2, command 3, motor angles relative to home and motor speeds (n_motors
-        each), last action (one per leg motor), gyro 3, gravity direction in the IMU frame 3."""
-        return 2 + 3 + 2 * n_motors + len(LEG_MOTORS) + 3 + 3
+        each), last action (n_actions, one per leg motor), gyro 3, gravity direction in the IMU frame 3."""
+        return 2 + 3 + 2 * n_motors + n_actions + 3 + 3
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -122,10 +112,12 @@ class RLPolicyFile:
                 self.obs_config = ObsConfig.from_json(str(data["obs_config"]))
                 self.meta = json.loads(str(data["meta"]))
                 self.distribution = str(data["distribution"]) if "distribution" in data.files else "tanh_normal"
+                self.action_std = data["action_std"].astype(np.float32) if "action_std" in data.files else None
             except KeyError as exc:
                 raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from exc
         self.path = path
-        expected = self.obs_config.history * self.obs_config.frame_size(len(self.home_motor_pos))
+        expected = self.obs_config.history * self.obs_config.frame_size(len(self.home_motor_pos),
+                                                                         len(self.leg_motor_index))
         if self.kernels[0].shape[0] != expected or self.obs_mean.shape != (expected,):
             raise ToddlerbotError(f"{path}: network input {self.kernels[0].shape[0]} does not match the observation "
                                   f"config ({expected} = {self.obs_config.history} frames)")

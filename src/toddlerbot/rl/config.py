@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
-from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig
+from toddlerbot.policies.rl_inference import ObsConfig
 
-__all__ = ["LEG_MOTORS", "ObsConfig"]
+__all__ = ["ObsConfig"]
 
 @dataclass(frozen=True)
 class CommandConfig:

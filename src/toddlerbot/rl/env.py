@@ -106,9 +106,13 @@ class WalkEnv(Env):
     # Brax Env interface -------------------------------------------------------------------------------------
     @property
     def observation_size(self) -> dict[str, tuple[int, ...]]:
-        actor = self.cfg.obs.history * self.cfg.obs.frame_size(self.n_motors)
+        actor = self.cfg.obs.history * self.frame_size
         state = self.reset(jax.random.PRNGKey(0))
         return {"state": (actor,), "privileged_state": state.obs["privileged_state"].shape}
+
+    @property
+    def frame_size(self) -> int:
+        return self.cfg.obs.frame_size(self.n_motors, self.action_size)
 
     @property
     def action_size(self) -> int:
@@ -133,7 +137,7 @@ class WalkEnv(Env):
             "ref_yaw": _yaw(data.qpos[3:7]), "last_action": zeros12, "last_last_action": zeros12,
             "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": data.site_xpos[self.foot_sites],
             "push_timer": self._push_interval(k_push), "push": jnp.zeros(2),
-            "history": jnp.zeros((cfg.obs.history, cfg.obs.frame_size(self.n_motors))),
+            "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
         obs, info = self._observe(data, info, k_noise, contact=jnp.ones(2), ref_leg=self._ref_leg_pos(info))
         info["history"] = jnp.tile(info["history"][:1], (cfg.obs.history, 1))

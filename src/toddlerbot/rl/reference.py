@@ -100,8 +100,8 @@ def standing_table(description: RobotDescription, cfg: CommandConfig, period: fl
     return ReferenceTable(grid, period, np.broadcast_to(legs, (*shape, len(legs))).copy(), np.ones((*shape, 2)))
 
 
-def zmp_table(description: RobotDescription, generator: WalkGenerator, cfg: CommandConfig, period: float, start_time: float,
-              n_phase: int = 36, warmup_cycles: int = 2) -> ReferenceTable:
+def zmp_table(description: RobotDescription, generator: WalkGenerator, cfg: CommandConfig, period: float,
+              start_time: float, n_phase: int = 36, warmup_cycles: int = 2) -> ReferenceTable:
     """Tabulate a walking generator: for each grid command, one steady-state gait cycle, sampled ``warmup_cycles``
     cycles after the generator's standing start of ``start_time`` s (phase 0 = the start of a cycle).
 

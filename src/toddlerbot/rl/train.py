@@ -19,6 +19,7 @@ from __future__ import annotations
 import functools
 import json
 import time
+import uuid
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
@@ -45,6 +46,7 @@ from toddlerbot.rl.config import (
     RewardConfig,
 )
 from toddlerbot.rl.env import WalkEnv
+from toddlerbot.rl.export import MOTOR_PARAMS_RECORD, motor_params_record
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.wrappers import wrap_for_training
 
@@ -262,7 +264,7 @@ def save_checkpoint(run_dir: Path, state: TrainingState, key: jax.Array, history
     payload = {"state": serialization.to_state_dict(jax.device_get(state)), "key": np.asarray(jax.device_get(key)),
                "history": json.dumps(history)}
     path = folder / f"step_{int(state.env_steps):012d}.msgpack"
-    tmp = path.with_suffix(".tmp")
+    tmp = folder / f"{path.stem}.{uuid.uuid4().hex}.tmp"
     tmp.write_bytes(serialization.msgpack_serialize(payload))
     tmp.replace(path)
     return path
@@ -303,6 +305,8 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, env.cfg, ppo_cfg)
         (run_dir / "reference.txt").write_text(env.reference_source + "\n")
+        if env.cfg.motor_params:
+            (run_dir / MOTOR_PARAMS_RECORD).write_text(json.dumps(motor_params_record(env.cfg.motor_params), indent=1))
     ppo = PPO(env, cfg)
 
     key = jax.random.PRNGKey(cfg.seed)
@@ -319,6 +323,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     key, k_env = jax.random.split(key)
     env_state = ppo.reset(k_env)
     walltime = sum(h["epoch_seconds"] for h in history)
+    device = f"{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
     epochs_run = 0
     while int(ts.env_steps) < ppo.total_steps:
         if (max_epochs is not None and epochs_run >= max_epochs) or (
@@ -331,7 +336,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         seconds = time.perf_counter() - t0
         walltime += seconds
         steps = int(ts.env_steps)
-        record = {"env_steps": steps, "epoch_seconds": seconds, "walltime": walltime,
+        record = {"env_steps": steps, "epoch_seconds": seconds, "walltime": walltime, "device": device,
                   "sps": ppo.updates_per_epoch * cfg.env_steps_per_update / seconds, **metrics}
         if evaluator is not None:
             eval_metrics = evaluator.run_evaluation((ts.normalizer_params, ts.params.policy, ts.params.value), {})
