@@ -3,6 +3,9 @@ and env steps per second on this machine.
 
     PYTHONPATH=src python benchmarks/bench_rl.py            # inference only (seconds)
     PYTHONPATH=src python benchmarks/bench_rl.py --env      # + MJX env compile and throughput (minutes on CPU)
+    PYTHONPATH=src python benchmarks/bench_rl.py --settings # + 10 s stand, constraint residual, steps/s per
+                                                            #   training-model setting (a GPU run: add
+                                                            #   --stand-envs 4096)
 """
 
 from __future__ import annotations
@@ -82,16 +85,69 @@ def bench_env(batches: tuple[int, ...], steps: int) -> None:
               f"({rate * env.cfg.n_substeps:.0f} physics steps/s, {rate * env.cfg.ctrl_dt:.2f}x real time)")
 
 
+SETTINGS = (  # (contacts, Newton iterations, line-search iterations, Jacobian)
+    ("all", 4, 8, "dense"),
+    ("feet_hands", 4, 8, "dense"),
+    ("feet_hands", 2, 4, "dense"),
+    ("feet_hands", 1, 4, "dense"),
+    ("feet_hands", 2, 4, "sparse"),
+)
+
+
+def bench_settings(n_envs: int, seconds: float, settings: tuple = SETTINGS) -> None:
+    """For each training-model setting: zero-action standing without randomisation (falls, torso height),
+    the transmission constraints' worst residual, and env steps/s of the compiled rollout."""
+    from dataclasses import replace
+
+    from toddlerbot.rl.checks import equality_residual, stand
+    from toddlerbot.rl.config import EnvConfig, smoke_env_config
+    from toddlerbot.rl.env import WalkEnv
+    from toddlerbot.rl.reference import standing_table
+    from toddlerbot.robot.description import RobotDescription
+
+    description = RobotDescription.load()
+    base = replace(EnvConfig(), randomize=False)
+    reference = standing_table(description, smoke_env_config().command, period=0.72)
+    print(f"stand {seconds:.0f} s with zero actions, {n_envs} envs, no randomisation, "
+          f"matmul precision {_precision()}:")
+    for contacts, iterations, ls_iterations, jacobian in settings:
+        cfg = replace(base, contacts=contacts, solver_iterations=iterations, solver_ls_iterations=ls_iterations,
+                      jacobian=jacobian)
+        env = WalkEnv(cfg, description, reference=reference)
+        r = stand(env, n_envs, seconds)
+        z = r.torso_height
+        print(f"  contacts {contacts:10s} Newton {iterations}/{ls_iterations} {jacobian:6s}: "
+              f"{int(r.fallen.sum())}/{n_envs} fell; torso {z[0].mean():.4f} -> {z[-1].mean():.4f} m "
+              f"(min {z.min():.4f}); equality residual {equality_residual(env.mj_model, r.qpos):.2e}; "
+              f"{z.size / r.run_s:.0f} env steps/s (compile {r.compile_s:.0f} s)", flush=True)
+
+
+def _precision() -> str:
+    import jax
+
+    return str(jax.config.jax_default_matmul_precision)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--env", action="store_true", help="also benchmark the MJX environment (slow on CPU)")
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 32])
     parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--settings", action="store_true",
+                        help="stand check, constraint residuals and env steps/s for each training-model setting")
+    parser.add_argument("--stand-envs", type=int, default=8)
+    parser.add_argument("--stand-seconds", type=float, default=10.0)
     args = parser.parse_args()
+    if args.env or args.settings:
+        from toddlerbot.rl.precision import use_full_precision
+
+        use_full_precision()  # as training does, before anything compiles
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}")
     bench_inference()
     if args.env:
         bench_env(tuple(args.batches), args.steps)
+    if args.settings:
+        bench_settings(args.stand_envs, args.stand_seconds)
 
 
 if __name__ == "__main__":

@@ -154,13 +154,8 @@ class WalkEnv(Env):
         targets = jnp.asarray(self.home_motor_pos).at[self.leg_index].add(cfg.obs.action_scale * applied)
 
         data, info = self._push(state.pipeline_state, info, k_push)
-        model, act = self._model(dr), randomization.apply_to_actuators(self.actuators, dr)
-
-        def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
-            tau = motor_torque(targets, d.qpos[self.motor_qadr], d.qvel[self.motor_dadr], act, xp=jnp)
-            return mjx.step(model, d.replace(ctrl=tau)), tau
-
-        data, taus = jax.lax.scan(substep, data, None, length=cfg.n_substeps)
+        data, taus = self.physics_step(data, targets, self._model(dr),
+                                       randomization.apply_to_actuators(self.actuators, dr))
         info["time"] = info["time"] + cfg.ctrl_dt
         info["step"] = info["step"] + 1
         info["ref_yaw"] = info["ref_yaw"] + info["command"][2] * cfg.ctrl_dt
@@ -205,6 +200,25 @@ class WalkEnv(Env):
         obs, info = self._observe(data, info, k_noise, contact=contact, ref_leg=ref_leg)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
                              metrics={**state.metrics, **terms}, info=info)
+
+    def physics_step(self, data: mjx.Data, targets: jax.Array, model: mjx.Model | None = None,
+                     actuators: ActuatorArrays | None = None) -> tuple[mjx.Data, jax.Array]:
+        """One control period of physics holding motor targets (rad, motor-id order): ``n_substeps`` MJX steps,
+        each with the actuator model's torques. Returns the data and the (n_substeps, n_motors) torques, N m.
+        ``model`` / ``actuators`` default to the nominal (un-randomised) robot."""
+        model = self.sys if model is None else model
+        act = self.actuators if actuators is None else actuators
+
+        def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
+            tau = motor_torque(targets, d.qpos[self.motor_qadr], d.qvel[self.motor_dadr], act, xp=jnp)
+            return mjx.step(model, d.replace(ctrl=tau)), tau
+
+        return jax.lax.scan(substep, data, None, length=self.cfg.n_substeps)
+
+    @property
+    def home_data(self) -> mjx.Data:
+        """The start state of every episode (home keyframe on the floor)."""
+        return self._home_data
 
     # helpers -------------------------------------------------------------------------------------------------
     def _model(self, dr: randomization.DRParams) -> mjx.Model:
