@@ -43,7 +43,7 @@ def train(
         "--motor-params", help="Fitted actuator parameters (sysID params.json; repeat for several motor models): "
                                "the robot trains on them, domain randomisation scales around them.")] = None,
 ) -> None:
-    """Run PPO (Table 5 hyperparameters unless --smoke) with checkpoints, evaluation and a training curve."""
+    """Run PPO (the one-GPU configuration of docs/rl.md unless --smoke) with checkpoints and a training curve."""
     import os
 
     from toddlerbot.rl.config import SMOKE_XLA_FLAGS
@@ -91,7 +91,8 @@ def train(
 
         def progress(done: int, total: int, m: dict) -> None:
             bar.update(task, completed=done, total=total, description="training",
-                       info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  {m['sps']:.0f} steps/s")
+                       info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  episode {m['episode_length']:.0f}"
+                            f"  KL {m['kl_mean']:.3f}  {m['sps']:.0f} steps/s")
 
         _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress,
                                     time_limit_s=None if minutes is None else 60 * minutes, max_epochs=epochs)
