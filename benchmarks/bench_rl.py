@@ -116,9 +116,10 @@ def bench_settings(n_envs: int, seconds: float, settings: tuple = SETTINGS) -> N
         env = WalkEnv(cfg, description, reference=reference)
         r = stand(env, n_envs, seconds)
         z = r.torso_height
+        residual, worst = equality_residual(env.mj_model, r.qpos)
         print(f"  contacts {contacts:10s} Newton {iterations}/{ls_iterations} {jacobian:6s}: "
               f"{int(r.fallen.sum())}/{n_envs} fell; torso {z[0].mean():.4f} -> {z[-1].mean():.4f} m "
-              f"(min {z.min():.4f}); equality residual {equality_residual(env.mj_model, r.qpos):.2e}; "
+              f"(min {z.min():.4f}); equality residual {residual:.2e} ({worst}); "
               f"{z.size / r.run_s:.0f} env steps/s (compile {r.compile_s:.0f} s)", flush=True)
 
 

@@ -85,6 +85,8 @@ def test_kl_stays_bounded_and_std_above_floor_while_learning(history):
     std = np.array([h["policy_dist_min_std"] for h in history])
     lr = np.array([h["learning_rate"] for h in history])
     reward = np.array([h["step_reward"] for h in history])
+    print(f"PPO on the target task: KL max {kl.max():.4f}, std min {std.min():.3f}, learning rate "
+          f"{lr.min():.2e}..{lr.max():.2e}, squared error {1 - reward[0]:.3f} -> {1 - reward[-5:].mean():.3f}")
     assert np.all(np.isfinite(kl)) and kl.max() < KL_BOUND, kl
     assert std.min() > STD_FLOOR, std
     assert lr.min() >= CFG.lr_bounds[0] and lr.max() <= CFG.lr_bounds[1]

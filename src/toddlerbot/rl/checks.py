@@ -75,15 +75,18 @@ def replay_motor_targets(env: WalkEnv, targets: np.ndarray) -> tuple[np.ndarray,
     return np.asarray(height), np.asarray(motor_pos)
 
 
-def equality_residual(model: mujoco.MjModel, qpos: np.ndarray) -> float:
+def equality_residual(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[float, str]:
     """Largest violation of the model's equality constraints (joint couplings in rad, weld anchors in m, weld
-    orientations in rad) over states ``qpos`` (..., nq), evaluated with CPU MuJoCo."""
+    orientations in rad) over states ``qpos`` (..., nq), evaluated with CPU MuJoCo, and the constraint's name."""
     data = mujoco.MjData(model)
-    worst = 0.0
+    worst, name = 0.0, ""
     for q in np.reshape(qpos, (-1, model.nq)):
         data.qpos[:] = q
         mujoco.mj_forward(model, data)
-        rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-        if np.any(rows):
-            worst = max(worst, float(np.abs(data.efc_pos[: data.nefc][rows]).max()))
-    return worst
+        n = data.nefc
+        rows = np.flatnonzero(data.efc_type[:n] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        if rows.size:
+            k = rows[np.argmax(np.abs(data.efc_pos[rows]))]
+            if abs(data.efc_pos[k]) > worst:
+                worst, name = float(abs(data.efc_pos[k])), model.eq(int(data.efc_id[k])).name
+    return worst, name
