@@ -67,7 +67,7 @@ def test_squat_in_mjx_matches_the_cpu_simulator(env, description):
     cpu_height, cpu_motor = [], []
     for target in targets:
         obs = robot.step(target)
-        cpu_height.append(robot.base_pos()[2])
+        cpu_height.append(robot.base_pos[2])
         cpu_motor.append(obs.motor_pos)
     cpu_height, cpu_motor = np.array(cpu_height), np.array(cpu_motor)
 

@@ -98,6 +98,9 @@ class EnvConfig:
     contacts: str = "feet_hands"
     """Collisions the training model keeps: ``feet_hands`` (feet and hands against the floor, the foot-foot pair)
     or ``all`` (every robot collision geom against the floor and the spec's self-collision pairs)."""
+    linkage_loops: bool = False
+    """Keep the parallel linkages' weld loops (the simulator's model); False couples their joints directly
+    (`toddlerbot.rl.model`)."""
     jacobian: str = "dense"
     """Constraint Jacobian layout of the training model: ``dense`` or ``sparse``."""
     motor_params: tuple[str, ...] = ()
