@@ -4,6 +4,8 @@ tests and by ``benchmarks/bench_rl.py``).
 * `stand`: zero actions (leg targets = home) in a batch of environments; torso heights over time.
 * `replay_motor_targets`: the nominal MJX robot driven by a motor-target sequence (an open-loop motion), to
   compare with `toddlerbot.sim.mujoco_robot.MuJoCoRobot` driven by the same sequence.
+* `stand_cpu`: the same training model stepped by CPU MuJoCo in float64 (cheap; separates solver settings that
+  cannot work from float32 effects).
 * `equality_residual`: how far the transmission constraints (joint couplings, linkage welds) are violated.
 """
 
@@ -17,7 +19,9 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from toddlerbot.actuation.model import motor_torque
 from toddlerbot.rl.env import WalkEnv
+from toddlerbot.robot.description import RobotDescription
 
 
 @dataclass(frozen=True)
@@ -73,6 +77,27 @@ def replay_motor_targets(env: WalkEnv, targets: np.ndarray) -> tuple[np.ndarray,
 
     height, motor_pos = jax.device_get(run(jnp.asarray(targets, dtype=jnp.float32)))
     return np.asarray(height), np.asarray(motor_pos)
+
+
+def stand_cpu(model: mujoco.MjModel, description: RobotDescription, seconds: float,
+              sample_every: int = 25) -> tuple[float | None, np.ndarray, np.ndarray]:
+    """The training model stepped with CPU MuJoCo (float64) holding the home pose with the actuator model.
+    Returns (time of divergence in s or None, torso heights per physics step (m), sampled qpos)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    joints = model.actuator_trnid[:, 0]
+    qadr, dadr = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
+    home, act = np.asarray(description.home_motor_pos), description.actuator_arrays()
+    heights, samples = [], []
+    for k in range(round(seconds / model.opt.timestep)):
+        data.ctrl[:] = motor_torque(home, data.qpos[qadr], data.qvel[dadr], act)
+        mujoco.mj_step(model, data)
+        if not np.all(np.isfinite(data.qpos)) or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
+            return k * model.opt.timestep, np.array(heights), np.array(samples)
+        heights.append(data.qpos[2])
+        if k % sample_every == sample_every - 1:
+            samples.append(data.qpos.copy())
+    return None, np.array(heights), np.array(samples)
 
 
 def equality_residual(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[float, str]:
