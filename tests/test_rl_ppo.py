@@ -1,8 +1,9 @@
 """PPO stays healthy: bounded per-update KL, a policy std that does not collapse, and Brax's loss on-policy.
 
 These run the project's PPO loop (`toddlerbot.rl.train.PPO`) on a tiny pure-JAX task instead of the MJX robot,
-so they compile in seconds: each step asks for the action that equals a random target shown in the observation
-(reward 1 - mean squared error), which a Gaussian policy learns within a few updates.
+so they compile in about a minute (slow-marked) instead of several: each step asks for the action that equals
+a random target shown in the observation (reward 1 - mean squared error), which a Gaussian policy learns
+within a few updates.
 """
 
 import functools
@@ -80,6 +81,7 @@ def history():
     return records
 
 
+@pytest.mark.slow
 def test_kl_stays_bounded_and_std_above_floor_while_learning(history):
     kl = np.array([h["kl_max"] for h in history])
     std = np.array([h["policy_dist_min_std"] for h in history])
@@ -95,6 +97,7 @@ def test_kl_stays_bounded_and_std_above_floor_while_learning(history):
     assert (1 - reward[-5:].mean()) < 0.5 * (1 - reward[0]), reward
 
 
+@pytest.mark.slow
 def test_first_minibatch_is_on_policy_and_matches_brax_loss():
     """With the behaviour normaliser (our order) the first minibatch scores actions under the behaviour policy:
     KL 0, importance ratio 1 (so the clipped policy loss is minus the mean normalised advantage, 0). Brax's
