@@ -104,3 +104,10 @@ def test_cli_rejects_a_bad_params_file_in_one_line_before_compiling(tmp_path):
     message = str(result.exception)
     assert str(bad) in message and "tau_max" in message and "\n" not in message
     assert not (tmp_path / "run" / "config.json").exists()
+
+
+def test_cli_rejects_zero_solver_iterations_in_one_line(tmp_path):
+    result = CliRunner().invoke(app, ["rl", "train", "--smoke", "--out", str(tmp_path / "run"),
+                                      "--solver-iterations", "0"])
+    assert result.exit_code != 0
+    assert "solver iterations 0/8: expected >= 1" in str(result.exception)

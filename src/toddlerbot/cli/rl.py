@@ -39,6 +39,10 @@ def train(
                                                        "later with --resume).")] = None,
     epochs: Annotated[int | None, typer.Option(help="Stop after this many epochs (resume later with --resume).")]
     = None,
+    solver_iterations: Annotated[int | None, typer.Option(help="Newton iterations of the training model "
+                                                               "(default 4; see docs/rl.md before lowering).")]
+    = None,
+    ls_iterations: Annotated[int | None, typer.Option(help="Line-search iterations (default 8).")] = None,
     motor_params: Annotated[list[Path] | None, typer.Option(
         "--motor-params", help="Fitted actuator parameters (sysID params.json; repeat for several motor models): "
                                "the robot trains on them, domain randomisation scales around them.")] = None,
@@ -63,11 +67,19 @@ def train(
         run_dir, env_cfg, ppo_cfg = resume, None, None
         if not (resume / "config.json").is_file():
             raise ToddlerbotError(f"{resume}: no training run to resume (config.json missing)")
-        if motor_params:
-            raise ToddlerbotError("--motor-params: a resumed run keeps the parameters it started with")
+        if motor_params or solver_iterations is not None or ls_iterations is not None:
+            raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations: a resumed run keeps the "
+                                  "settings it started with")
     else:
         run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
         env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
+        try:
+            env_cfg = replace(
+                env_cfg,
+                solver_iterations=env_cfg.solver_iterations if solver_iterations is None else solver_iterations,
+                solver_ls_iterations=env_cfg.solver_ls_iterations if ls_iterations is None else ls_iterations)
+        except ValueError as exc:
+            raise ToddlerbotError(f"--solver-iterations/--ls-iterations: {exc}") from exc
         if motor_params:
             from toddlerbot.actuation.params_file import catalogue_with_params
 

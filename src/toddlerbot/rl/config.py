@@ -117,6 +117,8 @@ class EnvConfig:
     randomize: bool = True
 
     def __post_init__(self) -> None:
+        if self.solver_iterations < 1 or self.solver_ls_iterations < 1:
+            raise ValueError(f"solver iterations {self.solver_iterations}/{self.solver_ls_iterations}: expected >= 1")
         if self.contacts not in CONTACT_SETS:
             raise ValueError(f"contacts {self.contacts!r}: expected one of {', '.join(CONTACT_SETS)}")
         if self.jacobian not in JACOBIANS:
