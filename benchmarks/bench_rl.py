@@ -3,6 +3,10 @@ and env steps per second on this machine.
 
     PYTHONPATH=src python benchmarks/bench_rl.py            # inference only (seconds)
     PYTHONPATH=src python benchmarks/bench_rl.py --env      # + MJX env compile and throughput (minutes on CPU)
+    PYTHONPATH=src python benchmarks/bench_rl.py --solver-cpu   # + each model setting in CPU MuJoCo (float64)
+    PYTHONPATH=src python benchmarks/bench_rl.py --settings # + 10 s stand, constraint residual, steps/s per
+                                                            #   training-model setting (a GPU run: add
+                                                            #   --stand-envs 4096)
 """
 
 from __future__ import annotations
@@ -19,21 +23,25 @@ import numpy as np
 
 
 def bench_inference(repeats: int = 2000) -> None:
-    from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig, RLController, RLPolicyFile
+    from toddlerbot.policies.rl_inference import ObsConfig, RLController, RLPolicyFile
     from toddlerbot.rl.config import FULL, EnvConfig
     from toddlerbot.rl.export import write_policy
+    from toddlerbot.robot.description import RobotDescription
 
+    description = RobotDescription.load()
+    legs = len(description.groups["leg"])
     obs = ObsConfig(gait_period=0.72)
-    n_in = obs.history * obs.frame_size(30)
+    n_in = obs.history * obs.frame_size(description.n_motors, legs)
     rng = np.random.default_rng(0)
-    sizes = [n_in, *FULL.policy_hidden, 2 * len(LEG_MOTORS)]
+    sizes = [n_in, *FULL.policy_hidden, legs]
     arrays = {}
     for i, (a, b) in enumerate(itertools.pairwise(sizes)):
         arrays[f"layer{i}_kernel"] = (rng.normal(size=(a, b)) / np.sqrt(a)).astype(np.float32)
         arrays[f"layer{i}_bias"] = np.zeros(b, np.float32)
     arrays["obs_mean"], arrays["obs_std"] = np.zeros(n_in, np.float32), np.ones(n_in, np.float32)
+    arrays["distribution"], arrays["action_std"] = np.array("normal"), np.full(legs, 0.5, np.float32)
     with tempfile.TemporaryDirectory() as tmp:
-        path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {})
+        path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {}, description)
         ctrl = RLController(RLPolicyFile(path))
     home = ctrl.policy.home_motor_pos
     quat = np.array([1.0, 0, 0, 0])
@@ -78,16 +86,107 @@ def bench_env(batches: tuple[int, ...], steps: int) -> None:
               f"({rate * env.cfg.n_substeps:.0f} physics steps/s, {rate * env.cfg.ctrl_dt:.2f}x real time)")
 
 
+SETTINGS = (  # (contacts, Newton iterations, line-search iterations, Jacobian, linkage weld loops)
+    ("all", 4, 8, "dense", True),  # round 1's model
+    ("all", 4, 8, "dense", False),
+    ("feet_hands", 4, 8, "dense", False),  # the default
+    ("feet_hands", 3, 6, "dense", False),
+    ("feet_hands", 2, 4, "dense", False),
+    ("feet_hands", 1, 4, "dense", False),
+    ("feet_hands", 4, 8, "sparse", False),
+)
+
+
+def _config(setting: tuple):
+    from dataclasses import replace
+
+    from toddlerbot.rl.config import EnvConfig
+
+    contacts, iterations, ls_iterations, jacobian, loops = setting
+    return replace(EnvConfig(), randomize=False, contacts=contacts, solver_iterations=iterations,
+                   solver_ls_iterations=ls_iterations, jacobian=jacobian, linkage_loops=loops)
+
+
+def _label(setting: tuple) -> str:
+    contacts, iterations, ls_iterations, jacobian, loops = setting
+    return f"{contacts:10s} Newton {iterations}/{ls_iterations} {jacobian:6s} {'loops' if loops else 'coupled'}"
+
+
+def bench_solver_cpu(seconds: float, settings: tuple = SETTINGS) -> None:
+    """Each setting's training model stepped by CPU MuJoCo (float64, no JAX): stable or not, torso height,
+    constraint residual, physics steps/s."""
+    from toddlerbot.rl.checks import equality_residual, stand_cpu
+    from toddlerbot.rl.model import training_model
+    from toddlerbot.robot.description import RobotDescription
+
+    description = RobotDescription.load()
+    print(f"CPU MuJoCo (float64), home pose held for {seconds:.0f} s:")
+    for setting in settings:
+        model = training_model(description, _config(setting))
+        t0 = time.perf_counter()
+        diverged, z, qpos = stand_cpu(model, description, seconds)
+        rate = len(z) / (time.perf_counter() - t0)
+        if diverged is not None:
+            print(f"  {_label(setting)}: diverged at {diverged:.3f} s")
+            continue
+        residual, worst = equality_residual(model, qpos)
+        print(f"  {_label(setting)}: torso {z[0]:.4f} -> {z[-1]:.4f} m; equality residual {residual:.1e} "
+              f"({worst}); {rate:.0f} physics steps/s", flush=True)
+
+
+def bench_settings(n_envs: int, seconds: float, settings: tuple = SETTINGS) -> None:
+    """For each training-model setting in MJX: zero-action standing without randomisation (falls, torso
+    height), the transmission constraints' worst residual, and env steps/s of the compiled rollout."""
+    from toddlerbot.rl.checks import equality_residual, stand
+    from toddlerbot.rl.config import smoke_env_config
+    from toddlerbot.rl.env import WalkEnv
+    from toddlerbot.rl.reference import standing_table
+    from toddlerbot.robot.description import RobotDescription
+
+    description = RobotDescription.load()
+    reference = standing_table(description, smoke_env_config().command, period=0.72)
+    print(f"MJX stand {seconds:.0f} s with zero actions, {n_envs} envs, no randomisation, "
+          f"matmul precision {_precision()}:")
+    for setting in settings:
+        env = WalkEnv(_config(setting), description, reference=reference)
+        r = stand(env, n_envs, seconds)
+        z = r.torso_height
+        residual, worst = equality_residual(env.mj_model, r.qpos)
+        print(f"  {_label(setting)}: {int(r.fallen.sum())}/{n_envs} fell; torso {z[0].mean():.4f} -> "
+              f"{z[-1].mean():.4f} m (min {z.min():.4f}); equality residual {residual:.2e} ({worst}); "
+              f"{z.size / r.run_s:.0f} env steps/s (compile {r.compile_s:.0f} s)", flush=True)
+
+
+def _precision() -> str:
+    import jax
+
+    return str(jax.config.jax_default_matmul_precision)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--env", action="store_true", help="also benchmark the MJX environment (slow on CPU)")
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 32])
     parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--solver-cpu", action="store_true",
+                        help="each setting's model in CPU MuJoCo (float64): stable?, residual (seconds, no JAX)")
+    parser.add_argument("--settings", action="store_true",
+                        help="stand check, constraint residuals and env steps/s for each training-model setting")
+    parser.add_argument("--stand-envs", type=int, default=8)
+    parser.add_argument("--stand-seconds", type=float, default=10.0)
     args = parser.parse_args()
+    if args.env or args.settings:
+        from toddlerbot.rl.precision import use_full_precision
+
+        use_full_precision()  # as training does, before anything compiles
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}")
     bench_inference()
     if args.env:
         bench_env(tuple(args.batches), args.steps)
+    if args.solver_cpu:
+        bench_solver_cpu(args.stand_seconds)
+    if args.settings:
+        bench_settings(args.stand_envs, args.stand_seconds)
 
 
 if __name__ == "__main__":

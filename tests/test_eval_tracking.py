@@ -7,7 +7,7 @@ import pytest
 from typer.testing import CliRunner
 
 from toddlerbot.cli.main import app
-from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig
+from toddlerbot.policies.rl_inference import ObsConfig
 from toddlerbot.runtime.tracking import evaluate_policy, tracking_errors
 
 DT = 0.02
@@ -43,14 +43,17 @@ def _zero_policy(path):
     """An exported policy whose network outputs exactly zero: it holds the home pose."""
     from toddlerbot.rl.config import EnvConfig
     from toddlerbot.rl.export import write_policy
+    from toddlerbot.robot.description import RobotDescription
 
     obs = ObsConfig(history=2, gait_period=0.72)
-    n = obs.history * obs.frame_size(30)
+    description = RobotDescription.load()
+    legs = len(description.groups["leg"])
+    n = obs.history * obs.frame_size(description.n_motors, legs)
     arrays = {"layer0_kernel": np.zeros((n, 16), np.float32), "layer0_bias": np.zeros(16, np.float32),
-              "layer1_kernel": np.zeros((16, 2 * len(LEG_MOTORS)), np.float32),
-              "layer1_bias": np.zeros(2 * len(LEG_MOTORS), np.float32),
+              "layer1_kernel": np.zeros((16, legs), np.float32), "layer1_bias": np.zeros(legs, np.float32),
+              "distribution": np.array("normal"), "action_std": np.full(legs, 0.5, np.float32),
               "obs_mean": np.zeros(n, np.float32), "obs_std": np.ones(n, np.float32)}
-    return write_policy(path, arrays, EnvConfig(obs=obs), {"ctrl_dt": 0.02})
+    return write_policy(path, arrays, EnvConfig(obs=obs), {"ctrl_dt": 0.02}, description)
 
 
 def test_walk_rl_holding_home_stands_and_tracks_a_zero_command(tmp_path, description):

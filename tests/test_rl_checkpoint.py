@@ -19,11 +19,12 @@ def _state(hidden=(16, 8), seed=0):
     cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=hidden, value_hidden=hidden)
     obs = {"state": (10,), "privileged_state": (14,)}
     networks = train.make_networks(obs, 12, cfg)
-    optimizer = optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(cfg.learning_rate))
+    optimizer = train.make_optimizer(cfg)
     state = train._initial_state(networks, optimizer, obs, jax.random.PRNGKey(seed))
     # one real Adam step so the moments are non-zero
     grads = jax.tree.map(lambda p: 0.1 * np.ones_like(p), state.params)
     updates, opt_state = optimizer.update(grads, state.optimizer_state, state.params)
+    opt_state = train.with_learning_rate(opt_state, jax.numpy.asarray(2.5e-4))  # as the KL rule would
     return state.replace(params=optax.apply_updates(state.params, updates), optimizer_state=opt_state,
                          env_steps=jax.numpy.asarray(20480, jax.numpy.int32))
 
@@ -37,7 +38,8 @@ def test_checkpoint_round_trip_is_exact_including_adam_moments(tmp_path):
     restored, restored_key, history = train.load_checkpoint(path, template)
     for a, b in zip(jax.tree.leaves(restored), jax.tree.leaves(state), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    adam = restored.optimizer_state[1][0]
+    adam = train.adam_moments(restored.optimizer_state)
+    assert float(train.learning_rate(restored.optimizer_state)) == pytest.approx(2.5e-4)
     assert int(adam.count) == 1 and float(np.abs(jax.tree.leaves(adam.mu)[0]).max()) > 0
     np.testing.assert_array_equal(np.asarray(restored_key), np.asarray(key))
     assert history == [{"env_steps": 20480, "step_reward": 0.1}]

@@ -12,22 +12,15 @@ jnp = jax.numpy
 
 from toddlerbot.rl.config import smoke_env_config  # noqa: E402
 from toddlerbot.rl.env import WalkEnv  # noqa: E402
-from toddlerbot.rl.reference import CommandGrid, ReferenceTable, home_motor_pos, leg_motor_indices  # noqa: E402
-from toddlerbot.robot.spec import load_spec  # noqa: E402
-
-
-def _standing_reference(cfg, period: float = 0.72, n_phase: int = 40) -> ReferenceTable:
-    """Home pose with both feet down for every command: a reference that needs no ZMP tabulation."""
-    spec, grid = load_spec(), CommandGrid.from_config(cfg.command)
-    legs = home_motor_pos(spec)[leg_motor_indices(spec)]
-    shape = (*grid.shape, n_phase)
-    return ReferenceTable(grid, period, np.broadcast_to(legs, (*shape, len(legs))).copy(), np.ones((*shape, 2)))
+from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def env():
     cfg = smoke_env_config()
-    return WalkEnv(cfg, reference=_standing_reference(cfg))
+    description = RobotDescription.load()
+    return WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.72))
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +48,7 @@ def test_each_env_gets_its_own_randomisation_draw(env, states):
 
 
 def test_observations_have_history_and_privileged_extras(env, states):
-    frame = env.cfg.obs.frame_size(30)
+    frame = env.frame_size
     actor = np.asarray(states.obs["state"])
     assert actor.shape == (4, env.cfg.obs.history * frame)
     np.testing.assert_array_equal(actor[:, :frame], actor[:, frame:2 * frame])  # history filled with frame 0

@@ -7,7 +7,6 @@ import pytest
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.rl_inference import (
-    LEG_MOTORS,
     ObsConfig,
     RLController,
     RLPolicyFile,
@@ -23,19 +22,22 @@ def _random_export(tmp_path, hidden=(64, 32), history=2):
     from toddlerbot.rl.config import EnvConfig, PPOConfig
     from toddlerbot.rl.export import policy_arrays, write_policy
     from toddlerbot.rl.train import make_networks
+    from toddlerbot.robot.description import RobotDescription
 
     env_cfg = EnvConfig(obs=ObsConfig(history=history, gait_period=0.72))
-    n_obs = history * env_cfg.obs.frame_size(30)
+    n_obs = history * env_cfg.obs.frame_size(30, 12)
     cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=hidden, value_hidden=hidden)
-    networks = make_networks({"state": (n_obs,), "privileged_state": (7,)}, len(LEG_MOTORS), cfg)
+    networks = make_networks({"state": (n_obs,), "privileged_state": (7,)}, 12, cfg)
     params = networks.policy_network.init(jax.random.PRNGKey(1))
+    # a trained-looking head: means beyond the action bounds for some inputs, so clipping is exercised
+    params["params"]["Dense_0"]["kernel"] = params["params"]["Dense_0"]["kernel"] * 4.0
     rng = np.random.default_rng(0)
     mean = {"state": rng.normal(size=n_obs).astype(np.float32), "privileged_state": np.zeros(7, np.float32)}
     std = {"state": rng.uniform(0.5, 2.0, n_obs).astype(np.float32), "privileged_state": np.ones(7, np.float32)}
     normalizer = running_statistics.RunningStatisticsState(
         count=np.ones(()), mean=mean, summed_variance=std, std=std)
     arrays = policy_arrays(params, normalizer, True, n_obs)
-    path = write_policy(tmp_path / "p.npz", arrays, env_cfg, {"note": "test"})
+    path = write_policy(tmp_path / "p.npz", arrays, env_cfg, {"note": "test"}, RobotDescription.load())
     return path, networks, params, normalizer, n_obs
 
 
@@ -51,8 +53,11 @@ def test_numpy_actions_match_jax_to_1e5(tmp_path):
                             jax.random.PRNGKey(0))
     numpy_actions = np.stack([numpy_policy.action(o) for o in obs])
     assert numpy_actions.shape == (20, 12)
-    np.testing.assert_allclose(numpy_actions, np.asarray(jax_actions), atol=1e-5)
+    # the deterministic action is the Gaussian's mean, clipped as the environment clips every action
+    np.testing.assert_allclose(numpy_actions, np.clip(np.asarray(jax_actions), -1, 1), atol=1e-5)
     assert np.abs(numpy_actions).max() > 0.05  # not a trivially zero network
+    assert 0 < np.mean(np.abs(numpy_actions) == 1.0) < 1  # some actions clipped, most not
+    np.testing.assert_allclose(numpy_policy.action_std, np.exp(params["params"]["std_logparam"]["log_value"]))
 
 
 def test_obs_frame_is_identical_in_numpy_and_jax():
@@ -66,7 +71,7 @@ def test_obs_frame_is_identical_in_numpy_and_jax():
     frame_np = obs_frame(*args, gravity_in_frame(quat), cfg)
     frame_jax = obs_frame(*(jnp.asarray(a, dtype=jnp.float32) for a in args),
                           gravity_in_frame(jnp.asarray(quat, dtype=jnp.float32), jnp), cfg, xp=jnp)
-    assert frame_np.shape == (cfg.frame_size(30),)
+    assert frame_np.shape == (cfg.frame_size(30, 12),)
     np.testing.assert_allclose(frame_np, np.asarray(frame_jax), atol=1e-5)
 
 
@@ -82,7 +87,7 @@ def test_controller_keeps_history_and_maps_actions_to_leg_targets(tmp_path):
     ctrl = RLController(RLPolicyFile(path))
     home = ctrl.policy.home_motor_pos
     obs1 = ctrl.observation(0.0, [0.1, 0, 0], home, np.zeros(30), np.zeros(3), np.array([1.0, 0, 0, 0]))
-    frame = ctrl.cfg.frame_size(30)
+    frame = ctrl.cfg.frame_size(30, 12)
     np.testing.assert_array_equal(obs1[:frame], obs1[frame:])  # history starts as copies of the first frame
     targets = ctrl.step(0.02, [0.1, 0, 0], home, np.zeros(30), np.zeros(3), np.array([1.0, 0, 0, 0]))
     legs = ctrl.policy.leg_motor_index

@@ -21,6 +21,7 @@ pytest.importorskip("mujoco.mjx")
 
 from toddlerbot.policies.rl_inference import RLPolicyFile  # noqa: E402
 from toddlerbot.rl import config, export, train  # noqa: E402
+from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 pytestmark = pytest.mark.slow
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -41,9 +42,11 @@ def smoke_run(tmp_path_factory):
     run = root / "run"
     _cli("rl", "train", "--smoke", "--out", str(run), "--epochs", "1", cache=root / "xla")
     ckpt1 = train.checkpoint_paths(run)
-    first, _ = export.restore_checkpoint(ckpt1[-1], *train.load_config(run))
+    description = RobotDescription.load()
+    first, _ = export.restore_checkpoint(ckpt1[-1], *train.load_config(run), description)
     _cli("rl", "train", "--resume", str(run), cache=root / "xla")
-    final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], *train.load_config(run))
+    final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], *train.load_config(run),
+                                               description)
     return run, first, ckpt1, final, history
 
 
@@ -54,6 +57,8 @@ def test_smoke_run_trains_two_epochs_with_sane_metrics(smoke_run):
     assert int(final.env_steps) == 2 * steps
     for h in history:
         assert np.isfinite(h["step_reward"]) and h["sps"] > 0
+        assert 0 <= h["kl_mean"] < 1.0 and h["policy_dist_min_std"] > 0.3  # one small update from std 0.5
+        assert config.SMOKE.lr_bounds[0] <= h["learning_rate"] <= config.SMOKE.lr_bounds[1]
         assert 0.0 <= h["fall_rate"] <= 1.0
     assert len((run / "metrics.jsonl").read_text().splitlines()) == 2
     assert (run / "training_curve.png").stat().st_size > 10_000
@@ -64,7 +69,7 @@ def test_resume_restores_optimizer_state_and_continues(smoke_run):
     run, first, ckpt1, final, _ = smoke_run
     assert len(ckpt1) == 1 and len(train.checkpoint_paths(run)) == 2
     restored, _, hist = train.load_checkpoint(ckpt1[0], final)
-    adam = lambda s: s.optimizer_state[1][0]  # noqa: E731 - (clip, adam) chain -> adam's ScaleByAdamState
+    adam = lambda s: train.adam_moments(s.optimizer_state)  # noqa: E731
     # the first checkpoint holds Adam's moments and step count, not just the parameters
     assert int(adam(restored).count) == config.SMOKE.num_minibatches * config.SMOKE.num_updates_per_batch
     mu = jax.tree.leaves(adam(restored).mu)
@@ -94,6 +99,7 @@ def test_export_of_the_smoke_run_matches_jax_policy(smoke_run, tmp_path):
         (final.normalizer_params, final.params.policy, final.params.value), deterministic=True)
     obs = np.random.default_rng(0).normal(size=(8, n_obs)).astype(np.float32)
     expected, _ = act({"state": obs, "privileged_state": np.zeros((8, critic), np.float32)}, jax.random.PRNGKey(0))
-    np.testing.assert_allclose(np.stack([policy.action(o) for o in obs]), np.asarray(expected), atol=1e-5)
+    np.testing.assert_allclose(np.stack([policy.action(o) for o in obs]), np.clip(np.asarray(expected), -1, 1),
+                               atol=1e-5)
     assert policy.meta["env_steps"] == int(final.env_steps)
     assert policy.obs_config == env_cfg.obs

@@ -40,8 +40,15 @@ def train(
                                                        "later with --resume).")] = None,
     epochs: Annotated[int | None, typer.Option(help="Stop after this many epochs (resume later with --resume).")]
     = None,
+    solver_iterations: Annotated[int | None, typer.Option(help="Newton iterations of the training model "
+                                                               "(default 4; see docs/rl.md before lowering).")]
+    = None,
+    ls_iterations: Annotated[int | None, typer.Option(help="Line-search iterations (default 8).")] = None,
+    motor_params: Annotated[list[Path] | None, typer.Option(
+        "--motor-params", help="Fitted actuator parameters (sysID params.json; repeat for several motor models): "
+                               "the robot trains on them, domain randomisation scales around them.")] = None,
 ) -> None:
-    """Run PPO (Table 5 hyperparameters unless --smoke) with checkpoints, evaluation and a training curve."""
+    """Run PPO (the one-GPU configuration of docs/rl.md unless --smoke) with checkpoints and a training curve."""
     import os
 
     from toddlerbot.rl.config import SMOKE_XLA_FLAGS
@@ -61,9 +68,24 @@ def train(
         run_dir, env_cfg, ppo_cfg = resume, None, None
         if not (resume / "config.json").is_file():
             raise ToddlerbotError(f"{resume}: no training run to resume (config.json missing)")
+        if motor_params or solver_iterations is not None or ls_iterations is not None:
+            raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations: a resumed run keeps the "
+                                  "settings it started with")
     else:
         run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
         env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
+        try:
+            env_cfg = replace(
+                env_cfg,
+                solver_iterations=env_cfg.solver_iterations if solver_iterations is None else solver_iterations,
+                solver_ls_iterations=env_cfg.solver_ls_iterations if ls_iterations is None else ls_iterations)
+        except ValueError as exc:
+            raise ToddlerbotError(f"--solver-iterations/--ls-iterations: {exc}") from exc
+        if motor_params:
+            from toddlerbot.actuation.params_file import catalogue_with_params
+
+            catalogue_with_params(motor_params)  # bad files fail here, before anything compiles
+            env_cfg = replace(env_cfg, motor_params=tuple(str(p) for p in motor_params))
         ppo_cfg = replace(config.SMOKE if smoke else config.FULL, seed=seed)
         try:
             if timesteps is not None:
@@ -82,7 +104,8 @@ def train(
 
         def progress(done: int, total: int, m: dict) -> None:
             bar.update(task, completed=done, total=total, description="training",
-                       info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  {m['sps']:.0f} steps/s")
+                       info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  episode {m['episode_length']:.0f}"
+                            f"  KL {m['kl_mean']:.3f}  {m['sps']:.0f} steps/s")
 
         _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress,
                                     time_limit_s=None if minutes is None else 60 * minutes, max_epochs=epochs)

@@ -2,8 +2,11 @@
 
 An exported policy is one ``.npz`` file holding
 
-* ``layer{i}_kernel`` / ``layer{i}_bias``: the actor MLP (swish hidden activations, linear output whose first
-  half is the mean of a tanh-Normal; the deterministic action is ``tanh(mean)``),
+* ``layer{i}_kernel`` / ``layer{i}_bias``: the actor MLP (swish hidden activations, linear output),
+* ``distribution``: ``normal`` (the output is the mean of a Gaussian whose samples the environment clips to
+  [-1, 1], so the deterministic action is ``clip(mean, -1, 1)``; ``action_std`` holds its standard deviation)
+  or, in files without this entry, ``tanh_normal`` (the output's first half is the pre-tanh mean; the
+  deterministic action is ``tanh(mean)``),
 * ``obs_mean`` / ``obs_std``: the observation normalisation learned during training,
 * ``home_motor_pos``: motor angles of the home pose (rad, motor-id order), ``leg_motor_index``: the 12
   commanded motors, ``motor_names``,
@@ -17,37 +20,17 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, fields
-from functools import cache
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.robot.spec import RobotSpec
 
+ACTION_DISTRIBUTION = "normal"
+"""The action distribution `toddlerbot.rl` trains; exports before it record none and are ``tanh_normal``."""
 LEG_GROUP = "leg"
-"""The spec's motor group an RL walking policy commands."""
-
-
-def leg_motor_names(spec: RobotSpec) -> tuple[str, ...]:
-    """Motor joint names of the spec's leg group, in motor-id order (the policy's action order)."""
-    return tuple(m.joint for m in spec.motors_by_id if m.group == LEG_GROUP)
-
-
-@cache
-def _packaged_leg_motors() -> tuple[str, ...]:
-    from toddlerbot.robot.description import RobotDescription
-
-    return RobotDescription.load().group_names(LEG_GROUP)
-
-
-def __getattr__(name: str) -> tuple[str, ...]:
-    """``LEG_MOTORS``: the leg motors of the packaged robot (12 for ToddlerBot v1), read from the spec on first
-    use rather than at import (importing this module must not load the spec)."""
-    if name == "LEG_MOTORS":
-        return _packaged_leg_motors()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+"""The spec's motor group an RL walking policy commands (its actions, in motor-id order)."""
 
 
 @dataclass(frozen=True)
@@ -72,12 +55,9 @@ class ObsConfig:
     noise_gyro: float = 0.1
     noise_gravity: float = 0.05
 
-    def frame_size(self, n_motors: int, n_actions: int | None = None) -> int:
+    def frame_size(self, n_motors: int, n_actions: int) -> int:
         """Features per frame: phase 2, command 3, motor angles relative to home and motor speeds (n_motors
-        each), last action (n_actions, one per commanded leg motor; default: the packaged robot's leg motors),
-        gyro 3, gravity direction in the IMU frame 3."""
-        if n_actions is None:
-            n_actions = len(_packaged_leg_motors())
+        each), last action (n_actions, one per leg motor), gyro 3, gravity direction in the IMU frame 3."""
         return 2 + 3 + 2 * n_motors + n_actions + 3 + 3
 
     def to_json(self) -> str:
@@ -183,6 +163,8 @@ class RLPolicyFile:
             self.motor_names = tuple(str(n) for n in data["motor_names"].reshape(-1))
             self.obs_config = ObsConfig.from_json(str(data["obs_config"]))
             self.meta = json.loads(str(data["meta"]))
+            self.distribution = str(data["distribution"]) if "distribution" in data else "tanh_normal"
+            self.action_std = data["action_std"].astype(np.float32) if "action_std" in data else None
         except KeyError as exc:
             raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from None
         except (ValueError, TypeError) as exc:  # wrong dtypes, malformed JSON or config fields
@@ -196,14 +178,16 @@ class RLPolicyFile:
                                   f"config ({expected} = {self.obs_config.history} frames)")
 
     def action(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic action in [-1, 1]^12 for one normalised-on-the-fly observation vector."""
+        """Deterministic action in [-1, 1]^12 (what the environment applies for the policy's mean) for one
+        observation vector, normalised on the fly."""
         x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
         for i, (k, b) in enumerate(zip(self.kernels, self.biases, strict=True)):
             # einsum runs single-threaded: a threaded BLAS gemv stalls for milliseconds on a busy CPU
             x = np.einsum("i,ij->j", x, k) + b
             if i < len(self.kernels) - 1:
                 x = _swish(x)
-        return np.tanh(x[: len(self.leg_motor_index)])
+        mean = x[: len(self.leg_motor_index)]
+        return np.tanh(mean) if self.distribution == "tanh_normal" else np.clip(mean, -1.0, 1.0)
 
 
 class RLController:

@@ -8,21 +8,21 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
-from toddlerbot.policies.rl_inference import LEG_MOTORS, ObsConfig
+from toddlerbot.policies.rl_inference import ObsConfig
 
-__all__ = ["LEG_MOTORS", "ObsConfig"]
+__all__ = ["ObsConfig"]
 
 @dataclass(frozen=True)
 class CommandConfig:
     """Velocity commands (torso yaw frame): vx, vy m/s, yaw rate rad/s, snapped to the reference grid.
 
-    The ranges are those the ZMP generator tabulates without leg-IK failures today (0.15 m/s forward with
-    0.1 m/s sideways is out of its reach); widen them together with the generator."""
+    The ranges are walk-zmp's (every grid point, corners included, is tabulated by the ZMP generator without
+    leg-IK failures); steps of 0.05 m/s, 0.04 m/s and 0.2 rad/s."""
 
-    vx: tuple[float, float] = (-0.1, 0.1)
-    vy: tuple[float, float] = (-0.05, 0.05)
+    vx: tuple[float, float] = (-0.1, 0.15)
+    vy: tuple[float, float] = (-0.08, 0.08)
     yaw: tuple[float, float] = (-0.4, 0.4)
-    grid: tuple[int, int, int] = (5, 3, 5)
+    grid: tuple[int, int, int] = (6, 5, 5)
     """Grid points along vx, vy, yaw (each range includes 0 as a grid point when it straddles 0)."""
     stand_prob: float = 0.15
     """Probability that a sampled command is zero (stand still)."""
@@ -83,6 +83,10 @@ class RandomizationConfig:
     """m/s; largest horizontal velocity kick of a push."""
 
 
+CONTACT_SETS = ("feet_hands", "all")
+JACOBIANS = ("dense", "sparse")
+
+
 @dataclass(frozen=True)
 class EnvConfig:
     ctrl_dt: float = 0.02
@@ -91,6 +95,17 @@ class EnvConfig:
     """MJX physics timestep, s (ctrl_dt / sim_dt substeps)."""
     solver_iterations: int = 4
     solver_ls_iterations: int = 8
+    contacts: str = "feet_hands"
+    """Collisions the training model keeps: ``feet_hands`` (feet and hands against the floor, the foot-foot pair)
+    or ``all`` (every robot collision geom against the floor and the spec's self-collision pairs)."""
+    linkage_loops: bool = False
+    """Keep the parallel linkages' weld loops (the simulator's model); False couples their joints directly
+    (`toddlerbot.rl.model`)."""
+    jacobian: str = "dense"
+    """Constraint Jacobian layout of the training model: ``dense`` or ``sparse``."""
+    motor_params: tuple[str, ...] = ()
+    """Fitted actuator parameter files (sysID ``params.json``) the robot is built with; domain randomisation
+    scales around them."""
     min_torso_height: float = 0.2
     """m; the episode ends (fall) when the torso origin drops below this..."""
     max_tilt: float = 1.0
@@ -100,6 +115,14 @@ class EnvConfig:
     reward: RewardConfig = field(default_factory=RewardConfig)
     randomization: RandomizationConfig = field(default_factory=RandomizationConfig)
     randomize: bool = True
+
+    def __post_init__(self) -> None:
+        if self.solver_iterations < 1 or self.solver_ls_iterations < 1:
+            raise ValueError(f"solver iterations {self.solver_iterations}/{self.solver_ls_iterations}: expected >= 1")
+        if self.contacts not in CONTACT_SETS:
+            raise ValueError(f"contacts {self.contacts!r}: expected one of {', '.join(CONTACT_SETS)}")
+        if self.jacobian not in JACOBIANS:
+            raise ValueError(f"jacobian {self.jacobian!r}: expected one of {', '.join(JACOBIANS)}")
 
     @property
     def n_substeps(self) -> int:
@@ -111,17 +134,30 @@ class EnvConfig:
 
 @dataclass(frozen=True)
 class PPOConfig:
-    """Brax PPO hyperparameters; the defaults are Table 5."""
+    """Brax PPO hyperparameters. The defaults are the one-GPU run meant to walk within 10 minutes: Table 5's
+    networks, unroll, minibatch size, epochs per batch, discount, entropy and clipping, but 8,192 environments
+    (32 minibatches of 256 envs = one 20-step rollout of every env per update), a KL-adaptive learning rate
+    and a Gaussian with a global std starting at 0.5 (ToddlerBot 2.0), 100 M steps (stop earlier with
+    ``--minutes``) and no separate evaluation (the training episodes are the measure)."""
 
-    num_timesteps: int = 300_000_000
-    num_envs: int = 1024
+    num_timesteps: int = 100_000_000
+    num_envs: int = 8192
     episode_length: int = 1000
     unroll_length: int = 20
     batch_size: int = 256
-    num_minibatches: int = 4
+    num_minibatches: int = 32
     num_updates_per_batch: int = 4
     discounting: float = 0.97
-    learning_rate: float = 1e-4
+    learning_rate: float = 3e-4
+    """Initial Adam step size; with ``desired_kl`` set it is then adapted after every minibatch."""
+    desired_kl: float | None = 0.01
+    """Adaptive learning rate: divided by ``lr_factor`` when the minibatch's KL(behaviour || current policy)
+    exceeds twice this, multiplied by it below half of it (RSL-RL's rule). None keeps the rate fixed."""
+    lr_factor: float = 1.5
+    lr_bounds: tuple[float, float] = (1e-5, 1e-2)
+    init_std: float = 0.5
+    """Initial standard deviation of the state-independent Gaussian policy (unsquashed; the env clips actions
+    to [-1, 1])."""
     entropy_cost: float = 5e-4
     clipping_epsilon: float = 0.2
     policy_hidden: tuple[int, ...] = (512, 256, 128)
@@ -130,9 +166,9 @@ class PPOConfig:
     max_grad_norm: float = 1.0
     reward_scaling: float = 1.0
     normalize_observations: bool = True
-    num_evals: int = 20
+    num_evals: int = 60
     """Evaluations (and checkpoints) spread over the run."""
-    num_eval_envs: int = 128
+    num_eval_envs: int = 0
     """Envs of the deterministic evaluation after every epoch; 0 skips it (saves one compilation)."""
     eval_episode_length: int = 1000
     seed: int = 0

@@ -1,10 +1,11 @@
 """The MJX walking environment (Brax `Env` interface): velocity commands, ZMP imitation, 50 Hz control.
 
-* Physics: the spec's model with the MJX training options (``EnvConfig.sim_dt`` = 4 ms, 5 substeps per 20 ms
-  control step); every substep applies the shared actuator model
+* Physics: the training variant of the robot's model (`toddlerbot.rl.model.training_model`: MJX timestep
+  ``EnvConfig.sim_dt`` = 4 ms, 5 substeps per 20 ms control step, pruned contacts, solver settings) in full
+  float32 matmul precision (`toddlerbot.rl.precision`); every substep applies the shared actuator model
   (`toddlerbot.actuation.model.motor_torque` with ``xp=jax.numpy``) as MuJoCo motor torques.
-* Actions: 12 numbers in [-1, 1]; leg motor target = home + ``action_scale`` * action. The other 18 motors hold
-  their reference (the home pose).
+* Actions: 12 numbers, clipped to [-1, 1]; leg motor target = home + ``action_scale`` * action. The other 18
+  motors hold their reference (the home pose).
 * Episodes: `PPOConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
   torso falls below ``min_torso_height`` or tilts more than ``max_tilt``.
 * Observations: ``{"state": actor, "privileged_state": critic}`` (see `toddlerbot.rl.observations`).
@@ -22,23 +23,14 @@ import numpy as np
 from brax.envs.base import Env, State
 from mujoco import mjx
 
-from toddlerbot.actuation.catalogue import default_catalogue
-from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays, motor_torque
+from toddlerbot.actuation.model import ActuatorArrays, motor_torque
 from toddlerbot.rl import randomization, rewards
 from toddlerbot.rl.config import EnvConfig
+from toddlerbot.rl.model import training_model
 from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, critic_obs, push_frame
-from toddlerbot.rl.reference import ReferenceTable, home_motor_pos, leg_motor_indices, load_reference
-from toddlerbot.robot.builder import IMU_SITE, build_model
-from toddlerbot.robot.spec import RobotSpec, load_spec
-
-
-def training_model(spec: RobotSpec, cfg: EnvConfig) -> mujoco.MjModel:
-    """The spec's model (with floor) using the MJX training timestep and solver iterations."""
-    model = build_model(spec, scene=True)
-    model.opt.timestep = cfg.sim_dt
-    model.opt.iterations = cfg.solver_iterations
-    model.opt.ls_iterations = cfg.solver_ls_iterations
-    return model
+from toddlerbot.rl.precision import use_full_precision
+from toddlerbot.rl.reference import ReferenceTable, leg_motor_indices, load_reference
+from toddlerbot.robot.description import RobotDescription
 
 
 def _yaw_quat(yaw: jax.Array) -> jax.Array:
@@ -58,13 +50,21 @@ def _rotate_z(v: jax.Array, angle: jax.Array) -> jax.Array:
 class WalkEnv(Env):
     """One walking robot; vmap it (the training wrappers do) for many."""
 
-    def __init__(self, cfg: EnvConfig | None = None, spec: RobotSpec | None = None,
+    def __init__(self, cfg: EnvConfig | None = None, description: RobotDescription | None = None,
                  reference: ReferenceTable | None = None) -> None:
+        """``description``: the robot (by default the packaged spec with ``cfg.motor_params`` applied; a given
+        one must carry the same params.json files). ``reference``: an imitation table (default: the ZMP walk)."""
+        use_full_precision()
         cfg = cfg or EnvConfig()
         rewards.check_weights(cfg.reward)
-        self.spec = spec = spec or load_spec()
+        if description is None:
+            description = RobotDescription.load(motor_params=cfg.motor_params)
+        elif tuple(description.motor_params_files) != tuple(cfg.motor_params):
+            raise ValueError(f"the description's motor params {description.motor_params_files} differ from the "
+                             f"config's {cfg.motor_params}")
+        self.description = description
         if reference is None:
-            reference, self.reference_source = load_reference(spec, cfg.command)
+            reference, self.reference_source = load_reference(description, cfg.command)
         else:
             self.reference_source = "given"
         self.reference = reference
@@ -72,7 +72,7 @@ class WalkEnv(Env):
             cfg = replace(cfg, obs=replace(cfg.obs, gait_period=reference.period))
         self.cfg = cfg
         """The configuration with the gait period resolved (save this one)."""
-        model = training_model(spec, cfg)
+        model = training_model(description, cfg)
         self.mj_model = model
         self.sys = mjx.put_model(model)
         self._ref_leg = jnp.asarray(reference.leg_motor_pos, dtype=jnp.float32)
@@ -81,17 +81,15 @@ class WalkEnv(Env):
         joints = model.actuator_trnid[:, 0]
         self.motor_qadr = np.asarray(model.jnt_qposadr[joints])
         self.motor_dadr = np.asarray(model.jnt_dofadr[joints])
-        self.home_motor_pos = home_motor_pos(spec).astype(np.float32)
-        self.leg_index = leg_motor_indices(spec)
+        self.home_motor_pos = np.asarray(description.home_motor_pos, dtype=np.float32)
+        self.leg_index = leg_motor_indices(description)
         self.n_motors = len(self.motor_qadr)
-        catalogue = default_catalogue()
-        motors = spec.motors_by_id
-        self.actuators = ActuatorArrays(*(jnp.asarray(a, dtype=jnp.float32) for a in actuator_arrays(
-            [catalogue[m.model].actuator for m in motors], [m.kp for m in motors], [m.kd for m in motors])))
+        self.actuators = ActuatorArrays(*(jnp.asarray(a, dtype=jnp.float32) for a in description.actuator_arrays()))
 
+        handles = description.handles
         self.floor_geom = model.geom("floor").id
-        self.foot_geoms = np.array([model.geom(f"{side}_foot_collision").id for side in ("left", "right")])
-        self.foot_sites = np.array([model.site(f"{side}_foot_center").id for side in ("left", "right")])
+        self.foot_geoms = np.array([model.geom(name).id for name in handles.feet_geoms])
+        self.foot_sites = np.array([model.site(name).id for name in handles.feet_sites])
         home = mujoco.MjData(model)
         mujoco.mj_resetDataKeyframe(model, home, model.key("home").id)
         mujoco.mj_forward(model, home)
@@ -99,8 +97,8 @@ class WalkEnv(Env):
         """The start state of every episode, computed once with classic MuJoCo (so reset compiles no physics)."""
         up = home.site_xmat[self.foot_sites[0]].reshape(3, 3)[2]  # world-z components of the site's axes
         self._foot_up_axis, self._foot_up_sign = int(np.argmax(np.abs(up))), float(np.sign(up[np.argmax(np.abs(up))]))
-        self.torso_body = model.body("torso").id
-        self.imu_site = model.site(IMU_SITE).id
+        self.torso_body = model.body(handles.torso).id
+        self.imu_site = model.site(handles.imu_site).id
         self._quat_adr = model.sensor_adr[model.sensor("imu_quat").id]
         self._gyro_adr = model.sensor_adr[model.sensor("imu_gyro").id]
         self._zero_command_index = jnp.asarray(reference.grid.snap(np.zeros(3)))
@@ -108,9 +106,13 @@ class WalkEnv(Env):
     # Brax Env interface -------------------------------------------------------------------------------------
     @property
     def observation_size(self) -> dict[str, tuple[int, ...]]:
-        actor = self.cfg.obs.history * self.cfg.obs.frame_size(self.n_motors)
+        actor = self.cfg.obs.history * self.frame_size
         state = self.reset(jax.random.PRNGKey(0))
         return {"state": (actor,), "privileged_state": state.obs["privileged_state"].shape}
+
+    @property
+    def frame_size(self) -> int:
+        return self.cfg.obs.frame_size(self.n_motors, self.action_size)
 
     @property
     def action_size(self) -> int:
@@ -135,7 +137,7 @@ class WalkEnv(Env):
             "ref_yaw": _yaw(data.qpos[3:7]), "last_action": zeros12, "last_last_action": zeros12,
             "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": data.site_xpos[self.foot_sites],
             "push_timer": self._push_interval(k_push), "push": jnp.zeros(2),
-            "history": jnp.zeros((cfg.obs.history, cfg.obs.frame_size(self.n_motors))),
+            "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
         obs, info = self._observe(data, info, k_noise, contact=jnp.ones(2), ref_leg=self._ref_leg_pos(info))
         info["history"] = jnp.tile(info["history"][:1], (cfg.obs.history, 1))
@@ -147,17 +149,13 @@ class WalkEnv(Env):
         cfg, info = self.cfg, dict(state.info)
         dr = info["dr"]
         k_noise, k_push, k_cmd, k_next = jax.random.split(info["rng"], 4)
+        action = jnp.clip(action, -1.0, 1.0)  # the policy's Gaussian is unsquashed
         applied = jnp.where(dr.action_delay > 0, info["last_action"], action)
         targets = jnp.asarray(self.home_motor_pos).at[self.leg_index].add(cfg.obs.action_scale * applied)
 
         data, info = self._push(state.pipeline_state, info, k_push)
-        model, act = self._model(dr), randomization.apply_to_actuators(self.actuators, dr)
-
-        def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
-            tau = motor_torque(targets, d.qpos[self.motor_qadr], d.qvel[self.motor_dadr], act, xp=jnp)
-            return mjx.step(model, d.replace(ctrl=tau)), tau
-
-        data, taus = jax.lax.scan(substep, data, None, length=cfg.n_substeps)
+        data, taus = self.physics_step(data, targets, self._model(dr),
+                                       randomization.apply_to_actuators(self.actuators, dr))
         info["time"] = info["time"] + cfg.ctrl_dt
         info["step"] = info["step"] + 1
         info["ref_yaw"] = info["ref_yaw"] + info["command"][2] * cfg.ctrl_dt
@@ -202,6 +200,25 @@ class WalkEnv(Env):
         obs, info = self._observe(data, info, k_noise, contact=contact, ref_leg=ref_leg)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
                              metrics={**state.metrics, **terms}, info=info)
+
+    def physics_step(self, data: mjx.Data, targets: jax.Array, model: mjx.Model | None = None,
+                     actuators: ActuatorArrays | None = None) -> tuple[mjx.Data, jax.Array]:
+        """One control period of physics holding motor targets (rad, motor-id order): ``n_substeps`` MJX steps,
+        each with the actuator model's torques. Returns the data and the (n_substeps, n_motors) torques, N m.
+        ``model`` / ``actuators`` default to the nominal (un-randomised) robot."""
+        model = self.sys if model is None else model
+        act = self.actuators if actuators is None else actuators
+
+        def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
+            tau = motor_torque(targets, d.qpos[self.motor_qadr], d.qvel[self.motor_dadr], act, xp=jnp)
+            return mjx.step(model, d.replace(ctrl=tau)), tau
+
+        return jax.lax.scan(substep, data, None, length=self.cfg.n_substeps)
+
+    @property
+    def home_data(self) -> mjx.Data:
+        """The start state of every episode (home keyframe on the floor)."""
+        return self._home_data
 
     # helpers -------------------------------------------------------------------------------------------------
     def _model(self, dr: randomization.DRParams) -> mjx.Model:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -9,20 +10,24 @@ import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez
-from toddlerbot.policies.rl_inference import LEG_MOTORS, leg_motor_names
+from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION, LEG_GROUP
 from toddlerbot.rl.config import EnvConfig, PPOConfig
-from toddlerbot.rl.reference import home_motor_pos, leg_motor_indices
-from toddlerbot.robot.spec import RobotSpec, load_spec
+from toddlerbot.rl.reference import leg_motor_indices
+from toddlerbot.robot.description import RobotDescription
 
 
 def policy_arrays(policy_params: dict, normalizer_params, normalize: bool, obs_size: int) -> dict[str, np.ndarray]:
-    """Actor MLP layers and the actor-observation normalisation as numpy arrays."""
-    layers = policy_params["params"]
-    names = sorted(layers, key=lambda n: int(n.rsplit("_", 1)[1]))
-    arrays = {}
-    for i, name in enumerate(names):
-        arrays[f"layer{i}_kernel"] = np.asarray(layers[name]["kernel"], dtype=np.float32)
-        arrays[f"layer{i}_bias"] = np.asarray(layers[name]["bias"], dtype=np.float32)
+    """Actor MLP layers (hidden layers, then the action-mean head), the policy's standard deviation and the
+    actor-observation normalisation as numpy arrays."""
+    params = policy_params["params"]
+    hidden = params["MLP_0"]
+    names = sorted(hidden, key=lambda n: int(n.rsplit("_", 1)[1]))
+    layers = [hidden[n] for n in names] + [params["Dense_0"]]
+    arrays = {"distribution": np.array(ACTION_DISTRIBUTION),
+              "action_std": np.exp(np.asarray(params["std_logparam"]["log_value"], dtype=np.float32))}
+    for i, layer in enumerate(layers):
+        arrays[f"layer{i}_kernel"] = np.asarray(layer["kernel"], dtype=np.float32)
+        arrays[f"layer{i}_bias"] = np.asarray(layer["bias"], dtype=np.float32)
     if normalize:
         arrays["obs_mean"] = np.asarray(normalizer_params.mean["state"], dtype=np.float32)
         arrays["obs_std"] = np.asarray(normalizer_params.std["state"], dtype=np.float32)
@@ -32,20 +37,30 @@ def policy_arrays(policy_params: dict, normalizer_params, normalize: bool, obs_s
 
 
 def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, meta: dict,
-                 spec: RobotSpec | None = None) -> Path:
-    """Write the export file (atomically) for a robot spec."""
-    spec = spec or load_spec()
+                 description: RobotDescription) -> Path:
+    """Write the export file (atomically) for a robot."""
     if env_cfg.obs.gait_period is None:
         raise ValueError("the observation config to export has no gait period (resolve it with WalkEnv first)")
     return atomic_savez(path, dict(
-        **arrays, home_motor_pos=home_motor_pos(spec), leg_motor_index=leg_motor_indices(spec),
-        motor_names=np.array([m.joint for m in spec.motors_by_id]), leg_motors=np.array(leg_motor_names(spec)),
+        **arrays, home_motor_pos=np.asarray(description.home_motor_pos),
+        leg_motor_index=leg_motor_indices(description), motor_names=np.array(description.motor_names),
+        leg_motors=np.array(description.group_names(LEG_GROUP)),
         obs_config=np.array(env_cfg.obs.to_json()), meta=np.array(json.dumps(meta)),
     ))
 
 
-def export_run(run_dir: Path, out: Path) -> Path:
-    """Export the latest checkpoint of a training run."""
+def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
+    """What a run trained on: each params.json's path, SHA-256 and content (kept in the run and the export, so
+    the record survives the file)."""
+    record = []
+    for name in paths:
+        raw = Path(name).read_bytes()
+        record.append({"file": name, "sha256": hashlib.sha256(raw).hexdigest(), "params": json.loads(raw)})
+    return record
+
+
+def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None) -> Path:
+    """Export the latest checkpoint of a training run (for the run's robot: packaged spec + its params.json)."""
     from toddlerbot.rl import train  # jax-heavy; keep `write_policy` importable alone
 
     run_dir = Path(run_dir)
@@ -53,16 +68,23 @@ def export_run(run_dir: Path, out: Path) -> Path:
     paths = train.checkpoint_paths(run_dir)
     if not paths:
         raise ToddlerbotError(f"{run_dir}: no checkpoint to export")
-    state, history = restore_checkpoint(paths[-1], env_cfg, ppo_cfg)
-    obs_size = env_cfg.obs.history * env_cfg.obs.frame_size(len(home_motor_pos(load_spec())))
+    description = description or RobotDescription.load(motor_params=env_cfg.motor_params)
+    state, history = restore_checkpoint(paths[-1], env_cfg, ppo_cfg, description)
+    obs_size = _actor_width(env_cfg, description)
     arrays = policy_arrays(state.params.policy, state.normalizer_params, ppo_cfg.normalize_observations, obs_size)
     last = history[-1] if history else {}
+    record = run_dir / MOTOR_PARAMS_RECORD
     meta = {"ctrl_dt": env_cfg.ctrl_dt, "reference": run_reference_source(run_dir), "run": run_dir.name,
             "checkpoint": paths[-1].name, "env_steps": int(state.env_steps),
             "walltime_s": last.get("walltime"), "episode_reward": last.get("episode_reward"),
-            "step_reward": last.get("step_reward"), "sps": last.get("sps"),
-            "policy_hidden": list(ppo_cfg.policy_hidden)}
-    return write_policy(out, arrays, env_cfg, meta)
+            "step_reward": last.get("step_reward"), "sps": last.get("sps"), "device": last.get("device"),
+            "policy_hidden": list(ppo_cfg.policy_hidden),
+            "motor_params": json.loads(record.read_text()) if record.is_file() else []}
+    return write_policy(out, arrays, env_cfg, meta, description)
+
+
+MOTOR_PARAMS_RECORD = "motor_params.json"
+"""File in a run directory recording the fitted actuator parameters it trained on (`motor_params_record`)."""
 
 
 def run_reference_source(run_dir: Path) -> str | None:
@@ -71,19 +93,20 @@ def run_reference_source(run_dir: Path) -> str | None:
     return path.read_text().strip() if path.is_file() else None
 
 
-def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig):
+def _actor_width(env_cfg: EnvConfig, description: RobotDescription) -> int:
+    return env_cfg.obs.history * env_cfg.obs.frame_size(description.n_motors, len(leg_motor_indices(description)))
+
+
+def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription):
     """(TrainingState, metric history) of a checkpoint written with this configuration."""
     import jax
-    import optax
 
     from toddlerbot.rl import train
 
     # the critic's input width is read back from the checkpoint
-    obs_size = {"state": (env_cfg.obs.history * env_cfg.obs.frame_size(len(home_motor_pos(load_spec()))),),
-                "privileged_state": (_critic_width(path),)}
-    networks = train.make_networks(obs_size, len(LEG_MOTORS), ppo_cfg)
-    optimizer = optax.chain(optax.clip_by_global_norm(ppo_cfg.max_grad_norm), optax.adam(ppo_cfg.learning_rate))
-    template = train._initial_state(networks, optimizer, obs_size, jax.random.PRNGKey(0))
+    obs_size = {"state": (_actor_width(env_cfg, description),), "privileged_state": (_critic_width(path),)}
+    networks = train.make_networks(obs_size, len(leg_motor_indices(description)), ppo_cfg)
+    template = train._initial_state(networks, train.make_optimizer(ppo_cfg), obs_size, jax.random.PRNGKey(0))
     state, _, history = train.load_checkpoint(path, template)
     return state, history
 

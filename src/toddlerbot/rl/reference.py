@@ -3,7 +3,7 @@
 The walking generator is a function of a velocity command and time. Inside a jitted environment we cannot call
 it, so we tabulate it on a grid of commands x gait phase:
 
-* ``leg_motor_pos[i, j, k, p]``: the leg motor angles (rad, `leg_motor_names(spec)` order) for command
+* ``leg_motor_pos[i, j, k, p]``: the leg motor angles (rad, the description's ``leg`` group order) for command
   ``(vx[i], vy[j], yaw[k])`` at phase ``p / n_phase`` of the steady-state gait cycle;
 * ``contact[i, j, k, p]``: (left, right) reference stance flags (1.0 = foot on the ground).
 
@@ -19,10 +19,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies.rl_inference import leg_motor_names
+from toddlerbot.policies.rl_inference import LEG_GROUP
 from toddlerbot.rl.config import CommandConfig
-from toddlerbot.robot.spec import RobotSpec
-from toddlerbot.robot.transmission import build_transmission_map
+from toddlerbot.robot.description import RobotDescription
 
 
 class WalkGenerator(Protocol):
@@ -86,30 +85,33 @@ class ReferenceTable:
         return xp.floor(xp.mod(t, self.period) / self.period * self.n_phase).astype(int) % self.n_phase
 
 
-def leg_motor_indices(spec: RobotSpec) -> np.ndarray:
-    """Motor indices (motor-id order) of the spec's leg motors, the policy's actions."""
-    names = [m.joint for m in spec.motors_by_id]
-    return np.array([names.index(n) for n in leg_motor_names(spec)])
+def leg_motor_indices(description: RobotDescription) -> np.ndarray:
+    """Motor indices (motor-id order) of the robot's leg motors, the policy's actions."""
+    return np.asarray(description.groups[LEG_GROUP])
 
 
-def home_motor_pos(spec: RobotSpec) -> np.ndarray:
-    """Motor angles (rad, motor-id order) of the spec's home pose."""
-    tmap = build_transmission_map(spec)
-    return tmap.joint_to_motor(np.array([spec.home.get(j, 0.0) for j in tmap.joint_names]))
+def standing_table(description: RobotDescription, cfg: CommandConfig, period: float,
+                   n_phase: int = 40) -> ReferenceTable:
+    """A reference that stands in the home pose with both feet down for every command (tests use it: it needs
+    no walking generator)."""
+    grid = CommandGrid.from_config(cfg)
+    legs = description.home_motor_pos[leg_motor_indices(description)]
+    shape = (*grid.shape, n_phase)
+    return ReferenceTable(grid, period, np.broadcast_to(legs, (*shape, len(legs))).copy(), np.ones((*shape, 2)))
 
 
-def zmp_table(spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, period: float, start_time: float,
-              n_phase: int = 36, warmup_cycles: int = 2) -> ReferenceTable:
+def zmp_table(description: RobotDescription, generator: WalkGenerator, cfg: CommandConfig, period: float,
+              start_time: float, n_phase: int = 36, warmup_cycles: int = 2) -> ReferenceTable:
     """Tabulate a walking generator: for each grid command, one steady-state gait cycle, sampled ``warmup_cycles``
     cycles after the generator's standing start of ``start_time`` s (phase 0 = the start of a cycle).
 
     The zero command is standing still: the home pose with both feet down (a walking generator steps in place)."""
     grid = CommandGrid.from_config(cfg)
-    tmap = build_transmission_map(spec)
-    legs = leg_motor_indices(spec)
+    tmap = description.transmission
+    legs = leg_motor_indices(description)
     leg_pos = np.zeros((*grid.shape, n_phase, len(legs)))
     contact = np.zeros((*grid.shape, n_phase, 2))
-    home = home_motor_pos(spec)[legs]
+    home = description.home_motor_pos[legs]
     for index in np.ndindex(*grid.shape):
         command = grid.command(np.array(index))
         if not np.any(command):
@@ -126,23 +128,23 @@ def zmp_table(spec: RobotSpec, generator: WalkGenerator, cfg: CommandConfig, per
     return ReferenceTable(grid, period, leg_pos, contact)
 
 
-def load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
+def load_reference(description: RobotDescription, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
     """The ZMP walking reference of ``toddlerbot.locomotion`` and its source name ("zmp").
 
-    Tables are cached per (spec name, variant, command config) for the life of the process."""
+    Tables are cached per (spec name, variant, command config) for the life of the process: they depend on the
+    kinematics only, not on the actuator parameters."""
+    spec = description.spec
     key = (spec.name, spec.variant, cfg)
     if key not in _CACHE:
-        _CACHE[key] = _load_reference(spec, cfg)
+        _CACHE[key] = _load_reference(description, cfg)
     return _CACHE[key]
 
 
 _CACHE: dict[tuple, tuple[ReferenceTable, str]] = {}
 
 
-def _load_reference(spec: RobotSpec, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
+def _load_reference(description: RobotDescription, cfg: CommandConfig) -> tuple[ReferenceTable, str]:
     from toddlerbot.locomotion.zmp_walk import ZMPWalk
-    from toddlerbot.robot.description import RobotDescription
 
-    walk = ZMPWalk(RobotDescription(spec))
-    return zmp_table(spec, walk, cfg, walk.config.cycle_time, walk.config.start_time), "zmp"
-
+    walk = ZMPWalk(description)
+    return zmp_table(description, walk, cfg, walk.config.cycle_time, walk.config.start_time), "zmp"

@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+from brax.envs.base import Env, State
 from brax.training import acting, gradients, types
 from brax.training.acme import running_statistics, specs
 from brax.training.agents.ppo import losses as ppo_losses
@@ -45,6 +46,8 @@ from toddlerbot.rl.config import (
     RewardConfig,
 )
 from toddlerbot.rl.env import WalkEnv
+from toddlerbot.rl.export import MOTOR_PARAMS_RECORD, motor_params_record
+from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.wrappers import wrap_for_training
 
 AXIS = "devices"
@@ -55,19 +58,53 @@ Progress = Callable[[int, int, dict[str, float]], None]
 @flax.struct.dataclass
 class TrainingState:
     optimizer_state: optax.OptState
+    """Gradient clipping, then Adam with its (adapted) learning rate as an injected hyperparameter."""
     params: ppo_losses.PPONetworkParams
     normalizer_params: running_statistics.RunningStatisticsState
     env_steps: jax.Array
 
 
 def make_networks(obs_size: dict, action_size: int, cfg: PPOConfig) -> ppo_networks.PPONetworks:
+    """Actor (a Gaussian with a state-independent, learned log standard deviation; actions unsquashed) and
+    critic MLPs; the actor sees ``state``, the critic ``privileged_state``."""
     return ppo_networks.make_ppo_networks(
         obs_size, action_size,
         preprocess_observations_fn=running_statistics.normalize if cfg.normalize_observations
         else types.identity_observation_preprocessor,
         policy_hidden_layer_sizes=cfg.policy_hidden, value_hidden_layer_sizes=cfg.value_hidden,
         policy_obs_key="state", value_obs_key="privileged_state",
+        distribution_type="normal", noise_std_type="log", init_noise_std=cfg.init_std,
     )
+
+
+def make_optimizer(cfg: PPOConfig) -> optax.GradientTransformation:
+    return optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm),
+                       optax.inject_hyperparams(optax.adam)(learning_rate=cfg.learning_rate))
+
+
+def learning_rate(opt_state: optax.OptState) -> jax.Array:
+    """The current Adam step size held in an optimiser state of `make_optimizer`."""
+    return opt_state[1].hyperparams["learning_rate"]
+
+
+def adam_moments(opt_state: optax.OptState) -> optax.ScaleByAdamState:
+    """Adam's step count and moments inside an optimiser state of `make_optimizer`."""
+    return opt_state[1].inner_state[0]
+
+
+def with_learning_rate(opt_state: optax.OptState, lr: jax.Array) -> optax.OptState:
+    clip, adam = opt_state
+    return clip, adam._replace(hyperparams={**adam.hyperparams, "learning_rate": lr})
+
+
+def adapt_learning_rate(lr: jax.Array, kl: jax.Array, cfg: PPOConfig) -> jax.Array:
+    """KL-targeting step size: shrink when the policy moved too far from the behaviour policy, grow when it
+    barely moved (``desired_kl`` None: unchanged)."""
+    if cfg.desired_kl is None:
+        return lr
+    lr = jnp.where(kl > 2 * cfg.desired_kl, lr / cfg.lr_factor,
+                   jnp.where(kl < cfg.desired_kl / 2, lr * cfg.lr_factor, lr))
+    return jnp.clip(lr, *cfg.lr_bounds)
 
 
 def _initial_state(networks: ppo_networks.PPONetworks, optimizer: optax.GradientTransformation, obs_size: dict,
@@ -79,6 +116,120 @@ def _initial_state(networks: ppo_networks.PPONetworks, optimizer: optax.Gradient
     return TrainingState(optimizer_state=optimizer.init(params), params=params,
                          normalizer_params=running_statistics.init_state(obs_spec),
                          env_steps=jnp.zeros((), jnp.int32))
+
+
+class PPO:
+    """Brax's PPO pieces (networks, loss with GAE, running observation statistics, rollouts) assembled into one
+    ``pmap``-ed training epoch over all local devices, for any Brax ``Env`` whose observation is a dict with
+    ``state`` (actor) and ``privileged_state`` (critic).
+
+    Two departures from ``brax.training.agents.ppo.train``, both to keep the update on-policy and bounded:
+    the SGD passes use the observation normaliser the rollout's policy used (the statistics are updated with
+    the new batch afterwards; Brax updates them first, so even the first minibatch scores its actions under a
+    different policy), and the learning rate adapts to a KL target (`adapt_learning_rate`).
+    """
+
+    def __init__(self, env: Env, cfg: PPOConfig) -> None:
+        self.env, self.cfg = env, cfg
+        self.n_devices = jax.local_device_count()
+        if cfg.num_envs % self.n_devices:
+            raise ToddlerbotError(f"num_envs {cfg.num_envs} is not divisible by the {self.n_devices} JAX devices")
+        self.train_env = wrap_for_training(env, cfg.episode_length)
+        self.obs_size = env.observation_size
+        self.networks = make_networks(self.obs_size, env.action_size, cfg)
+        self.make_policy = ppo_networks.make_inference_fn(self.networks)
+        self.optimizer = make_optimizer(cfg)
+        self.loss = functools.partial(
+            ppo_losses.compute_ppo_loss, ppo_network=self.networks, entropy_cost=cfg.entropy_cost,
+            discounting=cfg.discounting, reward_scaling=cfg.reward_scaling, gae_lambda=cfg.gae_lambda,
+            clipping_epsilon=cfg.clipping_epsilon, normalize_advantage=True,
+        )
+        """Brax's PPO loss with this configuration: (params, normaliser, [B, T] batch, key) -> (loss, metrics)."""
+        self._loss_and_grad = gradients.loss_and_pgrad(self.loss, pmap_axis_name=AXIS, has_aux=True)
+        self.rollouts = cfg.batch_size * cfg.num_minibatches // cfg.num_envs
+        updates_total = -(-cfg.num_timesteps // cfg.env_steps_per_update)
+        self.epochs = max(1, min(cfg.num_evals, updates_total))
+        self.updates_per_epoch = -(-updates_total // self.epochs)
+        self.total_steps = self.updates_per_epoch * self.epochs * cfg.env_steps_per_update
+        self._p_epoch = jax.pmap(self._epoch, axis_name=AXIS)
+        self._p_reset = jax.pmap(self.train_env.reset, axis_name=AXIS)
+
+    def initial_state(self, key: jax.Array) -> TrainingState:
+        return _initial_state(self.networks, self.optimizer, self.obs_size, key)
+
+    def reset(self, key: jax.Array) -> State:
+        """Fresh batched environments, split over the devices."""
+        keys = jax.random.split(key, self.cfg.num_envs)
+        return self._p_reset(keys.reshape(self.n_devices, self.cfg.num_envs // self.n_devices, -1))
+
+    def epoch(self, ts: TrainingState, env_state: State, key: jax.Array) -> tuple[TrainingState, State, dict]:
+        """``updates_per_epoch`` PPO updates; returns the new state, the environments and the epoch's mean
+        metrics (floats; ``kl_max`` is the largest per-update mean KL)."""
+        p_ts = jax.tree.map(lambda x: jnp.broadcast_to(x, (self.n_devices, *jnp.shape(x))), ts)
+        p_ts, env_state = _strip_weak_types((p_ts, env_state))  # else every epoch's new dtypes recompile
+        p_ts, env_state, metrics = self._p_epoch(p_ts, env_state, jax.random.split(key, self.n_devices))
+        return jax.tree.map(lambda x: x[0], p_ts), env_state, {k: float(v[0]) for k, v in metrics.items()}
+
+    # inside pmap -----------------------------------------------------------------------------------------------
+    def _minibatch_step(self, carry, data, normalizer):
+        opt_state, params, key = carry
+        key, k_loss = jax.random.split(key)
+        (_, metrics), grads = self._loss_and_grad(params, normalizer, data, k_loss)
+        # KL of the policy before this step against the behaviour policy, agreed over devices
+        lr = adapt_learning_rate(learning_rate(opt_state), jax.lax.pmean(metrics["kl_mean"], AXIS), self.cfg)
+        opt_state = with_learning_rate(opt_state, lr)
+        updates, opt_state = self.optimizer.update(grads, opt_state, params)
+        return (opt_state, optax.apply_updates(params, updates), key), {**metrics, "learning_rate": lr}
+
+    def _sgd_pass(self, carry, _, data, normalizer):
+        opt_state, params, key = carry
+        key, k_perm, k_grad = jax.random.split(key, 3)
+        n_mb = self.cfg.num_minibatches
+        shuffled = jax.tree.map(lambda x: jax.random.permutation(k_perm, x).reshape((n_mb, -1, *x.shape[1:])), data)
+        (opt_state, params, _), metrics = jax.lax.scan(
+            functools.partial(self._minibatch_step, normalizer=normalizer), (opt_state, params, k_grad), shuffled)
+        return (opt_state, params, key), metrics
+
+    def _update(self, carry, _):
+        ts, env_state, key = carry
+        cfg = self.cfg
+        k_sgd, k_unroll, key = jax.random.split(key, 3)
+        policy = self.make_policy((ts.normalizer_params, ts.params.policy, ts.params.value))
+
+        def unroll(c, _):
+            state, k = c
+            k, k_next = jax.random.split(k)
+            state, data = acting.generate_unroll(self.train_env, state, policy, k, cfg.unroll_length,
+                                                 extra_fields=("truncation", "episode_metrics", "episode_done"))
+            return (state, k_next), data
+
+        (env_state, _), data = jax.lax.scan(unroll, (env_state, k_unroll), None, length=self.rollouts)
+        data = jax.tree.map(lambda x: jnp.swapaxes(x, 1, 2), data)
+        data = jax.tree.map(lambda x: x.reshape((-1, *x.shape[2:])), data)
+        (opt_state, params, _), metrics = jax.lax.scan(
+            functools.partial(self._sgd_pass, data=data, normalizer=ts.normalizer_params),
+            (ts.optimizer_state, ts.params, k_sgd), None, length=cfg.num_updates_per_batch)
+        normalizer = running_statistics.update(ts.normalizer_params, data.observation, pmap_axis_name=AXIS)
+        extras = data.extras["state_extras"]
+        done = extras["episode_done"]
+        n_done = jnp.sum(done)
+        metrics = jax.tree.map(jnp.mean, metrics)
+        metrics.update(
+            episode_reward=jnp.sum(extras["episode_metrics"]["sum_reward"] * done) / jnp.maximum(n_done, 1),
+            episode_length=jnp.sum(extras["episode_metrics"]["length"] * done) / jnp.maximum(n_done, 1),
+            episodes=n_done, step_reward=jnp.mean(data.reward),
+            fall_rate=jnp.sum(done * (1 - extras["truncation"])) / done.size,
+        )
+        ts = TrainingState(opt_state, params, normalizer, ts.env_steps + cfg.env_steps_per_update)
+        return (ts, env_state, key), metrics
+
+    def _epoch(self, ts, env_state, key):
+        (ts, env_state, _), metrics = jax.lax.scan(self._update, (ts, env_state, key), None,
+                                                   length=self.updates_per_epoch)
+        kl_max = jnp.max(metrics["kl_mean"])
+        metrics = {**jax.tree.map(jnp.mean, metrics), "kl_max": kl_max,
+                   "learning_rate": metrics["learning_rate"][-1]}
+        return ts, env_state, jax.tree.map(lambda m: jax.lax.pmean(m, AXIS), metrics)
 
 
 # configuration files -------------------------------------------------------------------------------------------
@@ -139,6 +290,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     history (one dict per epoch). ``max_epochs`` / ``time_limit_s`` stop this call early (after a checkpoint);
     ``resume`` continues from there."""
     t_start = time.perf_counter()
+    use_full_precision()
     run_dir = Path(run_dir)
     if resume:
         env_cfg, ppo_cfg = load_config(run_dir)
@@ -150,117 +302,40 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, env.cfg, ppo_cfg)
         atomic_write_text(run_dir / "reference.txt", env.reference_source + "\n")
-    n_dev = jax.local_device_count()
-    if cfg.num_envs % n_dev:
-        raise ToddlerbotError(f"num_envs {cfg.num_envs} is not divisible by the {n_dev} JAX devices")
-    envs_per_dev = cfg.num_envs // n_dev
-    train_env = wrap_for_training(env, cfg.episode_length)
-    obs_size = env.observation_size
-    networks = make_networks(obs_size, env.action_size, cfg)
-    make_policy = ppo_networks.make_inference_fn(networks)
-    optimizer = optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(cfg.learning_rate))
-    loss_fn = functools.partial(
-        ppo_losses.compute_ppo_loss, ppo_network=networks, entropy_cost=cfg.entropy_cost,
-        discounting=cfg.discounting, reward_scaling=cfg.reward_scaling, gae_lambda=cfg.gae_lambda,
-        clipping_epsilon=cfg.clipping_epsilon, normalize_advantage=True,
-    )
-    loss_and_grad = gradients.loss_and_pgrad(loss_fn, pmap_axis_name=AXIS, has_aux=True)
-    rollouts = cfg.batch_size * cfg.num_minibatches // cfg.num_envs
-
-    def minibatch_step(carry, data, normalizer):
-        opt_state, params, key = carry
-        key, k_loss = jax.random.split(key)
-        (_, metrics), grads = loss_and_grad(params, normalizer, data, k_loss)
-        updates, opt_state = optimizer.update(grads, opt_state, params)
-        return (opt_state, optax.apply_updates(params, updates), key), metrics
-
-    def sgd_step(carry, _, data, normalizer):
-        opt_state, params, key = carry
-        key, k_perm, k_grad = jax.random.split(key, 3)
-        shuffled = jax.tree.map(
-            lambda x: jax.random.permutation(k_perm, x).reshape((cfg.num_minibatches, -1, *x.shape[1:])), data)
-        (opt_state, params, _), metrics = jax.lax.scan(
-            functools.partial(minibatch_step, normalizer=normalizer), (opt_state, params, k_grad), shuffled)
-        return (opt_state, params, key), metrics
-
-    def training_step(carry, _):
-        ts, env_state, key = carry
-        k_sgd, k_unroll, key = jax.random.split(key, 3)
-        policy = make_policy((ts.normalizer_params, ts.params.policy, ts.params.value))
-
-        def unroll(c, _):
-            state, k = c
-            k, k_next = jax.random.split(k)
-            state, data = acting.generate_unroll(train_env, state, policy, k, cfg.unroll_length,
-                                                 extra_fields=("truncation", "episode_metrics", "episode_done"))
-            return (state, k_next), data
-
-        (env_state, _), data = jax.lax.scan(unroll, (env_state, k_unroll), None, length=rollouts)
-        data = jax.tree.map(lambda x: jnp.swapaxes(x, 1, 2), data)
-        data = jax.tree.map(lambda x: x.reshape((-1, *x.shape[2:])), data)
-        normalizer = running_statistics.update(ts.normalizer_params, data.observation, pmap_axis_name=AXIS)
-        (opt_state, params, _), metrics = jax.lax.scan(
-            functools.partial(sgd_step, data=data, normalizer=normalizer),
-            (ts.optimizer_state, ts.params, k_sgd), None, length=cfg.num_updates_per_batch)
-        extras = data.extras["state_extras"]
-        done = extras["episode_done"]
-        n_done = jnp.sum(done)
-        metrics = jax.tree.map(jnp.mean, metrics)
-        metrics.update(
-            episode_reward=jnp.sum(extras["episode_metrics"]["sum_reward"] * done) / jnp.maximum(n_done, 1),
-            episode_length=jnp.sum(extras["episode_metrics"]["length"] * done) / jnp.maximum(n_done, 1),
-            episodes=n_done, step_reward=jnp.mean(data.reward),
-            fall_rate=jnp.sum(done * (1 - extras["truncation"])) / done.size,
-        )
-        ts = TrainingState(opt_state, params, normalizer, ts.env_steps + cfg.env_steps_per_update)
-        return (ts, env_state, key), metrics
-
-    updates_total = -(-cfg.num_timesteps // cfg.env_steps_per_update)
-    epochs = max(1, min(cfg.num_evals, updates_total))
-    updates_per_epoch = -(-updates_total // epochs)
-
-    def epoch(ts, env_state, key):
-        (ts, env_state, _), metrics = jax.lax.scan(training_step, (ts, env_state, key), None,
-                                                   length=updates_per_epoch)
-        return ts, env_state, jax.tree.map(lambda m: jax.lax.pmean(jnp.mean(m), AXIS), metrics)
-
-    p_epoch = jax.pmap(epoch, axis_name=AXIS)
-    p_reset = jax.pmap(train_env.reset, axis_name=AXIS)
+        if env.cfg.motor_params:
+            record = motor_params_record(env.cfg.motor_params)
+            atomic_write_text(run_dir / MOTOR_PARAMS_RECORD, json.dumps(record, indent=1))
+    ppo = PPO(env, cfg)
 
     key = jax.random.PRNGKey(cfg.seed)
     key, k_init = jax.random.split(key)
-    ts = _initial_state(networks, optimizer, obs_size, k_init)
+    ts = ppo.initial_state(k_init)
     history: list[dict] = []
     if resume:
         paths = checkpoint_paths(run_dir)
         if not paths:
             raise ToddlerbotError(f"{run_dir}: no checkpoint to resume from")
         ts, key, history = load_checkpoint(paths[-1], ts)
-    evaluator = _evaluator(env, make_policy, cfg, key) if cfg.num_eval_envs > 0 else None
+    evaluator = _evaluator(env, ppo.make_policy, cfg, key) if cfg.num_eval_envs > 0 else None
 
-    replicate = lambda x: jnp.broadcast_to(x, (n_dev, *jnp.shape(x)))  # noqa: E731
-    p_ts = jax.tree.map(replicate, ts)
     key, k_env = jax.random.split(key)
-    env_state = p_reset(jax.random.split(k_env, cfg.num_envs).reshape(n_dev, envs_per_dev, -1))
-    total = updates_per_epoch * epochs * cfg.env_steps_per_update
+    env_state = ppo.reset(k_env)
     walltime = sum(h["epoch_seconds"] for h in history)
+    device = f"{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
     epochs_run = 0
-    while int(ts.env_steps) < total:
+    while int(ts.env_steps) < ppo.total_steps:
         if (max_epochs is not None and epochs_run >= max_epochs) or (
                 time_limit_s is not None and time.perf_counter() - t_start > time_limit_s):
             break
         epochs_run += 1
         key, k_epoch = jax.random.split(key)
         t0 = time.perf_counter()
-        p_ts, env_state = _strip_weak_types((p_ts, env_state))  # else every epoch's new dtypes recompile
-        p_ts, env_state, metrics = p_epoch(p_ts, env_state, jax.random.split(k_epoch, n_dev))
-        metrics = {k: float(v[0]) for k, v in metrics.items()}
+        ts, env_state, metrics = ppo.epoch(ts, env_state, k_epoch)
         seconds = time.perf_counter() - t0
         walltime += seconds
-        ts = jax.tree.map(lambda x: x[0], p_ts)
         steps = int(ts.env_steps)
-        record = {"env_steps": steps, "epoch_seconds": seconds, "walltime": walltime,
-                  "sps": updates_per_epoch * cfg.env_steps_per_update / seconds, **metrics}
+        record = {"env_steps": steps, "epoch_seconds": seconds, "walltime": walltime, "device": device,
+                  "sps": ppo.updates_per_epoch * cfg.env_steps_per_update / seconds, **metrics}
         if evaluator is not None:
             eval_metrics = evaluator.run_evaluation((ts.normalizer_params, ts.params.policy, ts.params.value), {})
             record.update({k: float(v) for k, v in eval_metrics.items() if np.ndim(v) == 0})
@@ -269,7 +344,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         with (run_dir / "metrics.jsonl").open("a") as f:
             f.write(json.dumps(record) + "\n")
         if progress:
-            progress(steps, total, record)
+            progress(steps, ppo.total_steps, record)
     return ts, history
 
 
