@@ -52,6 +52,35 @@ def test_checkpoint_of_another_network_is_a_clear_error(tmp_path):
         train.load_checkpoint(path, _state(hidden=(32, 8)))
 
 
+@pytest.mark.parametrize("content", [b"", b"\x00" * 7, b"not msgpack at all", b"\x81\xa5state\xc0"])
+def test_empty_truncated_or_foreign_checkpoints_are_one_line_errors(tmp_path, content):
+    good = train.save_checkpoint(tmp_path, _state(hidden=(16, 8)), jax.random.PRNGKey(0), [])
+    bad = tmp_path / "bad.msgpack"
+    bad.write_bytes(content or b"")
+    with pytest.raises(ToddlerbotError, match=r"bad.msgpack: not a checkpoint of this configuration") as info:
+        train.load_checkpoint(bad, _state(hidden=(16, 8)))
+    assert "\n" not in str(info.value)
+    truncated = tmp_path / "truncated.msgpack"
+    truncated.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    with pytest.raises(ToddlerbotError, match=r"truncated.msgpack: not a checkpoint"):
+        train.load_checkpoint(truncated, _state(hidden=(16, 8)))
+
+
+def test_checkpoint_with_non_finite_parameters_is_refused(tmp_path):
+    state = _state(hidden=(16, 8))
+    poisoned = jax.tree.map(lambda x: x * np.nan if np.issubdtype(np.asarray(x).dtype, np.floating) else x, state)
+    path = train.save_checkpoint(tmp_path, poisoned, jax.random.PRNGKey(0), [])
+    with pytest.raises(ToddlerbotError, match="non-finite parameters"):
+        train.load_checkpoint(path, state)
+
+
+@pytest.mark.parametrize("text", ["", "{", "[]", '{"env": {}, "ppo": {}}', '{"env": 1, "ppo": 2}'])
+def test_malformed_run_config_is_a_one_line_error(tmp_path, text):
+    (tmp_path / "config.json").write_text(text)
+    with pytest.raises(ToddlerbotError, match=r"config.json: not a training configuration"):
+        train.load_config(tmp_path)
+
+
 def test_cli_resume_and_export_without_a_run_fail_with_one_line(tmp_path):
     runner = CliRunner()
     result = runner.invoke(app, ["rl", "train", "--resume", str(tmp_path)])

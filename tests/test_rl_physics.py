@@ -56,7 +56,7 @@ def test_zero_actions_hold_the_home_pose_for_10_s(env):
 
 
 def test_squat_in_mjx_matches_the_cpu_simulator(env, description):
-    motion = load_motion("squat", description.spec)
+    motion = load_motion("squat", description)
     joint_index = [description.joint_names.index(j) for j in motion.joints]
     steps = round(motion.duration / env.cfg.ctrl_dt)
     targets = []

@@ -241,15 +241,20 @@ def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
     path = run_dir / "config.json"
     if not path.is_file():
         raise ToddlerbotError(f"{path}: no training run here (config.json missing)")
-    raw = json.loads(path.read_text())
-    env = dict(raw["env"])
     tuples = lambda d: {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}  # noqa: E731
-    env_cfg = EnvConfig(
-        **{k: v for k, v in tuples(env).items() if k not in ("obs", "command", "reward", "randomization")},
-        obs=ObsConfig(**env["obs"]), command=CommandConfig(**tuples(env["command"])),
-        reward=RewardConfig(**tuples(env["reward"])), randomization=RandomizationConfig(**tuples(env["randomization"])),
-    )
-    return env_cfg, PPOConfig(**tuples(raw["ppo"]))
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+        env = dict(raw["env"])
+        env_cfg = EnvConfig(
+            **{k: v for k, v in tuples(env).items() if k not in ("obs", "command", "reward", "randomization")},
+            obs=ObsConfig(**env["obs"]), command=CommandConfig(**tuples(env["command"])),
+            reward=RewardConfig(**tuples(env["reward"])),
+            randomization=RandomizationConfig(**tuples(env["randomization"])),
+        )
+        return env_cfg, PPOConfig(**tuples(raw["ppo"]))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise ToddlerbotError(f"{path}: not a training configuration ({reason})") from None
 
 
 # checkpoints ----------------------------------------------------------------------------------------------------
@@ -271,15 +276,23 @@ def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState,
     try:
         payload = serialization.msgpack_restore(path.read_bytes())
         state = serialization.from_state_dict(template, payload["state"])
-    except (ValueError, KeyError) as exc:
-        raise ToddlerbotError(f"{path}: not a checkpoint of this configuration ({exc})") from exc
+        key, history = jnp.asarray(payload["key"]), json.loads(payload["history"])
+    except OSError as exc:
+        raise ToddlerbotError(f"{path}: cannot read checkpoint ({exc.strerror or exc})") from None
+    except Exception as exc:  # msgpack, flax and json raise many types for empty, truncated or foreign bytes
+        reason = " ".join(str(exc).split()) or f"{type(exc).__name__}: empty or truncated"
+        raise ToddlerbotError(f"{path}: not a checkpoint of this configuration ({reason})") from None
     shapes = [(np.shape(a), np.shape(b)) for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template),
                                                          strict=True)]
     if any(a != b for a, b in shapes):
         first = next((a, b) for a, b in shapes if a != b)
         raise ToddlerbotError(f"{path}: not a checkpoint of this configuration (array of shape {first[0]} where "
                               f"the networks need {first[1]})")
-    return state, jnp.asarray(payload["key"]), json.loads(payload["history"])
+    if not all(bool(np.all(np.isfinite(np.asarray(leaf)))) for leaf in jax.tree.leaves(state)
+               if np.issubdtype(np.asarray(leaf).dtype, np.floating)):
+        raise ToddlerbotError(f"{path}: checkpoint holds non-finite parameters (a diverged run); resume from an "
+                              "earlier one")
+    return state, key, history
 
 
 # training --------------------------------------------------------------------------------------------------------
