@@ -89,3 +89,21 @@ def test_dp_eval_without_a_checkpoint_says_none_is_shipped(tmp_path, monkeypatch
     message = str(result.exception)
     assert "\n" not in message and "no trained checkpoint is shipped for task 'pick'" in message
     assert str(tmp_path / "pick.pt") in message
+
+
+def test_dp_eval_refuses_a_checkpoint_made_for_other_joints(tmp_path):
+    from types import SimpleNamespace
+
+    from toddlerbot.manipulation.dp.checkpoint import new_training_state, save_checkpoint
+    from toddlerbot.manipulation.dp.config import TINY
+
+    path = save_checkpoint(tmp_path / "other.pt", new_training_state(TINY.with_dims(3, 2)))
+    result = runner.invoke(app, ["dp", "eval", "--checkpoint", str(path), "--episodes", "1"])
+    assert isinstance(result.exception, dp_evaluate.EvalError)
+    assert str(result.exception) == "checkpoint has state 3 / action 2 dimensions; task 'pick' records 16 motors"
+    names = tuple(f"motor_{i}" for i in range(16))
+    task = SimpleNamespace(name="pick", space=SimpleNamespace(names=names))
+    dp_evaluate.check_fits(TINY.with_dims(16, 16, names, names), task)  # same joints: accepted
+    renamed = (*names[:-1], "left_gripper_drive")
+    with pytest.raises(dp_evaluate.EvalError, match=r"checkpoint action names .* differ from task 'pick'"):
+        dp_evaluate.check_fits(TINY.with_dims(16, 16, names, renamed), task)
