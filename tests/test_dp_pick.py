@@ -107,3 +107,40 @@ def test_dp_eval_refuses_a_checkpoint_made_for_other_joints(tmp_path):
     renamed = (*names[:-1], "left_gripper_drive")
     with pytest.raises(dp_evaluate.EvalError, match=r"checkpoint action names .* differ from task 'pick'"):
         dp_evaluate.check_fits(TINY.with_dims(16, 16, names, renamed), task)
+
+
+def test_dp_export_keeps_the_ema_network_and_drops_the_training_state(tmp_path):
+    from toddlerbot.manipulation.dp.checkpoint import (
+        CheckpointError,
+        load_training_state,
+        new_training_state,
+        save_checkpoint,
+    )
+    from toddlerbot.manipulation.dp.config import TINY
+
+    state = new_training_state(TINY.with_dims(3, 2))
+    for p in state.ema.model.parameters():  # EMA weights that differ from the raw network's
+        p.data.add_(0.5)
+    full = save_checkpoint(tmp_path / "checkpoint.pt", state)
+    result = runner.invoke(app, ["dp", "export", str(full), "-o", str(tmp_path / "policy.pt")])
+    assert result.exit_code == 0, result.output
+    exported = tmp_path / "policy.pt"
+    assert exported.stat().st_size < 0.5 * full.stat().st_size  # no raw weights, no AdamW moments
+    kept, original = load_policy(exported).state_dict(), state.ema.model.state_dict()
+    assert kept.keys() == original.keys() and all(torch.equal(kept[k], original[k]) for k in kept)
+    with pytest.raises(CheckpointError, match=r"exported policy .* cannot resume training"):
+        load_training_state(exported)
+
+
+def test_the_shipped_pick_policy_fits_the_pick_task():
+    from types import SimpleNamespace
+
+    from toddlerbot.manipulation.tasks import ManipulationSpace
+    from toddlerbot.robot.description import RobotDescription
+
+    path = dp_evaluate.shipped_checkpoint("pick")
+    assert path.stat().st_size < 8e6  # small enough for the package
+    config = load_policy(path).config
+    space = ManipulationSpace.of(RobotDescription.load(variant="gripper"))
+    dp_evaluate.check_fits(config, SimpleNamespace(name="pick", space=space))
+    assert (config.encoder, config.down_dims, config.inference_steps) == ("small_cnn", (32, 64, 128), 3)

@@ -87,6 +87,20 @@ def info(
         console.print(f"last losses: train {last['train_loss']:.4f}, validation {last.get('val_loss')}")
 
 
+@app.command()
+def export(
+    checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by dp train (RUN/checkpoint.pt).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Policy file to write (config and EMA weights only).")],
+) -> None:
+    """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy."""
+    _require_torch()
+    from toddlerbot.manipulation.dp.checkpoint import export_policy
+
+    written = export_policy(checkpoint, out)
+    console.print(f"wrote {written}: {written.stat().st_size / 1e6:.1f} MB (from {checkpoint}, "
+                  f"{checkpoint.stat().st_size / 1e6:.1f} MB)")
+
+
 @app.command("eval")
 def evaluate(
     task: Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s).")] = "pick",
