@@ -135,6 +135,7 @@ def test_broken_checkpoints_and_configs_are_refused_in_one_line(tmp_path):
 
 def test_the_image_path_conditions_the_chunk():
     """The action is the image's brightness (the state is constant): the policy must read it from the camera."""
+    torch.set_num_threads(1)  # measured with one thread (an earlier CLI test may have changed it)
     torch.manual_seed(0)
     config = dataclasses.replace(TINY, learning_rate=3e-3).with_dims(1, 1)
     policy = DiffusionPolicy(config)
