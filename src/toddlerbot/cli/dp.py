@@ -89,3 +89,61 @@ def info(
                   f"{cfg['action_dim']}, horizon {cfg['horizon']}, {cfg['inference_steps']} {cfg['sampler']} steps")
     if last:
         console.print(f"last losses: train {last['train_loss']:.4f}, validation {last.get('val_loss')}")
+
+
+@app.command()
+def export(
+    checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by dp train (RUN/checkpoint.pt).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Policy file to write (config and EMA weights only).")],
+) -> None:
+    """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy."""
+    _require_torch()
+    from toddlerbot.manipulation.dp.checkpoint import export_policy
+
+    written = export_policy(checkpoint, out)
+    console.print(f"wrote {written}: {written.stat().st_size / 1e6:.1f} MB (from {checkpoint}, "
+                  f"{checkpoint.stat().st_size / 1e6:.1f} MB)")
+
+
+@app.command("eval")
+def evaluate(
+    task: Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s).")] = "pick",
+    checkpoint: Annotated[Path | None, typer.Option(help="Checkpoint to run (default: the one shipped for the "
+                                                         "task, if any).")] = None,
+    episodes: Annotated[int, typer.Option(min=1, help="Episodes (seeds --seed, --seed+1, ...).")] = 50,
+    seed: Annotated[int, typer.Option(help="First scene seed (use seeds the demonstrations did not).")] = 1000,
+    seconds: Annotated[float, typer.Option(min=0.1, help="Simulated time limit per episode, s.")] = 8.0,
+    json_output: Annotated[bool, typer.Option("--json", help="Print JSON: success_rate, episodes, inference_ms.")]
+    = False,
+    video: Annotated[Path | None, typer.Option(help="MP4 of all episodes: scene camera and head camera, 10 fps.")]
+    = None,
+    threads: Annotated[int, typer.Option(help="CPU threads for torch.")] = 1,
+) -> None:
+    """Run a checkpoint closed-loop on a simulated task (50 Hz control, 10 Hz observations) and report success."""
+    _require_torch()
+    import json
+
+    import torch
+    from rich.progress import Progress
+
+    from toddlerbot.manipulation.dp.evaluate import evaluate as run_evaluation
+    from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
+    from toddlerbot.manipulation.tasks import TASKS
+
+    if task not in TASKS:
+        raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS)}")
+    checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task)
+    torch.set_num_threads(threads)
+    with Progress(console=console, transient=True) as progress:
+        bar = progress.add_task(f"{task} episodes", total=episodes)
+        result = run_evaluation(checkpoint, episodes, seed, seconds, video_path=video,
+                                on_episode=lambda _: progress.advance(bar))
+    summary = result.summary()
+    if json_output:
+        print(json.dumps(summary))
+        return
+    console.print(f"{task}: success {summary['success_rate']:.0%} over seeds {seed}..{seed + episodes - 1} "
+                  f"(failed: {summary['failed_seeds'] or 'none'}), {summary['inference_ms']:.1f} ms per inference "
+                  f"({checkpoint})")
+    if video:
+        console.print(f"wrote {video}")

@@ -4,6 +4,7 @@ Modules, one job each: ``config`` (plain-data configuration), ``normalize`` (min
 one uint8 -> float image conversion), ``encoders`` (ResNet-18 with GroupNorm, small CNN), ``imagenet`` (local
 ImageNet weights -> GroupNorm ResNet), ``unet`` (conditional 1-D U-Net with FiLM), ``scheduler`` (DDPM/DDIM),
 ``policy`` (the network + noise schedule), ``ema``, ``checkpoint``, ``data`` (window-dataset protocol, split by
-episode, dataset adapter), ``train``, ``chunker`` and ``runner`` (10 Hz chunks -> 50 Hz targets, worker thread).
+episode, dataset adapter), ``train``, ``chunker`` and ``runner`` (10 Hz chunks -> 50 Hz targets, worker thread),
+``evaluate`` (closed-loop success on a simulated task).
 ``chunker`` and ``runner`` need only numpy.
 """

@@ -106,10 +106,23 @@ def load_policy(path: str | Path, use_ema: bool = True) -> DiffusionPolicy:
     return _network(path, body, "ema" if use_ema else "model").eval()
 
 
+def export_policy(checkpoint: str | Path, out: str | Path) -> Path:
+    """Write only what inference needs (config, EMA weights with the normaliser ranges, step, history): the file
+    to ship. `load_policy` and `checkpoint_summary` read it; it cannot resume training."""
+    checkpoint = Path(checkpoint)
+    body = _read(checkpoint)
+    _network(checkpoint, body, "ema")  # the weights fit the config
+    policy_only = {key: body[key] for key in ("format", "config", "ema", "step", "history")}
+    return atomic_write(out, lambda tmp: torch.save(policy_only, tmp))
+
+
 def load_training_state(path: str | Path) -> TrainingState:
     """Everything `save_checkpoint` wrote, ready to continue training; restores torch's global RNG too."""
     path = Path(path)
     body = _read(path)
+    if "optimizer" not in body:
+        raise CheckpointError(f"{path}: an exported policy (weights only) cannot resume training; resume from the "
+                              "run's checkpoint.pt")
     policy = _network(path, body, "model")
     ema = EMA(policy, policy.config.ema_decay)
     ema.model.load_state_dict(body["ema"])

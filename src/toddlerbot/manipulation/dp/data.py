@@ -115,6 +115,12 @@ def value_ranges(dataset: WindowDataset, batch: int = 256) -> dict[str, tuple[np
     return {k: (lo[k], hi[k]) for k in lo}
 
 
+def channel_first(images: np.ndarray) -> np.ndarray:
+    """Camera/dataset images (..., H, W, 3) uint8 -> the network's layout (..., 3, H, W), dtype kept; used for the
+    training windows and for the live head-camera images alike."""
+    return np.ascontiguousarray(np.moveaxis(np.asarray(images), -1, -3))
+
+
 class ChannelFirstWindows:
     """Adapter: the issue-13 reader's windows (images (n_obs, H, W, 3)) -> this module's protocol (3, H, W)."""
 
@@ -129,7 +135,7 @@ class ChannelFirstWindows:
     def __getitem__(self, index: int) -> dict[str, Any]:
         sample = dict(self.windows[index])
         if IMAGE in sample:
-            sample[IMAGE] = np.ascontiguousarray(np.moveaxis(sample[IMAGE], -1, 1))
+            sample[IMAGE] = channel_first(sample[IMAGE])
         sample["episode_index"] = int(self.window_episodes[index])
         return sample
 
