@@ -69,11 +69,11 @@ class Robot(ABC):
 
     @property
     def motor_names(self) -> tuple[str, ...]:
-        return self.transmission.motor_names
+        return self.description.motor_names
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        return self.transmission.joint_names
+        return self.description.joint_names
 
     @abstractmethod
     def reset(self) -> Observation:
