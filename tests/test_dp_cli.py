@@ -49,5 +49,5 @@ def test_dp_train_names_a_missing_dataset_directory(tmp_path):
     result = runner.invoke(app, ["dp", "train", str(tmp_path / "nowhere"), "-o", str(tmp_path / "r"), "--steps", "1",
                                  "--threads", "1"])  # the CLI sets torch's threads for the whole process
     assert isinstance(result.exception, DatasetError)
-    assert "nowhere: no such dataset directory" in str(result.exception)
+    assert "nowhere: expected a dataset directory or a decoded .npz" in str(result.exception)
     assert not (tmp_path / "r").exists()  # nothing half-written

@@ -12,8 +12,9 @@ pa = pytest.importorskip("pyarrow")
 av = pytest.importorskip("av")
 pq = pytest.importorskip("pyarrow.parquet")
 
+from toddlerbot.manipulation.dataset import DatasetError, WindowConfig, Windows  # noqa: E402
 from toddlerbot.manipulation.episode import EpisodeError, RawEpisode, resample  # noqa: E402
-from toddlerbot.manipulation.lerobot_reader import DatasetError, WindowConfig, Windows, load_dataset  # noqa: E402
+from toddlerbot.manipulation.lerobot_reader import load_dataset  # noqa: E402
 from toddlerbot.manipulation.lerobot_writer import DATA_FILE, VIDEO_FILE, write_dataset  # noqa: E402
 
 NAMES = ("a", "b")
@@ -156,3 +157,39 @@ def test_dataset_info_cli_prints_summary_and_one_line_errors(tmp_path):
     result = CliRunner().invoke(app, ["manip", "dataset", "info", str(root)])
     assert isinstance(result.exception, DatasetError)
     assert "file-000.parquet" in str(result.exception)
+
+
+def test_decoded_copy_round_trips_and_trains_without_the_reader(tmp_path):
+    from toddlerbot.manipulation.dataset import load_decoded, save_decoded
+    from toddlerbot.manipulation.dp.data import open_window_dataset
+
+    root, _ = _dataset(tmp_path)
+    ds = load_dataset(root)
+    copy = load_decoded(save_decoded(ds, tmp_path / "ds.npz"))
+    for name in ("state", "action", "timestamp", "episode_index", "images", "episode_bounds"):
+        np.testing.assert_array_equal(getattr(copy, name), getattr(ds, name))
+    assert copy.names == list(NAMES) and copy.tasks == ds.tasks and copy.summary() == ds.summary()
+    from_dir, from_npz = open_window_dataset(root, 2, 4), open_window_dataset(tmp_path / "ds.npz", 2, 4)
+    assert len(from_dir) == len(from_npz) == 17
+    for key in ("observation.state", "action", "observation.images.head", "action_is_pad"):
+        np.testing.assert_array_equal(from_dir[12][key], from_npz[12][key])
+    assert from_npz.state_names == NAMES
+
+
+def test_decoded_copy_rejects_foreign_and_inconsistent_files(tmp_path):
+    from toddlerbot.manipulation.dataset import load_decoded, save_decoded
+
+    root, _ = _dataset(tmp_path)
+    ds = load_dataset(root)
+    np.savez(tmp_path / "foreign.npz", state=np.zeros((3, 2)))
+    with pytest.raises(DatasetError) as err:
+        load_decoded(tmp_path / "foreign.npz")
+    assert "foreign.npz: missing array(s) meta, action" in str(err.value)
+    save_decoded(ds, tmp_path / "ok.npz")
+    with np.load(tmp_path / "ok.npz") as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    arrays["episode_bounds"] = np.array([[0, 11], [12, 17]])
+    np.savez(tmp_path / "gap.npz", **arrays)
+    with pytest.raises(DatasetError) as err:
+        load_decoded(tmp_path / "gap.npz")
+    assert "gap.npz: episode_bounds do not tile rows 0..17" in str(err.value)

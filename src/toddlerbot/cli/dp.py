@@ -26,7 +26,8 @@ def _require_torch() -> None:
 
 @app.command()
 def train(
-    dataset: Annotated[Path, typer.Argument(help="LeRobot v3.0 dataset directory (toddlerbot manip demo -o DIR).")],
+    dataset: Annotated[Path, typer.Argument(help="LeRobot v3.0 dataset directory (toddlerbot manip demo -o DIR) or "
+                                                 "its decoded .npz (toddlerbot manip dataset decode).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Run directory (checkpoint.pt, loss_curve.png, ...).")],
     minutes: Annotated[float | None, typer.Option(help="Stop after this wall time (resume later with --resume).")]
     = None,
@@ -37,6 +38,7 @@ def train(
                                                                 "to start the appendix config's encoder from.")]
     = None,
     threads: Annotated[int, typer.Option(help="CPU threads for torch.")] = 2,
+    device: Annotated[str, typer.Option(help="Torch device to train on: cpu, cuda, cuda:1, ...")] = "cpu",
 ) -> None:
     """Train on the dataset's episodes (validation episodes held out), with a progress bar and a loss curve."""
     _require_torch()
@@ -58,7 +60,8 @@ def train(
         windows = open_window_dataset(dataset, preset.n_obs_steps, preset.horizon)
         console.print(f"dataset {dataset}: {len(windows)} windows; run directory {out}")
         result = run_training(windows, preset, out, minutes=minutes, resume=resume,
-                              schedule=TrainSchedule(max_steps=steps), imagenet_weights=imagenet_weights)
+                              schedule=TrainSchedule(max_steps=steps), imagenet_weights=imagenet_weights,
+                              device=device)
     finally:
         torch.set_num_threads(previous_threads)  # in-process callers (tests, notebooks) keep their setting
     last = result.history[-1] if result.history else {}

@@ -105,6 +105,23 @@ def demo_rate(
 
 
 @dataset_app.command()
+def decode(
+    root: Annotated[Path, typer.Argument(help="Dataset directory.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Decoded copy to write (.npz).")],
+) -> None:
+    """Validate a dataset and write it decoded (images as arrays) to one .npz that trains without PyAV/pyarrow."""
+    from toddlerbot.manipulation.dataset import save_decoded
+    from toddlerbot.manipulation.lerobot_reader import load_dataset
+
+    if out.suffix != ".npz":
+        raise ToddlerbotError(f"--out {out}: expected a file name ending in .npz")
+    dataset = load_dataset(root)
+    written = save_decoded(dataset, out)
+    console.print(f"wrote {written}: {dataset.n_episodes} episodes, {len(dataset)} frames, "
+                  f"{written.stat().st_size / 1e6:.1f} MB")
+
+
+@dataset_app.command()
 def info(
     root: Annotated[Path, typer.Argument(help="Dataset directory.")],
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,

@@ -1,19 +1,15 @@
-"""Read and validate a LeRobot v3.0 dataset written by `lerobot_writer`, and cut training windows from it.
+"""Read and validate a LeRobot v3.0 dataset written by `lerobot_writer` into a `dataset.Dataset`.
 
 `load_dataset` checks everything a trainer relies on and raises `DatasetError` (one line naming the file) for a
 missing or truncated file, a row count that disagrees with ``meta/info.json``, NaN rows, episode ranges that do
 not tile the data, or a video whose decoded frame count differs from the rows.
 
-`Windows` gives training samples the way LeRobot's ``delta_timestamps`` do: ``obs_horizon`` observations ending
-at frame i and ``action_horizon`` actions starting at frame i, repeated at the episode's ends and flagged as
-padding, never crossing into the neighbouring episode.
+Training windows are cut from the loaded dataset by `dataset.Windows`.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import av
@@ -21,64 +17,16 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from toddlerbot.errors import ToddlerbotError
+from toddlerbot.manipulation.dataset import Dataset, DatasetError
 from toddlerbot.manipulation.lerobot_writer import (
     CODEBASE_VERSION,
     DATA_FILE,
     EPISODES_FILE,
-    IMAGE_KEY,
     TASKS_FILE,
     VIDEO_FILE,
 )
 
 DATA_COLUMNS = ("observation.state", "action", "timestamp", "frame_index", "episode_index", "index", "task_index")
-
-
-class DatasetError(ToddlerbotError):
-    """A dataset on disk is incomplete, truncated or inconsistent."""
-
-
-@dataclass(frozen=True)
-class Dataset:
-    """A loaded dataset: all rows in memory (state, action float32; images uint8 (N, H, W, 3))."""
-
-    root: Path
-    info: dict
-    state: np.ndarray
-    action: np.ndarray
-    timestamp: np.ndarray
-    episode_index: np.ndarray
-    images: np.ndarray
-    episode_bounds: np.ndarray
-    """(E, 2) [from, to) row range of each episode."""
-    tasks: tuple[str, ...]
-    stats: dict
-
-    @property
-    def fps(self) -> int:
-        return int(self.info["fps"])
-
-    @property
-    def names(self) -> list[str]:
-        return list(self.info["features"]["action"]["names"])
-
-    @property
-    def n_episodes(self) -> int:
-        return len(self.episode_bounds)
-
-    def __len__(self) -> int:
-        return len(self.state)
-
-    def summary(self) -> dict:
-        lengths = self.episode_bounds[:, 1] - self.episode_bounds[:, 0]
-        return {
-            "root": str(self.root), "codebase_version": self.info["codebase_version"], "fps": self.fps,
-            "episodes": self.n_episodes, "frames": len(self), "tasks": list(self.tasks),
-            "state_dim": int(self.state.shape[1]), "action_dim": int(self.action.shape[1]),
-            "image_shape": list(self.info["features"][IMAGE_KEY]["shape"]),
-            "episode_seconds": {"min": float(lengths.min() / self.fps), "mean": float(lengths.mean() / self.fps),
-                                "max": float(lengths.max() / self.fps)},
-        }
 
 
 def load_dataset(root: str | Path, decode_video: bool = True) -> Dataset:
@@ -129,57 +77,6 @@ def load_dataset(root: str | Path, decode_video: bool = True) -> Dataset:
     images = np.stack(frames) if decode_video else np.zeros((total, 0, 0, 3), dtype=np.uint8)
     return Dataset(root, info, state, action, data.column("timestamp").to_numpy(), episode_index, images, bounds,
                    tasks, stats)
-
-
-@dataclass(frozen=True)
-class WindowConfig:
-    obs_horizon: int = 2
-    """Observations per sample, ending at the sample's frame."""
-    action_horizon: int = 16
-    """Actions per sample, starting at the sample's frame."""
-
-    def __post_init__(self) -> None:
-        if self.obs_horizon < 1 or self.action_horizon < 1:
-            raise ValueError(f"horizons must be >= 1, got {self.obs_horizon}, {self.action_horizon}")
-
-
-class Windows:
-    """Training samples of a dataset, restricted to some episodes (split train/validation by episode)."""
-
-    def __init__(self, dataset: Dataset, config: WindowConfig | None = None,
-                 episodes: Sequence[int] | None = None) -> None:
-        self.dataset = dataset
-        self.config = config or WindowConfig()
-        chosen = range(dataset.n_episodes) if episodes is None else episodes
-        self.episodes = tuple(int(e) for e in chosen)
-        bad = [e for e in self.episodes if not 0 <= e < dataset.n_episodes]
-        if bad:
-            raise ValueError(f"episode(s) {bad} not in 0..{dataset.n_episodes - 1}")
-        self.frames = np.concatenate([np.arange(*dataset.episode_bounds[e]) for e in self.episodes]) if (
-            self.episodes) else np.zeros(0, dtype=np.int64)
-
-    def __len__(self) -> int:
-        return len(self.frames)
-
-    def __getitem__(self, i: int) -> dict[str, np.ndarray]:
-        """Sample i: ``observation.state`` (To, D), ``observation.images.head`` (To, H, W, 3) uint8,
-        ``action`` (Ta, D), and boolean ``observation_is_pad`` (To,), ``action_is_pad`` (Ta,)."""
-        ds, cfg = self.dataset, self.config
-        frame = int(self.frames[i])
-        start, end = ds.episode_bounds[ds.episode_index[frame]]
-        obs_idx = frame + np.arange(-cfg.obs_horizon + 1, 1)
-        act_idx = frame + np.arange(cfg.action_horizon)
-        obs_clamped = np.clip(obs_idx, start, end - 1)
-        act_clamped = np.clip(act_idx, start, end - 1)
-        sample = {
-            "observation.state": ds.state[obs_clamped],
-            "action": ds.action[act_clamped],
-            "observation_is_pad": obs_idx != obs_clamped,
-            "action_is_pad": act_idx != act_clamped,
-        }
-        if ds.images.shape[1]:
-            sample[IMAGE_KEY] = ds.images[obs_clamped]
-        return sample
 
 
 def _read_json(root: Path, rel: str) -> dict:

@@ -27,10 +27,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from toddlerbot.manipulation.dataset import IMAGE_KEY
 from toddlerbot.manipulation.episode import Episode, RawEpisode
 
 CODEBASE_VERSION = "v3.0"
-IMAGE_KEY = "observation.images.head"
 DATA_FILE = "data/chunk-000/file-000.parquet"
 EPISODES_FILE = "meta/episodes/chunk-000/file-000.parquet"
 TASKS_FILE = "meta/tasks.parquet"

@@ -46,14 +46,16 @@ def make_optimizer(policy: DiffusionPolicy) -> torch.optim.Optimizer:
     return torch.optim.AdamW(policy.parameters(), lr=cfg.learning_rate, weight_decay=cfg.weight_decay)
 
 
-def new_training_state(config: DPConfig, ranges: dict[str, tuple] | None = None) -> TrainingState:
+def new_training_state(config: DPConfig, ranges: dict[str, tuple] | None = None,
+                       device: str | torch.device = "cpu") -> TrainingState:
     """A fresh network (seeded by ``config.seed``) with its normalisers set from ``ranges`` (key -> (min, max),
-    keys ``observation.state`` and ``action``), its EMA copy and optimiser."""
+    keys ``observation.state`` and ``action``), its EMA copy and optimiser, on ``device``."""
     torch.manual_seed(config.seed)
     policy = DiffusionPolicy(config)
     if ranges is not None:
         policy.state_norm.fit(*ranges[STATE])
         policy.action_norm.fit(*ranges[ACTION])
+    policy.to(device)
     data_rng = torch.Generator().manual_seed(config.seed)
     return TrainingState(policy, EMA(policy, config.ema_decay), make_optimizer(policy), data_rng=data_rng)
 
@@ -116,14 +118,15 @@ def export_policy(checkpoint: str | Path, out: str | Path) -> Path:
     return atomic_write(out, lambda tmp: torch.save(policy_only, tmp))
 
 
-def load_training_state(path: str | Path) -> TrainingState:
-    """Everything `save_checkpoint` wrote, ready to continue training; restores torch's global RNG too."""
+def load_training_state(path: str | Path, device: str | torch.device = "cpu") -> TrainingState:
+    """Everything `save_checkpoint` wrote, ready to continue training on ``device``; restores torch's global (CPU)
+    RNG too."""
     path = Path(path)
     body = _read(path)
     if "optimizer" not in body:
         raise CheckpointError(f"{path}: an exported policy (weights only) cannot resume training; resume from the "
                               "run's checkpoint.pt")
-    policy = _network(path, body, "model")
+    policy = _network(path, body, "model").to(device)
     ema = EMA(policy, policy.config.ema_decay)
     ema.model.load_state_dict(body["ema"])
     ema.updates = int(body["ema_updates"])

@@ -23,12 +23,9 @@ import numpy as np
 import torch
 from torch.utils.data import Subset
 
-from toddlerbot.errors import ToddlerbotError
+from toddlerbot.manipulation import dataset as demonstrations
+from toddlerbot.manipulation.dataset import DatasetError
 from toddlerbot.manipulation.dp.policy import ACTION, ACTION_PAD, IMAGE, STATE
-
-
-class DatasetError(ToddlerbotError):
-    """A window dataset is missing, too small to split or gives malformed samples."""
 
 
 class WindowDataset(Protocol):
@@ -122,7 +119,7 @@ def channel_first(images: np.ndarray) -> np.ndarray:
 
 
 class ChannelFirstWindows:
-    """Adapter: the issue-13 reader's windows (images (n_obs, H, W, 3)) -> this module's protocol (3, H, W)."""
+    """Adapter: `dataset.Windows` (images (n_obs, H, W, 3)) -> this module's protocol (3, H, W)."""
 
     def __init__(self, windows: Any) -> None:
         self.windows = windows
@@ -141,20 +138,17 @@ class ChannelFirstWindows:
 
 
 def open_window_dataset(path: str | Path, n_obs_steps: int, horizon: int) -> WindowDataset:
-    """ADAPTER to the project's LeRobot v3.0 dataset reader (issue 13): a dataset directory -> windows.
-
-    This is the one place `dp train` touches the dataset format. It expects the reader as
-    ``toddlerbot.manipulation.lerobot_reader`` (``load_dataset``, ``WindowConfig``, ``Windows``); the integrator
-    points it at that reader's final names. Until the reader is merged it says so in one line.
-    """
+    """The one place `dp train` touches the dataset format: a LeRobot v3.0 dataset directory (read with
+    `lerobot_reader`, which needs the ``manip`` extra) or its decoded ``.npz`` copy (`dataset.load_decoded`, numpy
+    only: for machines without PyAV/pyarrow) -> training windows."""
     path = Path(path)
-    if not path.is_dir():
-        raise DatasetError(f"{path}: no such dataset directory")
-    try:
+    if path.is_file() and path.suffix == ".npz":
+        loaded = demonstrations.load_decoded(path)
+    elif path.is_dir():
         from toddlerbot.manipulation import lerobot_reader
-    except ImportError as exc:
-        raise DatasetError(f"{path}: the LeRobot dataset reader (toddlerbot.manipulation.lerobot_reader, issue 13) "
-                           f"is not installed in this build ({exc})") from exc
-    dataset = lerobot_reader.load_dataset(path)
-    config = lerobot_reader.WindowConfig(obs_horizon=n_obs_steps, action_horizon=horizon)
-    return ChannelFirstWindows(lerobot_reader.Windows(dataset, config))
+
+        loaded = lerobot_reader.load_dataset(path)
+    else:
+        raise DatasetError(f"{path}: expected a dataset directory or a decoded .npz (toddlerbot manip dataset decode)")
+    config = demonstrations.WindowConfig(obs_horizon=n_obs_steps, action_horizon=horizon)
+    return ChannelFirstWindows(demonstrations.Windows(loaded, config))

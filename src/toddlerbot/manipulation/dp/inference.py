@@ -28,10 +28,11 @@ class PolicyInference:
         """``observation.state`` (n_obs, D) rad and ``observation.images.head`` (n_obs, 3, H, W) uint8 -> chunk
         (horizon, A) in the dataset's action units."""
         start = time.perf_counter()
-        batch = {STATE: torch.as_tensor(np.asarray(history[STATE], np.float32))[None]}
+        device = next(self.policy.parameters()).device
+        batch = {STATE: torch.as_tensor(np.asarray(history[STATE], np.float32), device=device)[None]}
         if self.policy.config.uses_images:
-            batch[IMAGE] = torch.as_tensor(np.asarray(history[IMAGE]))[None]
+            batch[IMAGE] = torch.as_tensor(np.asarray(history[IMAGE]), device=device)[None]
         with torch.inference_mode():
-            chunk = self.policy.sample(batch, self.generator)[0].numpy()
+            chunk = self.policy.sample(batch, self.generator)[0].cpu().numpy()
         self.last_seconds = time.perf_counter() - start
         return chunk

@@ -20,6 +20,14 @@ from toddlerbot.manipulation.dp.unet import ConditionalUnet1D
 STATE, IMAGE, ACTION, ACTION_PAD = "observation.state", "observation.images.head", "action", "action_is_pad"
 
 
+def normal_noise(shape: torch.Size | tuple[int, ...], generator: torch.Generator | None,
+                  device: torch.device) -> torch.Tensor:
+    """Standard normal noise on ``device``, drawn from ``generator`` on its own device (a seeded CPU generator keeps
+    validation and inference noise the same whether the network runs on the CPU or a GPU)."""
+    source = generator.device if generator is not None else device
+    return torch.randn(shape, generator=generator, device=source).to(device)
+
+
 def build_encoder(config: DPConfig) -> nn.Module | None:
     if config.encoder == "resnet18":
         return ResNet18Encoder(config.image_feature_dim)
@@ -64,11 +72,15 @@ class DiffusionPolicy(nn.Module):
         """Denoising MSE (of the noise or the clean sample, ``config.prediction``) over the non-padded actions."""
         x0 = self.action_norm.normalize(batch[ACTION].float())
         b = x0.shape[0]
-        noise = torch.randn(x0.shape, generator=generator, device=x0.device)
-        t = torch.randint(0, self.config.train_timesteps, (b,), generator=generator, device=x0.device)
+        noise = normal_noise(x0.shape, generator, x0.device)
+        source = generator.device if generator is not None else x0.device
+        t = torch.randint(0, self.config.train_timesteps, (b,), generator=generator, device=source).to(x0.device)
         pred = self.unet(self.schedule.add_noise(x0, noise, t), t, self.condition(batch))
         err = F.mse_loss(pred, self.schedule.training_target(x0, noise), reduction="none")
-        mask = ~batch[ACTION_PAD].to(torch.bool) if ACTION_PAD in batch else torch.ones(x0.shape[:2], dtype=torch.bool)
+        if ACTION_PAD in batch:
+            mask = ~batch[ACTION_PAD].to(torch.bool)
+        else:
+            mask = torch.ones(x0.shape[:2], dtype=torch.bool, device=x0.device)
         weights = mask.unsqueeze(-1).expand_as(err).float()
         return (err * weights).sum() / weights.sum().clamp(min=1.0)
 
@@ -80,7 +92,7 @@ class DiffusionPolicy(nn.Module):
         sampler = sampler or cfg.sampler
         cond = self.condition(batch)
         b = cond.shape[0]
-        x = torch.randn((b, cfg.horizon, cfg.action_dim), generator=generator, device=cond.device)
+        x = normal_noise((b, cfg.horizon, cfg.action_dim), generator, cond.device)
         timesteps = self.schedule.inference_timesteps(steps or cfg.inference_steps)
         for k, t in enumerate(timesteps):
             s = timesteps[k + 1] if k + 1 < len(timesteps) else -1
@@ -88,6 +100,6 @@ class DiffusionPolicy(nn.Module):
             if sampler == "ddim":
                 x = self.schedule.ddim_step(x, output, t, s)
             else:
-                noise = torch.randn(x.shape, generator=generator, device=x.device) if s >= 0 else None
+                noise = normal_noise(x.shape, generator, x.device) if s >= 0 else None
                 x = self.schedule.ddpm_step(x, output, t, s, noise)
         return self.action_norm.unnormalize(x)

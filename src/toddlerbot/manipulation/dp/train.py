@@ -66,8 +66,9 @@ class TrainResult:
     split: dict[str, list[int]]
 
 
-def _batch(dataset: WindowDataset, indices: list[int], keys: tuple[str, ...]) -> dict[str, torch.Tensor]:
-    return collate([dataset[i] for i in indices], keys)
+def _batch(dataset: WindowDataset, indices: list[int], keys: tuple[str, ...],
+           device: torch.device) -> dict[str, torch.Tensor]:
+    return {k: v.to(device, non_blocking=True) for k, v in collate([dataset[i] for i in indices], keys).items()}
 
 
 @torch.no_grad()
@@ -78,23 +79,25 @@ def validation_loss(state: TrainingState, dataset: WindowDataset, batches: int) 
     cfg = state.policy.config
     keys = batch_keys(cfg.uses_images)
     generator = torch.Generator().manual_seed(VAL_SEED)
+    device = next(state.ema.model.parameters()).device
     losses = []
     for b in range(batches):
         indices = list(range(b * cfg.batch_size, min((b + 1) * cfg.batch_size, len(dataset))))
         if not indices:
             break
-        losses.append(float(state.ema.model.loss(_batch(dataset, indices, keys), generator)))
+        losses.append(float(state.ema.model.loss(_batch(dataset, indices, keys, device), generator)))
     return float(np.mean(losses))
 
 
-def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool, imagenet_weights: Path | None):
+def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool, imagenet_weights: Path | None,
+           device: torch.device):
     if len(dataset) == 0:
         raise DatasetError("the window dataset is empty")
     sample = dataset[0]
     state_dim, action_dim = check_sample(sample, config.n_obs_steps, config.horizon, config.uses_images)
     checkpoint = run_dir / CHECKPOINT
     if resume:
-        state = load_training_state(checkpoint)
+        state = load_training_state(checkpoint, device)
         config = state.policy.config
         if (config.state_dim, config.action_dim) != (state_dim, action_dim):
             raise DatasetError(f"{checkpoint}: trained on state/action dims {config.state_dim}/{config.action_dim}, "
@@ -111,7 +114,7 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
                               "directory")
     config = config.with_dims(state_dim, action_dim, getattr(dataset, "state_names", ()),
                               getattr(dataset, "action_names", ()))
-    state = new_training_state(config, value_ranges(train_set))
+    state = new_training_state(config, value_ranges(train_set), device)
     if imagenet_weights is not None:
         if config.encoder != "resnet18":
             raise DPConfigError(f"ImageNet weights need encoder resnet18 (the config has {config.encoder})")
@@ -125,11 +128,12 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
 
 def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes: float | None = None,
           resume: bool = False, schedule: TrainSchedule | None = None, show_progress: bool = True,
-          imagenet_weights: str | Path | None = None) -> TrainResult:
+          imagenet_weights: str | Path | None = None, device: str = "cpu") -> TrainResult:
     """Train (or, with ``resume``, continue) a diffusion policy on ``dataset``; checkpoints go to ``out_dir``.
 
     ``imagenet_weights``: a local torchvision ResNet-18 state dict to start the ``resnet18`` encoder from
     (`imagenet.load_imagenet_weights`); without it the encoder trains from scratch.
+    ``device``: ``cpu`` or a torch device such as ``cuda`` (batches are assembled on the CPU and moved there).
     Stops at ``minutes`` of wall time or ``schedule.max_steps`` (at least one of them must be given).
     ``config``'s state/action dims are taken from the dataset; on resume the checkpoint's config is used.
     """
@@ -140,7 +144,12 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
         raise ValueError("train needs minutes or schedule.max_steps")
     run_dir = Path(out_dir)
     weights = None if imagenet_weights is None else Path(imagenet_weights)
-    state, train_set, val_set, split = _start(dataset, config, run_dir, resume, weights)
+    target = torch.device(device)
+    if target.type == "cuda":
+        if not torch.cuda.is_available():
+            raise DPConfigError(f"device {device!r}: torch {torch.__version__} sees no CUDA GPU")
+        torch.backends.cuda.matmul.allow_tf32 = torch.backends.cudnn.allow_tf32 = True
+    state, train_set, val_set, split = _start(dataset, config, run_dir, resume, weights, target)
     cfg = state.policy.config
     keys = batch_keys(cfg.uses_images)
     n_train = len(train_set)
@@ -159,7 +168,7 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
             if deadline is not None and time.perf_counter() >= deadline:
                 break
             indices = torch.randperm(n_train, generator=state.data_rng)[:batch_size].tolist()
-            loss = state.policy.loss(_batch(train_set, indices, keys))
+            loss = state.policy.loss(_batch(train_set, indices, keys, target))
             state.optimizer.zero_grad(set_to_none=True)
             loss.backward()
             state.optimizer.step()
