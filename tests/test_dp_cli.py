@@ -51,3 +51,12 @@ def test_dp_train_names_a_missing_dataset_directory(tmp_path):
     assert isinstance(result.exception, DatasetError)
     assert "nowhere: expected a dataset directory or a decoded .npz" in str(result.exception)
     assert not (tmp_path / "r").exists()  # nothing half-written
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="checks the refusal on a machine without a CUDA GPU")
+def test_dp_train_on_a_missing_gpu_is_refused_before_anything_is_written(tmp_path, monkeypatch):
+    monkeypatch.setattr(data, "open_window_dataset", lambda *_: SyntheticWindows(episodes=3, frames=5))
+    result = runner.invoke(app, ["dp", "train", str(tmp_path / "ds"), "-o", str(tmp_path / "r"), "--steps", "1",
+                                 "--config", "tiny", "--threads", "1", "--device", "cuda"])
+    assert "device 'cuda'" in str(result.exception) and "sees no CUDA GPU" in str(result.exception)
+    assert not (tmp_path / "r").exists()

@@ -39,6 +39,8 @@ def train(
     = None,
     threads: Annotated[int, typer.Option(help="CPU threads for torch.")] = 2,
     device: Annotated[str, typer.Option(help="Torch device to train on: cpu, cuda, cuda:1, ...")] = "cpu",
+    checkpoint_every: Annotated[int, typer.Option(min=1, help="Save checkpoint.pt every this many steps (and at "
+                                                               "the end).")] = 500,
 ) -> None:
     """Train on the dataset's episodes (validation episodes held out), with a progress bar and a loss curve."""
     _require_torch()
@@ -60,8 +62,8 @@ def train(
         windows = open_window_dataset(dataset, preset.n_obs_steps, preset.horizon)
         console.print(f"dataset {dataset}: {len(windows)} windows; run directory {out}")
         result = run_training(windows, preset, out, minutes=minutes, resume=resume,
-                              schedule=TrainSchedule(max_steps=steps), imagenet_weights=imagenet_weights,
-                              device=device)
+                              schedule=TrainSchedule(max_steps=steps, checkpoint_every=checkpoint_every),
+                              imagenet_weights=imagenet_weights, device=device)
     finally:
         torch.set_num_threads(previous_threads)  # in-process callers (tests, notebooks) keep their setting
     last = result.history[-1] if result.history else {}
@@ -121,6 +123,7 @@ def evaluate(
     video: Annotated[Path | None, typer.Option(help="MP4 of all episodes: scene camera and head camera, 10 fps.")]
     = None,
     threads: Annotated[int, typer.Option(help="CPU threads for torch.")] = 1,
+    device: Annotated[str, typer.Option(help="Torch device for the network: cpu, cuda, ...")] = "cpu",
 ) -> None:
     """Run a checkpoint closed-loop on a simulated task (50 Hz control, 10 Hz observations) and report success."""
     _require_torch()
@@ -140,7 +143,7 @@ def evaluate(
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{task} episodes", total=episodes)
         result = run_evaluation(checkpoint, episodes, seed, seconds, video_path=video,
-                                on_episode=lambda _: progress.advance(bar))
+                                on_episode=lambda _: progress.advance(bar), device=device)
     summary = result.summary()
     if json_output:
         print(json.dumps(summary))

@@ -14,6 +14,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,7 +27,9 @@ from toddlerbot.manipulation.dp.inference import PolicyInference
 from toddlerbot.manipulation.dp.policy import IMAGE, STATE
 from toddlerbot.manipulation.dp.runner import ChunkPolicyRunner
 from toddlerbot.manipulation.tasks import PickTask
-from toddlerbot.manipulation.video import SideBySideVideo
+
+if TYPE_CHECKING:  # PyAV (the manip extra) is needed only to write a video
+    from toddlerbot.manipulation.video import SideBySideVideo
 
 SHIPPED_DIR = Path(__file__).parent / "checkpoints"
 """Where shipped checkpoints live in the package (``{task}.pt``)."""
@@ -135,17 +138,22 @@ def run_episode(task: PickTask, infer: Callable[[dict[str, np.ndarray]], np.ndar
 
 def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float = 8.0, task: PickTask | None = None,
              video_path: str | Path | None = None,
-             on_episode: Callable[[EpisodeResult], None] | None = None) -> EvalResult:
-    """Success rate of ``checkpoint`` on the pick task over seeds ``seed .. seed + episodes - 1``."""
+             on_episode: Callable[[EpisodeResult], None] | None = None, device: str = "cpu") -> EvalResult:
+    """Success rate of ``checkpoint`` on the pick task over seeds ``seed .. seed + episodes - 1``; the network runs
+    on ``device`` (``cpu`` or e.g. ``cuda``)."""
     if episodes < 1:
         raise EvalError(f"--episodes must be >= 1, got {episodes}")
-    policy = load_policy(checkpoint)
+    policy = load_policy(checkpoint).to(device)
     own_task = task is None
     task = task or PickTask()
     check_fits(policy.config, task)
     infer = TimedInference(PolicyInference(policy, seed))
     result = EvalResult(task.name, str(checkpoint), seed)
-    video = None if video_path is None else SideBySideVideo(task, video_path, round(policy.config.policy_hz))
+    video = None
+    if video_path is not None:
+        from toddlerbot.manipulation.video import SideBySideVideo
+
+        video = SideBySideVideo(task, video_path, round(policy.config.policy_hz))
     try:
         for s in range(seed, seed + episodes):
             episode = run_episode(task, infer, policy.config, s, seconds, video)
