@@ -129,7 +129,7 @@ def test_checkpoint_names_that_are_not_motors_of_this_robot_are_refused_in_one_l
     message = str(refused.value)
     assert "pick.pt: state name(s) left_gripper_drive, right_gripper_drive are not motors" in message
     assert "--variant gripper" in message and "\n" not in message
-    with pytest.raises(LivePolicyError, match="pick.pt: the policy sees the head camera; give it a camera"):
+    with pytest.raises(LivePolicyError, match=r"pick\.pt: the policy sees the head camera; give it a camera"):
         LiveDPPolicy(InstantRobot(), lambda history: chunk(1), CONFIG, camera=None, source="pick.pt")
 
 
