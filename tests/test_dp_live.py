@@ -169,3 +169,13 @@ def test_sim_run_dp_on_the_pick_task_moves_the_arm_to_the_cube(tmp_path):
     # chunks asked for at steps 0, 25, 50 and 75, each used from 15 steps later
     assert dp["chunks_used"] == 4 and dp["failures"] == 0 and dp["holding_steps"] == 15
     assert summary["duration_s"] == pytest.approx(2.0, abs=0.03)
+
+
+def test_dp_options_are_checked_before_anything_runs():
+    runner = CliRunner()
+    wrong_policy = runner.invoke(app, ["sim", "run", "--policy", "stand", "--task", "pick"])
+    assert str(wrong_policy.exception) == "--task and --checkpoint are for --policy dp"
+    unknown_task = runner.invoke(app, ["sim", "run", "--policy", "dp", "--task", "wagon"])
+    assert str(unknown_task.exception) == "--task 'wagon': expected one of pick"
+    unknown = runner.invoke(app, ["hw", "run", "--port", "/dev/null", "--calibration", "c.yaml", "--policy", "dpx"])
+    assert str(unknown.exception) == "unknown policy 'dpx'; expected one of stand, replay, walk-zmp, walk-rl, dp"

@@ -6,6 +6,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies import POLICIES
+
+RUN_POLICIES = (*POLICIES, "dp")
+"""What `sim run` and `hw run` accept: `dp` (a diffusion-policy checkpoint) lives in the manipulation layer, above
+`make_policy`'s registry."""
 
 
 def _torch_threads(threads: int) -> None:

@@ -13,8 +13,10 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from toddlerbot.cli.dp_live import RUN_POLICIES
 from toddlerbot.cli.options import positive, writable
 from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
@@ -188,6 +190,8 @@ def run(
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
     try:
+        if policy not in RUN_POLICIES:
+            raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
         positive(seconds, "--seconds", "seconds")
         positive(control_dt, "--dt", "seconds")
         positive(latency_ms, "--latency-ms", "milliseconds")

@@ -8,15 +8,12 @@ from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.dp_live import RUN_POLICIES
 from toddlerbot.cli.options import positive, writable
 from toddlerbot.cli.output import console
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
-from toddlerbot.policies import POLICIES
-
-SIM_POLICIES = (*POLICIES, "dp")
-"""`dp` (a diffusion-policy checkpoint) lives in the manipulation layer, above `make_policy`'s registry."""
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -25,7 +22,7 @@ app.command("compare")(compare_command)
 
 @app.command()
 def run(
-    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(SIM_POLICIES)}.")] = "walk-zmp",
+    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(RUN_POLICIES)}.")] = "walk-zmp",
     command: Annotated[str | None, typer.Option(
         "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
         "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")] = None,
@@ -66,8 +63,8 @@ def run(
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
     from toddlerbot.sim.render import Recorder, RenderError, has_display
 
-    if policy not in SIM_POLICIES:
-        raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(SIM_POLICIES)}")
+    if policy not in RUN_POLICIES:
+        raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
     if (task is not None or checkpoint is not None) and policy != "dp":
         raise ToddlerbotError("--task and --checkpoint are for --policy dp")
     positive(seconds, "--seconds", "seconds")
