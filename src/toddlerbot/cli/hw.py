@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import signal
 import sys
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Annotated
 
@@ -12,8 +13,10 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from toddlerbot.cli.dp_live import RUN_POLICIES
 from toddlerbot.cli.options import positive, writable
 from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
@@ -152,14 +155,19 @@ def calibrate(
 def run(
     port: PortOption,
     calibration: Annotated[Path, typer.Option("--calibration", help="Per-robot calibration file.")],
-    policy: Annotated[str, typer.Option("--policy", help="stand, replay, walk-zmp or walk-rl (as in `sim run`).")] =
-        "stand",
+    policy: Annotated[str, typer.Option("--policy", help="stand, replay, walk-zmp, walk-rl (as in `sim run`) or dp "
+                                        "(a diffusion policy: --checkpoint, --camera, --variant gripper).")] = "stand",
     command: Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")] =
         "0:0,0,0",
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")] = None,
     weights: Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy "
                                                  "(.npz from `toddlerbot rl export`; default: the shipped one).")] =
         None,
+    checkpoint: Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
+                                                    "`dp train` or `dp export`.")] = None,
+    camera: Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "
+                                               "(/dev/video0) or a video file (played at its frame rate).")] = None,
+    threads: Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")] = 1,
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s.")] = 5.0,
     control_dt: Annotated[float, typer.Option("--dt", help="Control period, s.")] = 0.02,
     log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
@@ -180,7 +188,10 @@ def run(
     from toddlerbot.runtime.runner import run_policy
 
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
+    stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
     try:
+        if policy not in RUN_POLICIES:
+            raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
         positive(seconds, "--seconds", "seconds")
         positive(control_dt, "--dt", "seconds")
         positive(latency_ms, "--latency-ms", "milliseconds")
@@ -191,19 +202,33 @@ def run(
         schedule = CommandSchedule.parse(command)
         robot = RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
                           calibration_source=str(calibration), latency_ms=latency_ms)
-        pol = make_policy(policy, robot, motion, weights)  # bad weights or motions fail before the bus opens
+        # bad weights, motions, checkpoints or cameras fail before the bus opens
+        if policy == "dp":
+            from toddlerbot.cli.dp_live import hw_dp_policy
+
+            pol, video = hw_dp_policy(robot, checkpoint, camera, threads)
+            stack.callback(pol.close)
+            if video is not None:
+                stack.callback(video.close)
+        else:
+            pol = make_policy(policy, robot, motion, weights)
         with robot:
             result = run_policy(robot, pol, schedule, seconds)
     except BusInterrupt as exc:
         console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
         raise typer.Exit(128 + exc.signum) from None
     finally:
+        stack.close()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
     steps = result.log.time.size
     error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)
     console.print(f"{policy}: {steps} steps at {steps / max(result.log.step_period.sum(), 1e-9):.0f} Hz; "
                   f"median largest tracking error {np.rad2deg(np.median(error)):.2f} deg")
+    if policy == "dp":
+        from toddlerbot.cli.dp_live import describe_status
+
+        console.print(describe_status(pol.status), highlight=False)
     if log:
         result.log.save(log)
         console.print(f"wrote {log}")

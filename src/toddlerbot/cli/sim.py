@@ -8,12 +8,12 @@ from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.dp_live import RUN_POLICIES
 from toddlerbot.cli.options import positive, writable
 from toddlerbot.cli.output import console
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
-from toddlerbot.policies import POLICIES
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -22,7 +22,7 @@ app.command("compare")(compare_command)
 
 @app.command()
 def run(
-    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(POLICIES)}.")] = "walk-zmp",
+    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(RUN_POLICIES)}.")] = "walk-zmp",
     command: Annotated[str | None, typer.Option(
         "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
         "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")] = None,
@@ -44,6 +44,13 @@ def run(
     summary_json: Annotated[Path | None, typer.Option("--summary-json", help="Write the summary as JSON.")] = None,
     motor_params: Annotated[list[Path] | None, typer.Option(
         "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")] = None,
+    task: Annotated[str | None, typer.Option("--task", help="For --policy dp: the manipulation scene (pick; the "
+                                             "gripper variant, the head camera as the policy's camera).")] = None,
+    checkpoint: Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
+                                                    "`dp train`/`dp export` (default: the one shipped for --task).")]
+        = None,
+    seed: Annotated[int, typer.Option("--seed", help="For --task: scene seed (the cube's pose).")] = 0,
+    threads: Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")] = 1,
 ) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from rich.progress import Progress
@@ -56,8 +63,10 @@ def run(
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
     from toddlerbot.sim.render import Recorder, RenderError, has_display
 
-    if policy not in POLICIES:
-        raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
+    if policy not in RUN_POLICIES:
+        raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
+    if (task is not None or checkpoint is not None) and policy != "dp":
+        raise ToddlerbotError("--task and --checkpoint are for --policy dp")
     positive(seconds, "--seconds", "seconds")
     positive(control_hz, "--control-hz", "Hz")
     outputs = {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json}
@@ -68,8 +77,15 @@ def run(
         command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
     schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)
     description = RobotDescription.load(motor_params=motor_params or [])
-    robot = MuJoCoRobot(description, SimConfig(control_dt=1.0 / control_hz))
-    pol = make_policy(policy, robot, motion)
+    scene = None
+    if policy == "dp":
+        from toddlerbot.cli.dp_live import sim_dp_policy
+
+        robot, pol, scene = sim_dp_policy(description, task or "pick", checkpoint, seed, realtime or viewer,
+                                          1.0 / control_hz, threads)
+    else:
+        robot = MuJoCoRobot(description, SimConfig(control_dt=1.0 / control_hz))
+        pol = make_policy(policy, robot, motion)
     recorder, render_skipped = None, None
     if video or snapshot:
         try:
@@ -92,6 +108,8 @@ def run(
         task = progress.add_task(f"simulating {policy}", total=round(seconds / robot.control_dt))
 
         def on_step(obs) -> None:
+            if scene is not None:
+                scene.observe()
             if recorder is not None and steps["n"] % frame_every == 0:
                 recorder.capture()
             if handle is not None:
@@ -99,10 +117,15 @@ def run(
             steps["n"] += 1
             progress.advance(task)
 
-        result = run_policy(robot, pol, schedule, seconds, realtime=realtime, on_step=on_step)
+        try:
+            result = run_policy(robot, pol, schedule, seconds, realtime=realtime, on_step=on_step)
+        finally:
+            if scene is not None:
+                pol.close()
     if handle is not None:
         handle.close()
     summary = summarize(result.log, result.fell, result.fall_time)
+    extra = {} if scene is None else {"dp": pol.status.to_dict(), "task": scene.to_dict()}
     if recorder is not None:
         if video:
             recorder.write_video(video, fps=1.0 / (frame_every * robot.control_dt))
@@ -115,7 +138,7 @@ def run(
         result.log.save(log)
         console.print(f"wrote {log}")
     if summary_json:
-        atomic_write_text(summary_json, json.dumps(summary.to_dict(), indent=2))
+        atomic_write_text(summary_json, json.dumps(summary.to_dict() | extra, indent=2))
     t = summary.tracking
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
     console.print(
@@ -125,6 +148,10 @@ def run(
         f"tracking errors: position {t.position_m:.3f} m, linear velocity {t.lin_vel_mps:.3f} m/s, "
         f"angular velocity {t.ang_vel_radps:.3f} rad/s; compute {summary.mean_compute_ms:.2f} ms/step"
     )
+    if scene is not None:
+        from toddlerbot.cli.dp_live import describe_status
+
+        console.print(f"{scene.describe()}\n{describe_status(pol.status)}", highlight=False)
     if render_skipped:
         console.print(render_skipped, highlight=False, markup=False, soft_wrap=True)
     if summary.fell:

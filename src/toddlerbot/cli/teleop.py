@@ -91,11 +91,11 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
     if task == "pick":
-        from toddlerbot.manipulation.tasks import PickTask
+        from toddlerbot.manipulation.tasks import PickTask, TaskRobot
 
         pick = PickTask(description)
         pick.reset(seed)
-        return _PickRobot(pick, seed), pick.head_image, False
+        return TaskRobot(pick, seed), pick.head_image, False
     model = None
     if task == "wagon":
         from toddlerbot.sim.scenes import scene_model
@@ -104,22 +104,6 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
     robot = MuJoCoRobot(description, model=model)
     camera = HeadCamera(robot.model, robot.data, description.handles.head_camera or "head_camera")
     return robot, camera.image, True
-
-
-class _PickRobot:
-    """The pick task's robot, reset into the task's start state (cube placed for the seed)."""
-
-    def __init__(self, task, seed: int) -> None:
-        self.task, self.seed = task, seed
-
-    def __getattr__(self, name: str):
-        return getattr(self.task.robot, name)
-
-    def reset(self):
-        return self.task.reset(self.seed)
-
-    def step(self, targets, kp=None, kd=None):
-        return self.task.step(targets, kp)
 
 
 def _source(input_kind: str, pad):

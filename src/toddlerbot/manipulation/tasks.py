@@ -205,6 +205,11 @@ class PickTask:
         bottom = pos[2] - self._cube_half * float(np.abs(rot[2]).sum())
         return max(0.0, bottom - self._table_top)
 
+    def grasp_distance(self) -> float:
+        """Distance from the task arm's grasp point (between the finger pads) to the cube centre, m."""
+        site = self.robot.data.site(grasp_site(self.config.arm)).xpos
+        return float(np.linalg.norm(site - self.cube_pose()[0]))
+
     def pinched(self) -> bool:
         """Do both fingers of the task's gripper touch the cube?"""
         d = self.robot.data
@@ -229,6 +234,25 @@ class PickTask:
         for name, value in tmap.motor_to_model(q_motor).items():
             d.qpos[self.model.joint(name).qposadr[0]] = value
         mujoco.mj_forward(self.model, d)
+
+
+class TaskRobot:
+    """A task's robot for code written against `Robot` (the runner, teleoperation): `reset` puts the task in its
+    start state for ``seed`` (cube placed, arm ready), `step` goes through `PickTask.step` (follower gains unless
+    given, success tracked); everything else is the task's `MuJoCoRobot`."""
+
+    def __init__(self, task: PickTask, seed: int) -> None:
+        self.task, self.seed = task, seed
+
+    def __getattr__(self, name: str):
+        return getattr(self.task.robot, name)
+
+    def reset(self) -> Observation:
+        return self.task.reset(self.seed)
+
+    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+             ) -> Observation:
+        return self.task.step(motor_targets, kp)
 
 
 def make_task(name: str, description: RobotDescription | None = None) -> PickTask:

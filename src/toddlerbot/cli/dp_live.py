@@ -1,0 +1,95 @@
+"""`--policy dp` for `sim run` and `hw run`: a diffusion-policy checkpoint, its camera, and what to report."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies import POLICIES
+
+RUN_POLICIES = (*POLICIES, "dp")
+"""What `sim run` and `hw run` accept: `dp` (a diffusion-policy checkpoint) lives in the manipulation layer, above
+`make_policy`'s registry."""
+
+
+def _torch_threads(threads: int) -> None:
+    try:
+        import torch
+    except ImportError as exc:
+        raise ToddlerbotError(f"--policy dp needs the [dp] extra (pip install 'toddlerbot[dp]'): {exc}") from exc
+    torch.set_num_threads(threads)
+
+
+@dataclass
+class PickProgress:
+    """How the arm did on the pick task: grasp-point-to-cube distance (start, closest, end), lift, success."""
+
+    task: object  # PickTask
+    start_distance_m: float
+    min_distance_m: float = float("inf")
+    end_distance_m: float = float("nan")
+    max_lift_m: float = 0.0
+    succeeded: bool = False
+
+    def observe(self) -> None:
+        self.end_distance_m = self.task.grasp_distance()
+        self.min_distance_m = min(self.min_distance_m, self.end_distance_m)
+        self.max_lift_m = max(self.max_lift_m, self.task.cube_lift())
+        self.succeeded = self.task.succeeded
+
+    def to_dict(self) -> dict:
+        return {"name": self.task.name, "start_distance_m": self.start_distance_m,
+                "min_distance_m": self.min_distance_m, "end_distance_m": self.end_distance_m,
+                "max_lift_m": self.max_lift_m, "succeeded": self.succeeded}
+
+    def describe(self) -> str:
+        return (f"{self.task.name}: grasp point to cube {self.start_distance_m:.3f} m -> {self.end_distance_m:.3f} m "
+                f"(closest {self.min_distance_m:.3f} m), cube lifted {1e3 * self.max_lift_m:.0f} mm, "
+                f"{'succeeded' if self.succeeded else 'not succeeded'}")
+
+
+def sim_dp_policy(description, task: str, checkpoint: Path | None, seed: int, realtime: bool, control_dt: float,
+                  threads: int):
+    """(robot, policy, progress) for `sim run --policy dp`: the task's scene reset for ``seed``, the simulated head
+    camera, and inference on the worker thread when the loop runs in real time (inline otherwise: a simulation
+    that runs faster or slower than the clock makes a worker's latency meaningless)."""
+    from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
+    from toddlerbot.manipulation.dp.live import load_live_policy
+    from toddlerbot.manipulation.tasks import TASKS, PickConfig, PickTask, TaskRobot
+
+    if task not in TASKS:
+        raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS)}")
+    _torch_threads(threads)
+    pick = PickTask(description, PickConfig(control_dt=control_dt))
+    robot = TaskRobot(pick, seed)
+    policy = load_live_policy(robot, checkpoint or shipped_checkpoint(task), pick.head_image,
+                              synchronous=not realtime)
+    pick.reset(seed)
+    return robot, policy, PickProgress(pick, pick.grasp_distance())
+
+
+def hw_dp_policy(robot, checkpoint: Path | None, camera: str | None, threads: int):
+    """(policy, camera or None) for `hw run --policy dp`: inference on the worker thread, images from a V4L2
+    device or a video file. Both are checked before the bus opens."""
+    from toddlerbot.manipulation.dp.live import load_live_policy
+    from toddlerbot.manipulation.video_camera import VideoCamera
+
+    if checkpoint is None:
+        raise ToddlerbotError("--policy dp needs --checkpoint (a checkpoint from `dp train` or `dp export`)")
+    _torch_threads(threads)
+    source = None if camera is None else VideoCamera(camera)
+    try:
+        return load_live_policy(robot, checkpoint, source), source
+    except BaseException:
+        if source is not None:
+            source.close()
+        raise
+
+
+def describe_status(status) -> str:
+    """One line of a `LiveStatus`."""
+    ms = "-" if status.inference_ms != status.inference_ms else f"{status.inference_ms:.1f} ms"
+    line = (f"dp: {status.chunks_used} chunks used, {status.holding_steps} steps held, {status.failures} failed "
+            f"inferences, {status.stale_dropped} stale chunks, {status.camera_misses} camera misses, inference {ms}")
+    return line if status.last_error is None else f"{line}; last error: {status.last_error}"
