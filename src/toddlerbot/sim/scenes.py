@@ -221,3 +221,11 @@ def place_cube(model: mujoco.MjModel, data: mujoco.MjData, xy: np.ndarray, yaw: 
     z = data.qpos[adr + 2]
     data.qpos[adr : adr + 7] = [xy[0], xy[1], z, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
     data.qvel[dadr : dadr + 6] = 0.0
+
+
+def shift_wagon(model: mujoco.MjModel, data: mujoco.MjData, offset_xy: np.ndarray) -> None:
+    """Move the wagon (at rest) by `offset_xy` (m) from where it stands; call mj_forward after."""
+    joint = model.joint(WAGON_BODY)
+    adr, dadr = joint.qposadr[0], joint.dofadr[0]
+    data.qpos[adr : adr + 2] += offset_xy
+    data.qvel[dadr : dadr + 6] = 0.0
