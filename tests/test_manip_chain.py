@@ -114,3 +114,100 @@ def test_a_sim_only_predicate_on_hardware_is_a_one_line_error(tmp_path):
     text = str(err.value)
     assert "\n" not in text and text.startswith(f"{path}: skill push: until: predicate 'moved' needs the simulator")
     assert "grasped" in text  # names the predicates that do work on hardware
+
+
+def test_holding_l1_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_teleop():
+    from toddlerbot.manipulation.chaining.probe import SceneProbe
+    from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
+    from toddlerbot.manipulation.gamepad import TeleopCommand
+    from toddlerbot.manipulation.teleop import TeleopSession
+    from toddlerbot.sim.scenes import grasp_site
+
+    class Script:
+        """L1 held for the first `held` polls, then nothing."""
+
+        def __init__(self, held: int) -> None:
+            self.held, self.polls = held, 0
+
+        def poll(self) -> TeleopCommand:
+            self.polls += 1
+            return TeleopCommand(skills=frozenset({"skill_l1"}) if self.polls <= self.held else frozenset())
+
+    model = scene_model(DESCRIPTION, "wagon")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    logs: list[str] = []
+    hook = ChainHook([load_chain("wagon", GROUPS)], robot, model, SceneProbe(model, robot.data), log=logs.append)
+    session = TeleopSession(robot, Script(held=100), skill_hook=hook, log=logs.append)
+    session.reset()
+    teleop_targets = session.arm_targets.copy()
+    site = robot.data.site(grasp_site("right"))
+    start = site.xpos.copy()
+    handle = robot.data.geom("wagon_handle").xpos.copy()
+    for _ in range(100):  # 2 s of L1: the grasp skill's approach (1.5 s) and part of its reach
+        session.step()
+    arms = DESCRIPTION.groups["arm"]
+    assert logs == ["chain wagon: started (l1)"] and hook.runner.status.skill == "grasp"
+    assert np.abs(robot.last_targets[arms] - teleop_targets[arms]).max() > 0.3  # the chain drives the arms
+    assert site.xpos[0] - start[0] > 0.04  # right grasp point moved forward towards the handle...
+    assert abs(site.xpos[2] - handle[2]) < 0.04  # ...to about its height
+    for _ in range(5):  # released: teleop's held arm targets again
+        session.step()
+    np.testing.assert_allclose(robot.last_targets[arms], teleop_targets[arms], atol=1e-9)
+
+
+def test_a_chain_runs_on_a_real_robot_against_the_emulator(tmp_path):
+    pytest.importorskip("dynamixel_sdk")
+    from hw_support import emulated
+    from toddlerbot.hardware.calibration import Calibration, spec_label
+    from toddlerbot.hardware.real_robot import RealRobot
+    from toddlerbot.manipulation.chaining.robot_run import run_on_robot
+
+    path = _chain_file(tmp_path, """\
+        scene: wagon
+        skills:
+          - name: grasp
+            kind: scripted_grasp
+            target: wagon_handle
+            target_pos: [0.14, 0.0, 0.26]
+            approach_s: 0.3
+            reach_s: 0.3
+            close_s: 0.2
+            hold: [leg]
+            until: {after: 0.9}
+          - {name: wait, kind: hold, until: {button: l1}, timeout: 5}
+          - {name: push, kind: walk, command: [0.1, 0, 0], hold: [arm, gripper], until: {after: 0.3}}
+        """)
+    chain = load_chain(path, GROUPS)
+    sent: list[np.ndarray] = []
+
+    class Recording(RealRobot):
+        def _apply(self, motor_targets, kp, kd):
+            sent.append(motor_targets.copy())
+            return super()._apply(motor_targets, kp, kd)
+
+    calls = 0
+
+    def buttons() -> frozenset[str]:
+        nonlocal calls
+        calls += 1
+        return frozenset({"l1"}) if calls > 70 else frozenset()  # L1 pressed about 1.4 s in
+
+    with emulated(DESCRIPTION, offsets_seed=3) as (emu, port):
+        calibration = Calibration("tb", spec_label(DESCRIPTION), {m.name: m.mounting_offset for m in emu.motors})
+        robot = Recording(DESCRIPTION, port, calibration, reset_duration=0.2)
+        status = run_on_robot(chain, robot, buttons)
+        torque_after = [m.torque_on for m in emu.motors]
+    assert status.failure is None and status.done
+    (a, b, t_grasp), (c, d, t_button) = status.switches
+    assert (a, b, c, d) == ("grasp", "wait", "wait", "push")
+    assert 0.9 <= t_grasp <= 1.1  # after: 0.9 s of robot time
+    assert t_button > t_grasp  # the wait skill ended only when L1 came
+    targets = np.array(sent)
+    lo, hi = DESCRIPTION.motor_range.T
+    assert np.isfinite(targets).all() and (targets >= lo - 1e-9).all() and (targets <= hi + 1e-9).all()
+    grippers = DESCRIPTION.groups["gripper"]
+    assert targets[:, grippers].max() > 0.8 * hi[grippers].min()  # the grasp closed the grippers...
+    walk_steps = round(0.3 / robot.control_dt)
+    held = targets[-walk_steps:, grippers]
+    assert len(sent) > walk_steps and np.abs(held - targets[-walk_steps - 1, grippers]).max() == 0.0  # ...held
+    assert not any(torque_after)
