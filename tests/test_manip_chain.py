@@ -211,3 +211,15 @@ def test_a_chain_runs_on_a_real_robot_against_the_emulator(tmp_path):
     held = targets[-walk_steps:, grippers]
     assert len(sent) > walk_steps and np.abs(held - targets[-walk_steps - 1, grippers]).max() == 0.0  # ...held
     assert not any(torque_after)
+
+
+def test_chain_run_reports_a_bad_chain_file_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    path = _chain_file(tmp_path, "scene: wagon\nskills: [{name: a, kind: hold, until: {after: 0}}]\n")
+    proc = subprocess.run([sys.executable, "-m", "toddlerbot.cli.main", "chain", "run", "wagon", "--chain", str(path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"{path}: skill a: until.after: expected a positive number of seconds" in lines[0]
