@@ -42,6 +42,9 @@ def teleop(
         = None,
     seed: Annotated[int, typer.Option("--seed", help="Scene seed (pick).")] = 0,
     viewer: Annotated[bool, typer.Option("--viewer", help="Show the MuJoCo viewer (sim; needs a display).")] = False,
+    chains: Annotated[list[str] | None, typer.Option("--chain", help="Skill chain (shipped name or file) run while "
+                                                     "its button is held; default (sim): the shipped chains of "
+                                                     "the task's scene, e.g. wagon on L1.")] = None,
 ) -> None:
     """Teleoperate: left stick walks, right stick turns, D-pad moves the waist, Y/A/X/B the neck, Menu marks
     episodes; with --input leader the arms follow the leader arms. Runs at 50 Hz in real time."""
@@ -69,7 +72,8 @@ def teleop(
     recorder = None
     if out is not None:
         recorder = EpisodeRecorder(f"teleop {task}", ManipulationSpace.of(robot.description), camera)
-    session = TeleopSession(robot, source, walker, recorder, leader, log=console.print)
+    hook = _chain_hook(chains, backend, task, robot)
+    session = TeleopSession(robot, source, walker, recorder, leader, skill_hook=hook, log=console.print)
     _run(session, robot, source, seconds, viewer and backend == "sim")
     if recorder is not None:
         _write(out, recorder)
@@ -104,6 +108,32 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
     robot = MuJoCoRobot(description, model=model)
     camera = HeadCamera(robot.model, robot.data, description.handles.head_camera or "head_camera")
     return robot, camera.image, True
+
+
+def _chain_hook(names: list[str] | None, backend: str, task: str, robot):
+    from toddlerbot.manipulation.chaining.spec import SHIPPED_DIR, load_chain
+
+    groups = tuple(robot.description.groups)
+    if names is None:
+        shipped = [load_chain(p, groups) for p in sorted(SHIPPED_DIR.glob("*.yaml"))] if backend == "sim" else []
+        chains = [c for c in shipped if c.scene == task and c.button is not None]
+    else:
+        chains = [load_chain(name, groups) for name in names]
+    if not chains:
+        return None
+    from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
+
+    if backend == "real":
+        from toddlerbot.sim.scenes import scene_model
+
+        hook = ChainHook(chains, robot, scene_model(robot.description, chains[0].scene), log=console.print)
+    else:
+        from toddlerbot.manipulation.chaining.probe import SceneProbe
+
+        hook = ChainHook(chains, robot, robot.model, SceneProbe(robot.model, robot.data), log=console.print)
+    for button, chain in hook.bound.items():
+        console.print(f"hold {button.upper()} to run chain {chain.name}")
+    return hook
 
 
 def _source(input_kind: str, pad):

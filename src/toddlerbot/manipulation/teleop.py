@@ -28,8 +28,9 @@ from toddlerbot.robot.interface import Observation, Robot
 NECK_JOINTS = ("neck_pitch", "neck_yaw")
 WAIST_JOINTS = ("waist_roll", "waist_yaw")
 
-SkillHook = Callable[[Observation, frozenset[str], np.ndarray], np.ndarray | None]
-"""(observation, skills held, teleop targets) -> motor targets to send instead, or None to leave them."""
+SkillHook = Callable[[Observation, frozenset[str], np.ndarray], tuple[np.ndarray, np.ndarray] | np.ndarray | None]
+"""(observation, skills held, teleop targets) -> motor targets to send instead, or (targets, firmware kp), or None
+to leave them."""
 
 
 class CommandSource(Protocol):
@@ -157,7 +158,9 @@ class TeleopSession:
 
         if self.skill_hook is not None and cmd.skills:
             override = self.skill_hook(self.obs, cmd.skills, targets)
-            if override is not None:
+            if isinstance(override, tuple):
+                targets, kp = override
+            elif override is not None:
                 targets = override
         self.obs = self.robot.step(targets, kp=kp)
         if self.recorder is not None:

@@ -66,10 +66,11 @@ class PickLayout:
 class WagonLayout:
     """Wagon of the ``wagon`` scene; lengths in m, world frame, wagon facing -x (handle towards the robot)."""
 
-    handle_x: float = 0.16
-    """x of the handle bar's axis (in front of the robot's hands)."""
-    handle_height: float = 0.24
-    """Height of the handle bar above the floor (hand height with the elbows bent)."""
+    handle_x: float = 0.14
+    """x of the handle bar's axis (in front of the robot's hands). The arms reach a bar further out or lower only
+    with the fingers far from around it: at 0.175 m and 0.24 m the grasp point misses by 4 cm (DLS IK)."""
+    handle_height: float = 0.26
+    """Height of the handle bar above the floor (just below the hands' home height, elbows bent)."""
     handle_half_width: float = 0.14
     body_half_size: tuple[float, float, float] = (0.12, 0.1, 0.04)
     wheel_radius: float = 0.03
@@ -134,7 +135,8 @@ def _add_wagon(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarra
                layout: WagonLayout = WagonLayout()) -> np.ndarray:
     bx, by, bz = layout.body_half_size
     r = layout.wheel_radius
-    body_x = layout.handle_x + 0.03 + bx
+    post_x = -bx - 0.015
+    body_x = layout.handle_x - post_x
     chassis_z = r + bz
     wagon = mj.worldbody.add_body(name=WAGON_BODY, pos=(body_x, 0.0, chassis_z))
     wagon.add_freejoint(name=WAGON_BODY)
@@ -142,7 +144,6 @@ def _add_wagon(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarra
     wagon.add_geom(name="wagon_bed", type=mujoco.mjtGeom.mjGEOM_BOX, size=(bx, by, bz), mass=layout.mass,
                    rgba=blue, contype=1, conaffinity=1)
     post_top = layout.handle_height - chassis_z
-    post_x = -bx - 0.015
     for side in (1, -1):
         wagon.add_geom(name=f"wagon_post_{'left' if side > 0 else 'right'}", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
                        fromto=(-bx, side * layout.handle_half_width * 0.9, 0.0,
@@ -219,4 +220,12 @@ def place_cube(model: mujoco.MjModel, data: mujoco.MjData, xy: np.ndarray, yaw: 
     adr, dadr = joint.qposadr[0], joint.dofadr[0]
     z = data.qpos[adr + 2]
     data.qpos[adr : adr + 7] = [xy[0], xy[1], z, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+    data.qvel[dadr : dadr + 6] = 0.0
+
+
+def shift_wagon(model: mujoco.MjModel, data: mujoco.MjData, offset_xy: np.ndarray) -> None:
+    """Move the wagon (at rest) by `offset_xy` (m) from where it stands; call mj_forward after."""
+    joint = model.joint(WAGON_BODY)
+    adr, dadr = joint.qposadr[0], joint.dofadr[0]
+    data.qpos[adr : adr + 2] += offset_xy
     data.qvel[dadr : dadr + 6] = 0.0

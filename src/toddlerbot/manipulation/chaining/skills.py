@@ -1,0 +1,258 @@
+"""Skill kinds of a chain. A skill starts from the targets the previous one ended with and, each control step,
+returns motor targets and firmware gains (the runner applies `hold` and sends them through `Robot.step`).
+
+* ``scripted_grasp``: both (or one) grippers grasp a bar lying across the robot (the wagon handle): each grasp
+  point moves to a pre-grasp point behind the bar, then onto it along the fingers, then the grippers close; DLS IK
+  every step, targets leading the IK solution by the gravity sag, a slow integral of the measured error (as the
+  pick demonstrator does). In sim the bar's position comes from the scene; on hardware from ``target_pos``.
+* ``dp``: a diffusion-policy checkpoint drives the arm and gripper motors (torch is imported only here).
+* ``walk``: a walking policy (walk-zmp, walk-rl) with a fixed command.
+* ``hold``: every motor keeps the previous skill's last targets.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.manipulation.demonstrator import min_jerk
+from toddlerbot.manipulation.ik import ArmIK
+from toddlerbot.manipulation.tasks import ManipulationSpace
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.sim.scenes import SIDES, grasp_site
+
+DP_CHECKPOINTS = Path(__file__).resolve().parent.parent / "dp" / "checkpoints"
+"""Shipped diffusion-policy checkpoints (``{task}.pt``), as `dp.evaluate.shipped_checkpoint` finds them."""
+
+
+@dataclass(frozen=True)
+class GraspParams:
+    target: str
+    """Geom of the bar to grasp (sim); the bar lies along y, each hand grasps it straight in front of itself."""
+    target_pos: tuple[float, float, float] | None = None
+    """Hardware: the bar's centre in the world frame of the home pose (x forward, z up from the floor), m."""
+    hands: Literal["both", "left", "right"] = "both"
+    pitch: float = 0.5
+    """Fingers tilted down from horizontal by this much, rad (the arms reach further forward and lower)."""
+    depth: float = 0.008
+    """Grasp point this far past the bar's axis along the fingers, m (the bar sits nearer the palm)."""
+    back: float = 0.05
+    """Pre-grasp point this far behind the grasp point along the fingers, m."""
+    grip_fraction: float = 0.85
+    """Closed gripper target as a fraction of the drive's range from open."""
+    approach_s: float = 1.5
+    reach_s: float = 1.5
+    close_s: float = 0.8
+    correction_gain: float = 0.05
+    """Per-step fraction of the measured grasp-point error added to the task-space correction."""
+    max_correction: float = 0.04
+    """Largest task-space correction, m."""
+    checkpoint: str | None = None
+    """Task whose shipped diffusion-policy checkpoint grasps instead of the script, when one is shipped."""
+
+
+@dataclass(frozen=True)
+class DPParams:
+    checkpoint: str
+    """A shipped checkpoint's task name (``pick``) or a checkpoint file."""
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class WalkParams:
+    policy: Literal["walk-zmp", "walk-rl"] = "walk-zmp"
+    command: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """(vx m/s, vy m/s, yaw rate rad/s)."""
+
+
+@dataclass(frozen=True)
+class HoldParams:
+    pass
+
+
+PARAMS: dict[str, type] = {"scripted_grasp": GraspParams, "dp": DPParams, "walk": WalkParams, "hold": HoldParams}
+
+
+@dataclass(frozen=True)
+class SkillEnv:
+    """What a skill may use: the robot, a kinematic model with the grasp sites, and the base pose to solve IK in."""
+
+    robot: Robot
+    model: mujoco.MjModel
+    base_qpos: Callable[[], np.ndarray]
+    """The model's full qpos for the base and free bodies: the simulated state, or the home keyframe on hardware."""
+    target_pos: Callable[[str], np.ndarray] | None
+    """World position of a named geom (sim), None on hardware."""
+    head_image: Callable[[], np.ndarray] | None
+    """The head camera's 96x96 RGB image (sim), None where the `Robot` has no camera."""
+
+
+class Skill(ABC):
+    by = ""
+    """What drives it, for reports (e.g. ``scripted (no checkpoint for task wagon)``)."""
+
+    @abstractmethod
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        """Begin from `targets` (rad, the last ones commanded)."""
+
+    @abstractmethod
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        """(motor targets rad, firmware kp) for the next step, `elapsed` s after `start`."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Release threads or files."""
+
+
+class ScriptedGrasp(Skill):
+    def __init__(self, env: SkillEnv, p: GraspParams, why: str) -> None:
+        if env.target_pos is None and p.target_pos is None:
+            raise ToddlerbotError(f"scripted_grasp of {p.target!r}: on hardware the chain must give target_pos")
+        self.env, self.p, self.by = env, p, f"scripted ({why})"
+        d = env.robot.description
+        sides = SIDES if p.hands == "both" else (p.hands,)
+        self.iks = [ArmIK(d, env.model, side, site=grasp_site(side)) for side in sides]
+        self.grippers = [d.motor_names.index(f"{side}_gripper_drive") for side in sides]
+        self.kp = d.default_kp.copy()
+        self._stiffness = d.actuator_arrays(self.kp).kp
+
+    def _bar(self) -> np.ndarray:
+        if self.env.target_pos is not None:
+            return self.env.target_pos(self.p.target)
+        return np.array(self.p.target_pos, dtype=float)
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        p, base, bar = self.p, self.env.base_qpos(), self._bar()
+        tilt = np.array([np.cos(p.pitch), 0.0, -np.sin(p.pitch)])
+        """Fingertip direction in the world: forward, tilted down by `pitch`."""
+        self._plans = []
+        for ik in self.iks:
+            pos, rot = ik.forward(obs.motor_pos, base)
+            wrist = rot.T @ (ik.data.xpos[ik.model.site_bodyid[ik.site]] - pos)
+            fingers = -np.sign(wrist[1]) * tilt  # site y runs along the fingers, towards the tips on one side only
+            closing = np.array([np.sin(p.pitch), 0.0, np.cos(p.pitch)])
+            closing *= np.sign(closing @ rot[:, 2])  # keep the closing axis' sense: no wrist flip
+            goal_rot = np.column_stack([np.cross(fingers, closing), fingers, closing])
+            goal = np.array([bar[0], pos[1], bar[2]]) + p.depth * tilt
+            self._plans.append((pos, goal - p.back * tilt, goal, goal_rot))
+        self._q = np.array(targets, dtype=float)
+        self._open = self._q[self.grippers].copy()
+        self._correction = [np.zeros(3) for _ in self.iks]
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        p, base = self.p, self.env.base_qpos()
+        q = self._q
+        for k, (ik, (start, pregrasp, goal, rot)) in enumerate(zip(self.iks, self._plans)):
+            if elapsed < p.approach_s:
+                a, b, s = start, pregrasp, min_jerk(elapsed / p.approach_s)
+            else:
+                a, b, s = pregrasp, goal, min_jerk((elapsed - p.approach_s) / p.reach_s)
+            desired = a + (b - a) * s
+            measured, _ = ik.forward(obs.motor_pos, base)
+            self._correction[k] = np.clip(self._correction[k] + p.correction_gain * (desired - measured),
+                                          -p.max_correction, p.max_correction)
+            q, _ = ik.solve(q, desired + self._correction[k], rot, base)
+        self._q = q
+        out = q.copy()
+        for ik in self.iks:
+            out[ik.arm] += ik.gravity_torque(q, base) / self._stiffness[ik.arm]
+        lo_hi = self.env.robot.description.motor_range[self.grippers]
+        closed = lo_hi[:, 0] + p.grip_fraction * (lo_hi[:, 1] - lo_hi[:, 0])
+        s = min_jerk((elapsed - p.approach_s - p.reach_s) / p.close_s)
+        out[self.grippers] = self._open + s * (closed - self._open)
+        return out, self.kp
+
+
+class DPSkill(Skill):
+    """Runs a checkpoint as `dp.evaluate.run_episode` does: synchronous `ChunkPolicyRunner`, observations at the
+    policy rate from the arm/gripper motors (and the head camera when the policy uses images)."""
+
+    def __init__(self, env: SkillEnv, p: DPParams) -> None:
+        from toddlerbot.manipulation.dp.checkpoint import load_policy
+        from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
+
+        path = Path(p.checkpoint) if p.checkpoint.endswith(".pt") else shipped_checkpoint(p.checkpoint)
+        self.policy = load_policy(path)
+        if self.policy.config.uses_images and env.head_image is None:
+            raise ToddlerbotError(f"dp checkpoint {path} needs head-camera images, which this robot does not give")
+        self.env, self.seed, self.by = env, p.seed, f"dp ({path.name})"
+        self.space = ManipulationSpace.of(env.robot.description)
+        self.kp = env.robot.description.default_kp.copy()
+        self._runner = None
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        from toddlerbot.manipulation.dp.chunker import ActionChunker
+        from toddlerbot.manipulation.dp.inference import PolicyInference
+        from toddlerbot.manipulation.dp.runner import ChunkPolicyRunner
+
+        c = self.policy.config
+        self.chunker = ActionChunker(c.latency_drop, c.n_action_steps, 1.0 / c.policy_hz, self.env.robot.control_dt)
+        self._targets = np.array(targets, dtype=float)
+        self._runner = ChunkPolicyRunner(PolicyInference(self.policy, self.seed), self.chunker, c.n_obs_steps,
+                                         self._targets[self.space.indices], synchronous=True)
+        self._step = 0
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        from toddlerbot.manipulation.dp.data import channel_first
+        from toddlerbot.manipulation.dp.policy import IMAGE, STATE
+
+        observation = {STATE: obs.motor_pos[self.space.indices].astype(np.float32)}
+        if self.policy.config.uses_images and self._step % self.chunker.substeps == 0:
+            observation[IMAGE] = channel_first(self.env.head_image())  # type: ignore[misc]
+        self._step += 1
+        self._targets[self.space.indices] = self._runner.step(observation)  # type: ignore[union-attr]
+        return self._targets.copy(), self.kp
+
+    def close(self) -> None:
+        if self._runner is not None:
+            self._runner.close()
+
+
+class WalkSkill(Skill):
+    def __init__(self, env: SkillEnv, p: WalkParams) -> None:
+        from toddlerbot.policies import make_policy
+
+        self.policy = make_policy(p.policy, env.robot)
+        self.command = np.array(p.command)
+        self.kp = env.robot.description.default_kp.copy()
+        self.by = p.policy
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        self.policy.reset(obs)
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        action = self.policy.act(obs, self.command)
+        return action.motor_targets, self.kp if action.kp is None else np.asarray(action.kp, dtype=float)
+
+
+class HoldSkill(Skill):
+    by = "hold"
+
+    def __init__(self, env: SkillEnv) -> None:
+        self.kp = env.robot.description.default_kp.copy()
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        self._targets = np.array(targets, dtype=float)
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        return self._targets.copy(), self.kp
+
+
+def make_skill(kind: str, params: object, env: SkillEnv) -> Skill:
+    if kind == "scripted_grasp":
+        task = params.checkpoint  # type: ignore[attr-defined]
+        if task is not None and (DP_CHECKPOINTS / f"{task}.pt").is_file():
+            return DPSkill(env, DPParams(task))
+        why = "no checkpoint named" if task is None else f"no checkpoint for task {task}"
+        return ScriptedGrasp(env, params, why)  # type: ignore[arg-type]
+    if kind == "dp":
+        return DPSkill(env, params)  # type: ignore[arg-type]
+    if kind == "walk":
+        return WalkSkill(env, params)  # type: ignore[arg-type]
+    return HoldSkill(env)

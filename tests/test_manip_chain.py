@@ -1,0 +1,225 @@
+"""Skill chaining (issue 14): chain files, the wagon chain in sim, chains on teleop buttons, on a RealRobot."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from toddlerbot.manipulation.chaining.predicates import Context, GraspedParams, PredicateError, holds
+from toddlerbot.manipulation.chaining.runner import ChainRunner
+from toddlerbot.manipulation.chaining.spec import ChainFileError, load_chain
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+from toddlerbot.sim.scenes import scene_model
+
+DESCRIPTION = RobotDescription.load(variant="gripper")
+GROUPS = tuple(DESCRIPTION.groups)
+
+
+def _chain_file(tmp_path, body: str):
+    path = tmp_path / "c.yaml"
+    path.write_text(textwrap.dedent(body))
+    return path
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_wagon_chain_grasps_the_handle_then_pushes_the_wagon(seed):
+    from toddlerbot.manipulation.chaining.sim_run import run_in_sim
+
+    result = run_in_sim(load_chain("wagon", GROUPS), seed, description=DESCRIPTION)
+    out = result.as_json()
+    assert out["success"] is True and result.failure is None
+    assert out["wagon_displacement_m"] >= 0.5
+    assert out["checks"] == {"moved": True, "grasped": True}  # both grippers still pinch the handle at the end
+    assert out["grasp_by"] == "scripted (no checkpoint for task wagon)"
+    # grasp ends once the closing command is complete (approach 1.5 + reach 1.5 + close 0.8 s) and the pads pinch
+    assert 3.8 <= out["switch_time_s"] <= 4.2
+    assert [(s["from"], s["to"]) for s in out["switches"]] == [("grasp", "settle"), ("settle", "push")]
+    assert out["switches"][1]["time_s"] == pytest.approx(out["switch_time_s"] + 0.4, abs=0.021)
+
+
+@pytest.mark.parametrize("body,message", [
+    ("scene: wagon\nskills: []\n", "skills: expected a non-empty list of skills, got []"),
+    ("scene: moon\nskills: [{name: a, kind: hold, until: {after: 1}}]\n", "scene: expected one of pick, wagon"),
+    ("scene: wagon\nskills: [{name: a, kind: fly, until: {after: 1}}]\n", "skill a: kind: expected one of"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: -1}}]\n",
+     "skill a: until.after: expected a positive number of seconds, got -1"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1, button: l1}}]\n",
+     "skill a: until: expected exactly one of after, predicate, button"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {button: x9}}]\n",
+     "skill a: until.button: expected one of l1, r1, l2, r2, got 'x9'"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, hold: [tail], until: {after: 1}}]\n",
+     "skill a: hold: expected a list of motor groups"),
+    ("scene: wagon\nskills: [{name: a, kind: walk, command: [0.1, 0], until: {after: 1}}]\n",
+     "skill a: command: expected"),
+    ("scene: wagon\nskills: [{name: a, kind: walk, speed: 2, until: {after: 1}}]\n",
+     "skill a: parameters: unknown field 'speed'"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {predicate: grasped}}]\n",
+     "skill a: until: target: required"),
+    ("scene: wagon\nskills: [{name: a, kind: scripted_grasp, target: h, pitch: fast, until: {after: 1}}]\n",
+     "skill a: pitch: expected float, got 'fast'"),
+])
+def test_bad_chain_files_get_one_line_errors_naming_file_skill_and_field(tmp_path, body, message):
+    path = _chain_file(tmp_path, body)
+    with pytest.raises(ChainFileError) as err:
+        load_chain(path, GROUPS)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith(f"{path}: ") and message in text
+
+
+def test_grasped_on_hardware_is_a_gripper_stalled_short_of_its_closed_target():
+    d = DESCRIPTION
+    left, right = (d.motor_names.index(f"{s}_gripper_drive") for s in ("left", "right"))
+    params = GraspedParams("wagon_handle", "both", closed_fraction=0.8, stall_error=0.15)
+    closed = d.motor_range[left, 1] * 0.85
+    targets = d.home_motor_pos.copy()
+    targets[[left, right]] = closed
+    robot = MuJoCoRobot(d)
+    obs = robot.reset()
+
+    def grasped(pos_left: float, pos_right: float, t: np.ndarray = targets) -> bool:
+        pos = obs.motor_pos.copy()
+        pos[[left, right]] = pos_left, pos_right
+        return holds("grasped", params, Context(robot, _with_pos(obs, pos), t, probe=None))
+
+    assert grasped(closed - 0.4, closed - 0.3)          # both stalled 0.3-0.4 rad short: holding the handle
+    assert not grasped(closed - 0.4, closed - 0.05)      # right reached its target: nothing in it
+    open_targets = targets.copy()
+    open_targets[[left, right]] = d.motor_range[left, 1] * 0.5
+    assert not grasped(0.0, 0.0, open_targets)           # commanded only half closed: not a grasp yet
+    either = GraspedParams("wagon_handle", "either", closed_fraction=0.8, stall_error=0.15)
+    pos = obs.motor_pos.copy()
+    pos[[left, right]] = closed - 0.4, closed
+    assert holds("grasped", either, Context(robot, _with_pos(obs, pos), targets, probe=None))
+
+
+def _with_pos(obs, pos):
+    from dataclasses import replace
+
+    return replace(obs, motor_pos=pos)
+
+
+def test_a_sim_only_predicate_on_hardware_is_a_one_line_error(tmp_path):
+    path = _chain_file(tmp_path, """\
+        scene: wagon
+        skills:
+          - {name: push, kind: walk, command: [0.1, 0, 0], until: {predicate: moved, body: wagon, at_least: 0.5}}
+        """)
+    chain = load_chain(path, GROUPS)
+    robot = MuJoCoRobot(DESCRIPTION)  # no scene probe given: the runner sees only the Robot, as on hardware
+    with pytest.raises(PredicateError) as err:
+        ChainRunner(chain, robot, scene_model(DESCRIPTION, "wagon"), probe=None)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith(f"{path}: skill push: until: predicate 'moved' needs the simulator")
+    assert "grasped" in text  # names the predicates that do work on hardware
+
+
+def test_holding_l1_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_teleop():
+    from toddlerbot.manipulation.chaining.probe import SceneProbe
+    from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
+    from toddlerbot.manipulation.gamepad import TeleopCommand
+    from toddlerbot.manipulation.teleop import TeleopSession
+    from toddlerbot.sim.scenes import grasp_site
+
+    class Script:
+        """L1 held for the first `held` polls, then nothing."""
+
+        def __init__(self, held: int) -> None:
+            self.held, self.polls = held, 0
+
+        def poll(self) -> TeleopCommand:
+            self.polls += 1
+            return TeleopCommand(skills=frozenset({"skill_l1"}) if self.polls <= self.held else frozenset())
+
+    model = scene_model(DESCRIPTION, "wagon")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    logs: list[str] = []
+    hook = ChainHook([load_chain("wagon", GROUPS)], robot, model, SceneProbe(model, robot.data), log=logs.append)
+    session = TeleopSession(robot, Script(held=100), skill_hook=hook, log=logs.append)
+    session.reset()
+    teleop_targets = session.arm_targets.copy()
+    site = robot.data.site(grasp_site("right"))
+    start = site.xpos.copy()
+    handle = robot.data.geom("wagon_handle").xpos.copy()
+    for _ in range(100):  # 2 s of L1: the grasp skill's approach (1.5 s) and part of its reach
+        session.step()
+    arms = DESCRIPTION.groups["arm"]
+    assert logs == ["chain wagon: started (l1)"] and hook.runner.status.skill == "grasp"
+    assert np.abs(robot.last_targets[arms] - teleop_targets[arms]).max() > 0.3  # the chain drives the arms
+    assert site.xpos[0] - start[0] > 0.04  # right grasp point moved forward towards the handle...
+    assert abs(site.xpos[2] - handle[2]) < 0.04  # ...to about its height
+    for _ in range(5):  # released: teleop's held arm targets again
+        session.step()
+    np.testing.assert_allclose(robot.last_targets[arms], teleop_targets[arms], atol=1e-9)
+
+
+def test_a_chain_runs_on_a_real_robot_against_the_emulator(tmp_path):
+    pytest.importorskip("dynamixel_sdk")
+    from hw_support import emulated
+    from toddlerbot.hardware.calibration import Calibration, spec_label
+    from toddlerbot.hardware.real_robot import RealRobot
+    from toddlerbot.manipulation.chaining.robot_run import run_on_robot
+
+    path = _chain_file(tmp_path, """\
+        scene: wagon
+        skills:
+          - name: grasp
+            kind: scripted_grasp
+            target: wagon_handle
+            target_pos: [0.14, 0.0, 0.26]
+            approach_s: 0.3
+            reach_s: 0.3
+            close_s: 0.2
+            hold: [leg]
+            until: {after: 0.9}
+          - {name: wait, kind: hold, until: {button: l1}, timeout: 5}
+          - {name: push, kind: walk, command: [0.1, 0, 0], hold: [arm, gripper], until: {after: 0.3}}
+        """)
+    chain = load_chain(path, GROUPS)
+    sent: list[np.ndarray] = []
+
+    class Recording(RealRobot):
+        def _apply(self, motor_targets, kp, kd):
+            sent.append(motor_targets.copy())
+            return super()._apply(motor_targets, kp, kd)
+
+    calls = 0
+
+    def buttons() -> frozenset[str]:
+        nonlocal calls
+        calls += 1
+        return frozenset({"l1"}) if calls > 70 else frozenset()  # L1 pressed about 1.4 s in
+
+    with emulated(DESCRIPTION, offsets_seed=3) as (emu, port):
+        calibration = Calibration("tb", spec_label(DESCRIPTION), {m.name: m.mounting_offset for m in emu.motors})
+        robot = Recording(DESCRIPTION, port, calibration, reset_duration=0.2)
+        status = run_on_robot(chain, robot, buttons)
+        torque_after = [m.torque_on for m in emu.motors]
+    assert status.failure is None and status.done
+    (a, b, t_grasp), (c, d, t_button) = status.switches
+    assert (a, b, c, d) == ("grasp", "wait", "wait", "push")
+    assert 0.9 <= t_grasp <= 1.1  # after: 0.9 s of robot time
+    assert t_button > t_grasp  # the wait skill ended only when L1 came
+    targets = np.array(sent)
+    lo, hi = DESCRIPTION.motor_range.T
+    assert np.isfinite(targets).all() and (targets >= lo - 1e-9).all() and (targets <= hi + 1e-9).all()
+    grippers = DESCRIPTION.groups["gripper"]
+    assert targets[:, grippers].max() > 0.8 * hi[grippers].min()  # the grasp closed the grippers...
+    walk_steps = round(0.3 / robot.control_dt)
+    held = targets[-walk_steps:, grippers]
+    assert len(sent) > walk_steps and np.abs(held - targets[-walk_steps - 1, grippers]).max() == 0.0  # ...held
+    assert not any(torque_after)
+
+
+def test_chain_run_reports_a_bad_chain_file_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    path = _chain_file(tmp_path, "scene: wagon\nskills: [{name: a, kind: hold, until: {after: 0}}]\n")
+    proc = subprocess.run([sys.executable, "-m", "toddlerbot.cli.main", "chain", "run", "wagon", "--chain", str(path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"{path}: skill a: until.after: expected a positive number of seconds" in lines[0]
