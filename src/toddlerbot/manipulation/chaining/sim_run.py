@@ -23,6 +23,7 @@ WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
 """Seeded shift of the wagon from its layout position: (x range, y range), m."""
 UNBOUNDED_SKILL_S = 60.0
 """Simulated time allowed to a skill with neither `after` nor `timeout` (a button it will never see in sim)."""
+VIDEO_CAMERA = "perspective"
 VIDEO_FPS = 25
 
 
@@ -74,7 +75,8 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     if video is not None:
         from toddlerbot.manipulation.video import SideBySideVideo
 
-        recorder = SideBySideVideo(SimpleNamespace(model=model, robot=robot), video, VIDEO_FPS)
+        # the tracking camera: a chain that walks leaves the fixed workspace camera's view
+        recorder = SideBySideVideo(SimpleNamespace(model=model, robot=robot), video, VIDEO_FPS, camera=VIDEO_CAMERA)
     every = max(1, round(1.0 / (VIDEO_FPS * robot.control_dt)))
     limit = sum(s.until.after or s.timeout or UNBOUNDED_SKILL_S for s in chain.skills) + 1.0
     started = time.perf_counter()
