@@ -26,8 +26,10 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 
 def _start_emulator(*args: str) -> tuple[subprocess.Popen, str]:
     env = dict(os.environ, PYTHONPATH=f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    # started with SIGINT ignored, as a shell starts a background job: the emulator must still stop on it
     proc = subprocess.Popen([sys.executable, "-m", "toddlerbot.cli.main", "hw", "emulate", *args],
-                            stdout=subprocess.PIPE, text=True, env=env)
+                            stdout=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     path = proc.stdout.readline().strip()
     assert path.startswith("/dev/"), f"emulator printed {path!r}"
     return proc, path

@@ -68,7 +68,8 @@ def emulate(
         offsets = {m.name: m.mounting_offset for m in bus.motors}
         save_calibration(Calibration("emulated", spec_label(bus.description), offsets, {}), write_calibration)
     server = PtyServer(bus)
-    for signum in (signal.SIGTERM, signal.SIGHUP):
+    # SIGINT too: a shell starts background jobs with it ignored, and the emulator must still stop on it
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_interrupt)
     try:
         print(server.path, flush=True)
