@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 STALE_AFTER = 0.2
-"""s without a new leader reading before the follower holds (issue 13)."""
+"""s without a new leader reading before the follower holds."""
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ Per control step: the input source gives a `TeleopCommand`; its walking command 
 (walk-zmp or walk-rl); the neck and waist follow the D-pad and Y/A/X/B as rates added to their home angles
 (clamped to the joint ranges); the arms and grippers follow the leader (`ArmFollower`, rate-limited, holding when
 the leader is stale) or hold their pose; the upper body runs at the follower's reduced gains. Menu marks an
-episode's start and end when recording, and toggles teleoperation otherwise. A skill hook (issue 14) may take
+episode's start and end when recording, and toggles teleoperation otherwise. A skill hook (skill chains) may take
 over the targets while a skill button is held.
 """
 
