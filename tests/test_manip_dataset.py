@@ -193,3 +193,20 @@ def test_decoded_copy_rejects_foreign_and_inconsistent_files(tmp_path):
     with pytest.raises(DatasetError) as err:
         load_decoded(tmp_path / "gap.npz")
     assert "gap.npz: episode_bounds do not tile rows 0..17" in str(err.value)
+
+
+def test_a_gathered_batch_equals_the_samples_cut_one_by_one(tmp_path):
+    torch = pytest.importorskip("torch")
+    from toddlerbot.manipulation.dp.data import collate, gather, open_window_dataset, split_by_episode
+
+    root, _ = _dataset(tmp_path)
+    windows = open_window_dataset(root, 2, 4)
+    train, _, _ = split_by_episode(windows, 0.5, seed=0)
+    picks = [len(train) - 1, 0, 3, 3]  # an episode's last frame (padded actions) and a repeat
+    keys = ("observation.state", "action", "action_is_pad", "observation.images.head")
+    gathered = gather(train, picks, keys)
+    one_by_one = collate([train[i] for i in picks], keys)
+    for key in keys:
+        assert gathered[key].dtype == one_by_one[key].dtype
+        assert torch.equal(gathered[key], one_by_one[key])
+    assert gathered["action_is_pad"][0].sum() == 3  # the last frame of its episode: 3 of 4 actions padded

@@ -108,22 +108,28 @@ class Windows:
     def __getitem__(self, i: int) -> dict[str, np.ndarray]:
         """Sample i: ``observation.state`` (To, D), ``observation.images.head`` (To, H, W, 3) uint8,
         ``action`` (Ta, D), and boolean ``observation_is_pad`` (To,), ``action_is_pad`` (Ta,)."""
+        return {key: value[0] for key, value in self.batch([i]).items()}
+
+    def batch(self, indices: Sequence[int]) -> dict[str, np.ndarray]:
+        """Samples ``indices`` stacked (a leading batch axis on every field of `__getitem__`), gathered with one
+        index array per field rather than sample by sample (a GPU trains faster than samples are cut one by one)."""
         ds, cfg = self.dataset, self.config
-        frame = int(self.frames[i])
-        start, end = ds.episode_bounds[ds.episode_index[frame]]
-        obs_idx = frame + np.arange(-cfg.obs_horizon + 1, 1)
-        act_idx = frame + np.arange(cfg.action_horizon)
-        obs_clamped = np.clip(obs_idx, start, end - 1)
-        act_clamped = np.clip(act_idx, start, end - 1)
-        sample = {
+        frames = self.frames[np.asarray(indices, dtype=np.int64)]
+        bounds = ds.episode_bounds[ds.episode_index[frames]]
+        start, last = bounds[:, :1], bounds[:, 1:] - 1
+        obs_idx = frames[:, None] + np.arange(-cfg.obs_horizon + 1, 1)
+        act_idx = frames[:, None] + np.arange(cfg.action_horizon)
+        obs_clamped = np.clip(obs_idx, start, last)
+        act_clamped = np.clip(act_idx, start, last)
+        samples = {
             "observation.state": ds.state[obs_clamped],
             "action": ds.action[act_clamped],
             "observation_is_pad": obs_idx != obs_clamped,
             "action_is_pad": act_idx != act_clamped,
         }
         if ds.images.shape[1]:
-            sample[IMAGE_KEY] = ds.images[obs_clamped]
-        return sample
+            samples[IMAGE_KEY] = ds.images[obs_clamped]
+        return samples
 
 
 def save_decoded(dataset: Dataset, path: str | Path) -> Path:

@@ -9,7 +9,8 @@ A window is one training sample at one frame of one episode, at the policy rate 
 - ``action_is_pad`` (horizon,) bool: True where the episode had ended and the last action was repeated;
 - ``episode_index``: int, the episode the window belongs to.
 
-A dataset may also carry ``window_episodes`` (len,) int, the episode of every window, to spare a pass over the
+A dataset may also offer ``batch(indices)`` (every field stacked, gathered at once: what training uses when
+present), and carry ``window_episodes`` (len,) int, the episode of every window, to spare a pass over the
 samples when splitting, and ``state_names`` / ``action_names`` (joint names), which the checkpoint keeps.
 """
 
@@ -71,6 +72,19 @@ def collate(samples: Sequence[dict[str, Any]], keys: Sequence[str]) -> dict[str,
     return {k: torch.as_tensor(np.stack([np.asarray(s[k]) for s in samples])) for k in keys}
 
 
+def gather(dataset: WindowDataset, indices: Sequence[int], keys: Sequence[str]) -> dict[str, torch.Tensor]:
+    """Batch tensors of windows ``indices`` of ``dataset`` (through any `Subset` to its base): one gather per field
+    where the base offers ``batch(indices)``, else sample by sample."""
+    base, positions = dataset, list(indices)
+    while isinstance(base, Subset):
+        positions = [base.indices[i] for i in positions]
+        base = base.dataset
+    if hasattr(base, "batch"):
+        arrays = base.batch(positions)
+        return {k: torch.as_tensor(arrays[k]) for k in keys}
+    return collate([base[i] for i in positions], keys)
+
+
 def batch_keys(uses_images: bool) -> tuple[str, ...]:
     return (STATE, ACTION, ACTION_PAD, IMAGE) if uses_images else (STATE, ACTION, ACTION_PAD)
 
@@ -130,11 +144,16 @@ class ChannelFirstWindows:
         return len(self.windows)
 
     def __getitem__(self, index: int) -> dict[str, Any]:
-        sample = dict(self.windows[index])
-        if IMAGE in sample:
-            sample[IMAGE] = channel_first(sample[IMAGE])
-        sample["episode_index"] = int(self.window_episodes[index])
+        sample = {key: value[0] for key, value in self.batch([index]).items()}
+        sample["episode_index"] = int(sample["episode_index"])
         return sample
+
+    def batch(self, indices: Sequence[int]) -> dict[str, np.ndarray]:
+        samples = self.windows.batch(indices)
+        if IMAGE in samples:
+            samples[IMAGE] = channel_first(samples[IMAGE])
+        samples["episode_index"] = self.window_episodes[np.asarray(indices, dtype=np.int64)]
+        return samples
 
 
 def open_window_dataset(path: str | Path, n_obs_steps: int, horizon: int) -> WindowDataset:

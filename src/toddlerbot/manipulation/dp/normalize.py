@@ -69,6 +69,11 @@ def crop_images(images: torch.Tensor, size: int, random: bool) -> torch.Tensor:
     if not random:
         top, left = (height - size) // 2, (width - size) // 2
         return images[:, :, top:top + size, left:left + size]
-    tops = torch.randint(0, height - size + 1, (n,)).tolist()
-    lefts = torch.randint(0, width - size + 1, (n,)).tolist()
-    return torch.stack([img[:, t:t + size, left:left + size] for img, t, left in zip(images, tops, lefts)])
+    tops = torch.randint(0, height - size + 1, (n,)).to(images.device)
+    lefts = torch.randint(0, width - size + 1, (n,)).to(images.device)
+    offsets = torch.arange(size, device=images.device)
+    rows = (tops[:, None] + offsets)[:, None, :, None]  # (n, 1, size, 1)
+    cols = (lefts[:, None] + offsets)[:, None, None, :]  # (n, 1, 1, size)
+    batch = torch.arange(n, device=images.device)[:, None, None, None]
+    channels = torch.arange(images.shape[1], device=images.device)[None, :, None, None]
+    return images[batch, channels, rows, cols]  # one gather for all crops

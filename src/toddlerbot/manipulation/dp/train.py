@@ -30,7 +30,7 @@ from toddlerbot.manipulation.dp.data import (
     WindowDataset,
     batch_keys,
     check_sample,
-    collate,
+    gather,
     split_by_episode,
     value_ranges,
 )
@@ -68,7 +68,7 @@ class TrainResult:
 
 def _batch(dataset: WindowDataset, indices: list[int], keys: tuple[str, ...],
            device: torch.device) -> dict[str, torch.Tensor]:
-    return {k: v.to(device, non_blocking=True) for k, v in collate([dataset[i] for i in indices], keys).items()}
+    return {k: v.to(device, non_blocking=True) for k, v in gather(dataset, indices, keys).items()}
 
 
 @torch.no_grad()
