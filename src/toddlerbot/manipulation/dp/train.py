@@ -71,6 +71,10 @@ def _batch(dataset: WindowDataset, indices: list[int], keys: tuple[str, ...],
     return {k: v.to(device, non_blocking=True) for k, v in gather(dataset, indices, keys).items()}
 
 
+def _mean(losses: list[torch.Tensor]) -> float:
+    return float(np.mean(torch.stack(losses).cpu().double().numpy()))
+
+
 @torch.no_grad()
 def validation_loss(state: TrainingState, dataset: WindowDataset, batches: int) -> float | None:
     """Mean EMA noise-prediction loss over the first ``batches`` batches of ``dataset`` (fixed noise seed)."""
@@ -157,7 +161,7 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     started = time.perf_counter()
     deadline = None if schedule.minutes is None else started + 60.0 * schedule.minutes
     checkpoint = run_dir / CHECKPOINT
-    losses: list[float] = []
+    losses: list[torch.Tensor] = []  # kept on the device: reading each one would wait for the GPU every step
     state.policy.train()
     with Progress(TextColumn("dp train"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
                   disable=not show_progress) as bar:
@@ -174,9 +178,9 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
             state.optimizer.step()
             state.ema.update(state.policy)
             state.step += 1
-            losses.append(loss.item())
+            losses.append(loss.detach())
             if state.step % schedule.log_every == 0:
-                record = {"step": state.step, "train_loss": float(np.mean(losses)),
+                record = {"step": state.step, "train_loss": _mean(losses),
                           "val_loss": validation_loss(state, val_set, schedule.val_batches),
                           "seconds": time.perf_counter() - started}
                 state.history.append(record)
@@ -187,7 +191,7 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
                 save_checkpoint(checkpoint, state)
             bar.update(task, completed=state.step)
     if losses:
-        state.history.append({"step": state.step, "train_loss": float(np.mean(losses)),
+        state.history.append({"step": state.step, "train_loss": _mean(losses),
                               "val_loss": validation_loss(state, val_set, schedule.val_batches),
                               "seconds": time.perf_counter() - started})
     save_checkpoint(checkpoint, state)
