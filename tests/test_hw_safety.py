@@ -140,10 +140,37 @@ def test_sigint_at_random_moments_leaves_torque_off(tmp_path):
                 time.sleep(rng.uniform(0.0, 1.0))
             proc.send_signal(signal.SIGINT)
             out, _ = proc.communicate(timeout=60)
-            # Known gap (rare, start-up only): a SIGINT can be lost before the stop handlers are installed; the run
-            # then completes and ends with torque off. Whatever the path, torque must end off with goals in range.
-            assert proc.returncode != 0 or "stand: 1500 steps" in out
+            # stopped wherever the signal landed: killed before Python's handler exists (-2), aborted in the
+            # imports (1) or stopped by the run (130); never the whole run
+            assert proc.returncode in (-signal.SIGINT, 1, 128 + signal.SIGINT) and "1500 steps" not in out, out
             assert_safe(emu, goals_written=any(m.get("goal_position") for m in emu.motors))
+
+
+SWALLOWED_SIGINT = """
+import os, signal, sys, time
+import toddlerbot.cli  # what the `toddlerbot` command imports first
+try:  # a third-party import that catches too much (measured: 1 of 30 start-up SIGINTs was lost like this)
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(1.0)
+except KeyboardInterrupt:
+    pass
+from toddlerbot.cli.main import main
+sys.argv = ["toddlerbot", "hw", "run", "--port", sys.argv[1], "--calibration", sys.argv[2], "--latency-ms", "50",
+            "--policy", "stand", "--seconds", "30"]
+main()
+"""
+
+
+def test_a_sigint_swallowed_during_start_up_still_stops_the_run_before_any_motor_moves(tmp_path):
+    with emulated(DESC) as (emu, port):
+        cal = _calibration(emu, tmp_path / "cal.yaml")
+        result = subprocess.run([sys.executable, "-c", SWALLOWED_SIGINT, port, str(cal)], capture_output=True,
+                                text=True, env=ENV, timeout=120,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        assert result.returncode == 128 + signal.SIGINT, result.stderr
+        assert "stand: stopped by SIGINT; torque is off" in result.stdout
+        with emu.lock:
+            assert not any(m.torque_on or m.get("goal_position") for m in emu.motors)
 
 
 def test_dropped_answers_are_tolerated_and_an_unplugged_motor_stops_the_run(tmp_path):

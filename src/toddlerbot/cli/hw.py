@@ -182,7 +182,7 @@ def run(
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
     with 128 + its number."""
     from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.driver import BusInterrupt, raise_on_stop_signals
+    from toddlerbot.hardware.driver import BusInterrupt, raise_on_stop_signals, raise_pending_stop
     from toddlerbot.hardware.real_robot import RealRobot
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
@@ -191,6 +191,7 @@ def run(
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
     try:
+        raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
         if policy not in RUN_POLICIES:
             raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
         positive(seconds, "--seconds", "seconds")

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toddlerbot import interrupts
 from toddlerbot.actuation.catalogue import MotorModel
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.hardware import control_table as ct
@@ -133,6 +134,14 @@ def _raise_bus_interrupt(signum: int, frame: object) -> None:
         _deferred.append(signum)  # raised once the torque-off is done (see `DynamixelBus.close`)
         return
     raise BusInterrupt(signum)
+
+
+def raise_pending_stop() -> None:
+    """Raise `BusInterrupt` for a SIGINT that arrived during start-up but was not acted on (its KeyboardInterrupt
+    swallowed inside a third-party import; `toddlerbot.interrupts`): call before powering motors."""
+    signum = interrupts.take()
+    if signum is not None:
+        raise BusInterrupt(signum)
 
 
 def raise_on_stop_signals() -> dict[int, object]:
