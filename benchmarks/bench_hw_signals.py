@@ -7,10 +7,12 @@ runs the real CLI entry point. After a random delay (uniform over start-up, torq
 run) it gets SIGINT; once it has exited, this process reads Torque Enable and Goal Position of every motor back
 over the bus with the official SDK. Odd trials use ``--dt 1e-9`` so that nearly all the time is spent inside bus
 transactions (the case where an interrupt used to leave the SDK port marked busy and every motor powered).
+``--spawn`` starts every trial as a fresh interpreter instead, so the signals also land in Python's start-up and the
+CLI's imports (where third-party code once swallowed one).
 
 Prints: trials, exit codes, trials with any motor still powered, trials with a goal outside its joint range.
 
-Run: PYTHONPATH=src python benchmarks/bench_hw_signals.py [--trials 200] [--max-delay 3.0]
+Run: PYTHONPATH=src python benchmarks/bench_hw_signals.py [--trials 200] [--max-delay 3.0] [--spawn]
 """
 
 from __future__ import annotations
@@ -89,6 +91,7 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=200)
     parser.add_argument("--max-delay", type=float, default=3.0, help="largest delay before SIGINT, s")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--spawn", action="store_true", help="a fresh interpreter per trial (start-up included)")
     args = parser.parse_args()
     rng = random.Random(args.seed)
     signal.signal(signal.SIGINT, signal.default_int_handler)  # a background shell job starts with SIGINT ignored
@@ -111,12 +114,17 @@ def main() -> None:
         for trial in range(args.trials):
             argv = ["hw", "run", "--port", port, "--calibration", str(cal_file), "--policy", "stand", "--seconds",
                     "2", "--latency-ms", "50"] + (["--dt", "1e-9"] if trial % 2 else [])
-            pid = _hw_run(argv, work / "trial.log")
+            if args.spawn:
+                with (work / "trial.log").open("w") as log:
+                    proc = subprocess.Popen([sys.executable, "-m", "toddlerbot.cli.main", *argv], stdout=log,
+                                            stderr=log, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                pid = proc.pid
+            else:
+                pid = _hw_run(argv, work / "trial.log")
             time.sleep(rng.uniform(0.0, args.max_delay))
             with contextlib.suppress(ProcessLookupError):  # the run may have finished already
                 os.kill(pid, signal.SIGINT)
-            _, status = os.waitpid(pid, 0)
-            code = os.waitstatus_to_exitcode(status)
+            code = proc.wait() if args.spawn else os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
             exit_codes[code] += 1
             if code != 130:
                 unusual.append((trial, code, (work / "trial.log").read_text().strip().splitlines()[-1:]))
@@ -125,7 +133,7 @@ def main() -> None:
                 powered_trials.append((trial, powered))
             if np.any(goals < low - ct.RAD_PER_PULSE) or np.any(goals > high + ct.RAD_PER_PULSE):
                 out_of_range_trials.append(trial)
-            print(f"trial {trial:3d}: exit {os.waitstatus_to_exitcode(status):4d}, powered {powered or 'none'}",
+            print(f"trial {trial:3d}: exit {code:4d}, powered {powered or 'none'}",
                   flush=True)
     finally:
         emulator.send_signal(signal.SIGINT)
