@@ -210,3 +210,21 @@ def test_a_gathered_batch_equals_the_samples_cut_one_by_one(tmp_path):
         assert gathered[key].dtype == one_by_one[key].dtype
         assert torch.equal(gathered[key], one_by_one[key])
     assert gathered["action_is_pad"][0].sum() == 3  # the last frame of its episode: 3 of 4 actions padded
+
+
+def test_dataset_decode_command_writes_the_copy_and_refuses_another_suffix(tmp_path):
+    from typer.testing import CliRunner
+
+    from toddlerbot.cli.main import app
+    from toddlerbot.errors import ToddlerbotError
+    from toddlerbot.manipulation.dataset import load_decoded
+
+    root, _ = _dataset(tmp_path)
+    result = CliRunner().invoke(app, ["manip", "dataset", "decode", str(root), "-o", str(tmp_path / "d.npz")])
+    assert result.exit_code == 0, result.output
+    assert "2 episodes, 17 frames" in result.output
+    np.testing.assert_array_equal(load_decoded(tmp_path / "d.npz").images, load_dataset(root).images)
+    refused = CliRunner().invoke(app, ["manip", "dataset", "decode", str(root), "-o", str(tmp_path / "d.zip")])
+    assert isinstance(refused.exception, ToddlerbotError) and "expected a file name ending in .npz" in str(
+        refused.exception)
+    assert not (tmp_path / "d.zip").exists()
