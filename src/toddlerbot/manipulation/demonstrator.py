@@ -15,7 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from toddlerbot.manipulation.ik import ArmIK, IKConfig, top_down_rotation
+from toddlerbot.manipulation.ik import (
+    CORRECTION_GAIN,
+    MAX_CORRECTION,
+    ArmIK,
+    GraspPointCorrection,
+    IKConfig,
+    top_down_rotation,
+)
 from toddlerbot.manipulation.tasks import PickTask
 from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.scenes import grasp_site
@@ -38,10 +45,8 @@ class DemoConfig:
     """Grasp point below the cube centre, m (pads centred slightly low)."""
     waypoint_noise: float = 0.008
     """Standard deviation of the pre-grasp waypoint's offset, m."""
-    correction_gain: float = 0.05
-    """Per-step fraction of the grasp-point error added to the task-space correction."""
-    max_correction: float = 0.04
-    """Largest task-space correction, m."""
+    correction_gain: float = CORRECTION_GAIN
+    max_correction: float = MAX_CORRECTION
     grip_fraction: float = 0.75
     """Gripper target when closed, as a fraction of the drive's range: the pads meet a 3 cm cube at 0.38 of it;
     squeezing to the very end lets the (compliant) rack run far past contact and can pop the cube out."""
@@ -69,7 +74,7 @@ class ScriptedPicker:
         self._stiffness = task.description.actuator_arrays(task.kp).kp[self.ik.arm]
         """Physical position gains of the arm motors at the follower's gains, N*m/rad."""
         self._targets = task.ready_pose.copy()
-        self._correction = np.zeros(3)
+        self._correction = GraspPointCorrection(self.config.correction_gain, self.config.max_correction)
         self._waypoints: list[np.ndarray] = []
         self._rotation = np.eye(3)
 
@@ -90,7 +95,7 @@ class ScriptedPicker:
         self._waypoints = [start, pregrasp, grasp, grasp, lifted, lifted]
         self._targets = task_obs.motor_pos.copy()
         self._targets[self.task.gripper_motor] = self.open
-        self._correction = np.zeros(3)
+        self._correction = GraspPointCorrection(cfg.correction_gain, cfg.max_correction)
 
     def phase(self, t: float) -> str:
         cfg = self.config
@@ -113,10 +118,8 @@ class ScriptedPicker:
         t = obs.time
         desired = self.desired_grasp_point(t)
         measured, _ = self.ik.forward(obs.motor_pos, self.task.robot.data.qpos)
-        self._correction = np.clip(self._correction + cfg.correction_gain * (desired - measured),
-                                   -cfg.max_correction, cfg.max_correction)
         base = self.task.robot.data.qpos
-        q, _ = self.ik.solve(self._targets, desired + self._correction, self._rotation, base)
+        q, _ = self.ik.solve(self._targets, self._correction.target(desired, measured), self._rotation, base)
         self._targets = q.copy()
         q[self.ik.arm] += self.ik.gravity_torque(q, base) / self._stiffness
         phase = self.phase(t)

@@ -14,6 +14,25 @@ import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
 
+CORRECTION_GAIN = 0.05
+"""Per-step fraction of the grasp-point error added to the task-space correction."""
+MAX_CORRECTION = 0.04
+"""Largest task-space correction, m."""
+
+
+class GraspPointCorrection:
+    """A slow task-space integral of the grasp point's measured error, added to the IK target: it removes what the
+    low-gain arm's sag and the IK's own error leave, clipped so a blocked arm cannot wind it up."""
+
+    def __init__(self, gain: float = CORRECTION_GAIN, limit: float = MAX_CORRECTION) -> None:
+        self.gain, self.limit = gain, limit
+        self.value = np.zeros(3)
+
+    def target(self, desired: np.ndarray, measured: np.ndarray) -> np.ndarray:
+        """The IK target for this step, m (``desired`` plus the updated correction)."""
+        self.value = np.clip(self.value + self.gain * (desired - measured), -self.limit, self.limit)
+        return desired + self.value
+
 
 @dataclass(frozen=True)
 class IKConfig:

@@ -53,7 +53,12 @@ class ManipulationSpace:
         return len(self.indices)
 
 
-def follower_gains(description: RobotDescription, upper_body_kp_scale: float) -> np.ndarray:
+FOLLOWER_KP_SCALE = 0.5
+"""Upper-body (neck, waist, arms) gains as a fraction of the spec's while demonstrations are collected (appendix
+8.12: low gains, so the follower is compliant); policies trained on those demonstrations run at the same gains."""
+
+
+def follower_gains(description: RobotDescription, upper_body_kp_scale: float = FOLLOWER_KP_SCALE) -> np.ndarray:
     """Firmware kp for the follower: the spec's gains, upper body (neck, waist, arms) scaled down so the arms
     give way on contact (appendix 8.12); grippers keep their current-limited spec gains."""
     if not 0 < upper_body_kp_scale <= 1:
@@ -79,7 +84,7 @@ class PickConfig:
     """Success: the cube's bottom at least this far above the table top..."""
     hold_seconds: float = 1.0
     """...and held between both fingers, continuously for this long."""
-    upper_body_kp_scale: float = 0.5
+    upper_body_kp_scale: float = FOLLOWER_KP_SCALE
     neck_pitch: float = -1.15
     """Neck pitch drive angle (rad, negative looks down) so the head camera sees the table..."""
     neck_yaw: float = -0.4

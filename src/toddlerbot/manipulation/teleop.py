@@ -21,7 +21,7 @@ from toddlerbot.manipulation.follower import ArmFollower
 from toddlerbot.manipulation.gamepad import TeleopCommand
 from toddlerbot.manipulation.leader_follower import follow_leader
 from toddlerbot.manipulation.link import LinkSubscriber
-from toddlerbot.manipulation.tasks import UPPER_BODY_GROUPS, ManipulationSpace, follower_gains
+from toddlerbot.manipulation.tasks import FOLLOWER_KP_SCALE, UPPER_BODY_GROUPS, ManipulationSpace, follower_gains
 from toddlerbot.policies.base import Policy
 from toddlerbot.robot.interface import Observation, Robot
 
@@ -79,8 +79,7 @@ class EpisodeRecorder:
 
 @dataclass(frozen=True)
 class TeleopConfig:
-    upper_body_kp_scale: float = 0.5
-    """Follower upper-body gains as a fraction of the spec's (appendix 8.12: low gains while collecting data)."""
+    upper_body_kp_scale: float = FOLLOWER_KP_SCALE
 
 
 class TeleopSession:

@@ -23,7 +23,7 @@ import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.manipulation.demonstrator import min_jerk
-from toddlerbot.manipulation.ik import ArmIK
+from toddlerbot.manipulation.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, GraspPointCorrection
 from toddlerbot.manipulation.tasks import ManipulationSpace
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.sim.scenes import SIDES, grasp_site
@@ -50,10 +50,8 @@ class GraspParams:
     approach_s: float = 1.5
     reach_s: float = 1.5
     close_s: float = 0.8
-    correction_gain: float = 0.05
-    """Per-step fraction of the measured grasp-point error added to the task-space correction."""
-    max_correction: float = 0.04
-    """Largest task-space correction, m."""
+    correction_gain: float = CORRECTION_GAIN
+    max_correction: float = MAX_CORRECTION
     checkpoint: str | None = None
     """Task whose shipped diffusion-policy checkpoint grasps instead of the script, when one is shipped."""
 
@@ -143,7 +141,7 @@ class ScriptedGrasp(Skill):
             self._plans.append((pos, goal - p.back * tilt, goal, goal_rot))
         self._q = np.array(targets, dtype=float)
         self._open = self._q[self.grippers].copy()
-        self._correction = [np.zeros(3) for _ in self.iks]
+        self._correction = [GraspPointCorrection(p.correction_gain, p.max_correction) for _ in self.iks]
 
     def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
         p, base = self.p, self.env.base_qpos()
@@ -155,9 +153,7 @@ class ScriptedGrasp(Skill):
                 a, b, s = pregrasp, goal, min_jerk((elapsed - p.approach_s) / p.reach_s)
             desired = a + (b - a) * s
             measured, _ = ik.forward(obs.motor_pos, base)
-            self._correction[k] = np.clip(self._correction[k] + p.correction_gain * (desired - measured),
-                                          -p.max_correction, p.max_correction)
-            q, _ = ik.solve(q, desired + self._correction[k], rot, base)
+            q, _ = ik.solve(q, self._correction[k].target(desired, measured), rot, base)
         self._q = q
         out = q.copy()
         for ik in self.iks:

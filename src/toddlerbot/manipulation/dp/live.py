@@ -29,7 +29,7 @@ from toddlerbot.manipulation.dp.config import DPConfig
 from toddlerbot.manipulation.dp.data import channel_first
 from toddlerbot.manipulation.dp.policy import IMAGE, STATE
 from toddlerbot.manipulation.dp.runner import ChunkPolicyRunner, Infer
-from toddlerbot.manipulation.tasks import PickConfig, follower_gains
+from toddlerbot.manipulation.tasks import follower_gains
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.interface import Observation, Robot
 
@@ -107,7 +107,7 @@ class LiveDPPolicy(Policy):
                                   f"{config.action_dim} dimensions (trained without joint names?)")
         self.camera = camera if config.uses_images else None
         self.synchronous = synchronous
-        self.kp = follower_gains(robot.description, PickConfig().upper_body_kp_scale) if kp is None else kp
+        self.kp = follower_gains(robot.description) if kp is None else kp
         self.chunker = ActionChunker(config.latency_drop, config.n_action_steps, 1.0 / config.policy_hz,
                                      robot.control_dt)
         self._infer = _TimedInfer(infer)
