@@ -223,3 +223,34 @@ def test_chain_run_reports_a_bad_chain_file_in_one_line(tmp_path):
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"{path}: skill a: until.after: expected a positive number of seconds" in lines[0]
+
+
+def test_a_dp_skill_drives_the_arms_with_a_shipped_checkpoint(tmp_path):
+    pytest.importorskip("torch")
+    from toddlerbot.manipulation.camera import HeadCamera
+    from toddlerbot.manipulation.chaining.probe import SceneProbe
+
+    chain = load_chain(_chain_file(tmp_path, """\
+        scene: pick
+        skills:
+          - {name: reach, kind: dp, checkpoint: pick, until: {after: 1.5}}
+        """), GROUPS)
+    model = scene_model(DESCRIPTION, "pick")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    camera = HeadCamera(model, robot.data, DESCRIPTION.handles.head_camera)
+    runner = ChainRunner(chain, robot, model, SceneProbe(model, robot.data), camera.image)
+    obs = robot.reset()
+    home = DESCRIPTION.home_motor_pos
+    arms = DESCRIPTION.groups["arm"]
+    runner.start(obs, home)
+    moved = 0.0
+    try:
+        while (command := runner.step(obs)) is not None:
+            moved = max(moved, float(np.abs(command[0][arms] - home[arms]).max()))
+            obs = robot.step(*command)
+    finally:
+        camera.close()
+    assert runner.status.failure is None and runner.skills[0].by == "dp (pick.pt)"
+    assert runner.skills[0].live.status.chunks_used >= 2 and runner.skills[0].live.status.failures == 0
+    assert moved > 0.05  # the policy's chunks, not a hold, drove the arms
+    assert obs.time == pytest.approx(1.5, abs=0.021)

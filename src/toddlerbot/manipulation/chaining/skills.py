@@ -24,7 +24,6 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.manipulation.demonstrator import min_jerk
 from toddlerbot.manipulation.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, GraspPointCorrection
-from toddlerbot.manipulation.tasks import ManipulationSpace
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.sim.scenes import SIDES, grasp_site
 
@@ -166,48 +165,26 @@ class ScriptedGrasp(Skill):
 
 
 class DPSkill(Skill):
-    """Runs a checkpoint as `dp.evaluate.run_episode` does: synchronous `ChunkPolicyRunner`, observations at the
-    policy rate from the arm/gripper motors (and the head camera when the policy uses images)."""
+    """A checkpoint as the runtime runs it (`dp.live.LiveDPPolicy`), with inference inline as `dp eval` does: its
+    motors found by name, observations at the policy rate, the other motors held."""
 
     def __init__(self, env: SkillEnv, p: DPParams) -> None:
-        from toddlerbot.manipulation.dp.checkpoint import load_policy
         from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
+        from toddlerbot.manipulation.dp.live import load_live_policy
 
         path = Path(p.checkpoint) if p.checkpoint.endswith(".pt") else shipped_checkpoint(p.checkpoint)
-        self.policy = load_policy(path)
-        if self.policy.config.uses_images and env.head_image is None:
-            raise ToddlerbotError(f"dp checkpoint {path} needs head-camera images, which this robot does not give")
-        self.env, self.seed, self.by = env, p.seed, f"dp ({path.name})"
-        self.space = ManipulationSpace.of(env.robot.description)
-        self.kp = env.robot.description.default_kp.copy()
-        self._runner = None
+        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=True, seed=p.seed)
+        self.by = f"dp ({path.name})"
 
     def start(self, obs: Observation, targets: np.ndarray) -> None:
-        from toddlerbot.manipulation.dp.chunker import ActionChunker
-        from toddlerbot.manipulation.dp.inference import PolicyInference
-        from toddlerbot.manipulation.dp.runner import ChunkPolicyRunner
-
-        c = self.policy.config
-        self.chunker = ActionChunker(c.latency_drop, c.n_action_steps, 1.0 / c.policy_hz, self.env.robot.control_dt)
-        self._targets = np.array(targets, dtype=float)
-        self._runner = ChunkPolicyRunner(PolicyInference(self.policy, self.seed), self.chunker, c.n_obs_steps,
-                                         self._targets[self.space.indices], synchronous=True)
-        self._step = 0
+        self.live.reset(obs)
 
     def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
-        from toddlerbot.manipulation.dp.data import channel_first
-        from toddlerbot.manipulation.dp.policy import IMAGE, STATE
-
-        observation = {STATE: obs.motor_pos[self.space.indices].astype(np.float32)}
-        if self.policy.config.uses_images and self._step % self.chunker.substeps == 0:
-            observation[IMAGE] = channel_first(self.env.head_image())  # type: ignore[misc]
-        self._step += 1
-        self._targets[self.space.indices] = self._runner.step(observation)  # type: ignore[union-attr]
-        return self._targets.copy(), self.kp
+        action = self.live.act(obs, np.zeros(3))
+        return action.motor_targets, action.kp
 
     def close(self) -> None:
-        if self._runner is not None:
-            self._runner.close()
+        self.live.close()
 
 
 class WalkSkill(Skill):
