@@ -9,19 +9,12 @@ import typer
 
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.manipulation.dp import require_torch
 
 app = typer.Typer(help="Diffusion policy from demonstrations (needs the \\[dp] extra: torch==2.13.0).",
                   no_args_is_help=True)
 
 PRESET_NAMES = ("small", "tiny", "appendix")
-
-
-def _require_torch() -> None:
-    try:
-        import torch  # noqa: F401
-    except ImportError as exc:
-        raise ToddlerbotError(f"the diffusion policy needs the [dp] extra (pip install 'toddlerbot[dp]'): {exc}") \
-            from exc
 
 
 @app.command()
@@ -43,7 +36,7 @@ def train(
                                                                "the end).")] = 500,
 ) -> None:
     """Train on the dataset's episodes (validation episodes held out), with a progress bar and a loss curve."""
-    _require_torch()
+    require_torch()
     import torch
 
     from toddlerbot.manipulation.dp.config import PRESETS
@@ -79,7 +72,7 @@ def info(
     json_output: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
 ) -> None:
     """Print a checkpoint's training step, size, last losses and configuration."""
-    _require_torch()
+    require_torch()
     import json
 
     from toddlerbot.manipulation.dp.checkpoint import checkpoint_summary
@@ -102,7 +95,7 @@ def export(
     out: Annotated[Path, typer.Option("--out", "-o", help="Policy file to write (config and EMA weights only).")],
 ) -> None:
     """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy."""
-    _require_torch()
+    require_torch()
     from toddlerbot.manipulation.dp.checkpoint import export_policy
 
     written = export_policy(checkpoint, out)
@@ -126,7 +119,7 @@ def evaluate(
     device: Annotated[str, typer.Option(help="Torch device for the network: cpu, cuda, ...")] = "cpu",
 ) -> None:
     """Run a checkpoint closed-loop on a simulated task (50 Hz control, 10 Hz observations) and report success."""
-    _require_torch()
+    require_torch()
     import json
 
     import torch

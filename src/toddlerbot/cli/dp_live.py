@@ -6,19 +6,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.manipulation.dp import require_torch
 from toddlerbot.policies import POLICIES
 
 RUN_POLICIES = (*POLICIES, "dp")
 """What `sim run` and `hw run` accept: `dp` (a diffusion-policy checkpoint) lives in the manipulation layer, above
 `make_policy`'s registry."""
-
-
-def _torch_threads(threads: int) -> None:
-    try:
-        import torch
-    except ImportError as exc:
-        raise ToddlerbotError(f"--policy dp needs the [dp] extra (pip install 'toddlerbot[dp]'): {exc}") from exc
-    torch.set_num_threads(threads)
 
 
 @dataclass
@@ -60,7 +53,7 @@ def sim_dp_policy(description, task: str, checkpoint: Path | None, seed: int, re
 
     if task not in TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS)}")
-    _torch_threads(threads)
+    require_torch(threads)
     pick = PickTask(description, PickConfig(control_dt=control_dt))
     robot = TaskRobot(pick, seed)
     policy = load_live_policy(robot, checkpoint or shipped_checkpoint(task), pick.head_image,
@@ -77,7 +70,7 @@ def hw_dp_policy(robot, checkpoint: Path | None, camera: str | None, threads: in
 
     if checkpoint is None:
         raise ToddlerbotError("--policy dp needs --checkpoint (a checkpoint from `dp train` or `dp export`)")
-    _torch_threads(threads)
+    require_torch(threads)
     source = None if camera is None else VideoCamera(camera)
     try:
         return load_live_policy(robot, checkpoint, source), source

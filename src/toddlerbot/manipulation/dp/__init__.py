@@ -9,3 +9,16 @@ episode, dataset adapter), ``train``, ``chunker`` and ``runner`` (10 Hz chunks -
 ``sim run``/``hw run --policy dp``).
 ``chunker`` and ``runner`` need only numpy.
 """
+
+from toddlerbot.errors import ToddlerbotError
+
+
+def require_torch(threads: int | None = None) -> None:
+    """Import torch (the ``[dp]`` extra), setting its CPU threads when given; a one-line error where it is missing."""
+    try:
+        import torch
+    except ImportError as exc:
+        raise ToddlerbotError(f"the diffusion policy needs the [dp] extra (pip install 'toddlerbot[dp]'): {exc}") \
+            from exc
+    if threads is not None:
+        torch.set_num_threads(threads)

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.manipulation.dp import require_torch
 from toddlerbot.manipulation.dp.chunker import ActionChunker
 from toddlerbot.manipulation.dp.config import DPConfig
 from toddlerbot.manipulation.dp.data import channel_first
@@ -154,9 +155,8 @@ class LiveDPPolicy(Policy):
 def load_live_policy(robot: Robot, checkpoint: str | Path, camera: Camera | None, synchronous: bool = False,
                      seed: int = 0) -> LiveDPPolicy:
     """A checkpoint (`dp train`/`dp export`) as a runtime policy on ``robot``; needs torch (the ``[dp]`` extra)."""
-    try:
-        from toddlerbot.manipulation.dp.inference import PolicyInference
-    except ImportError as exc:
-        raise LivePolicyError(f"--policy dp needs the [dp] extra (pip install 'toddlerbot[dp]'): {exc}") from exc
+    require_torch()
+    from toddlerbot.manipulation.dp.inference import PolicyInference
+
     inference = PolicyInference.from_checkpoint(checkpoint, seed)
     return LiveDPPolicy(robot, inference, inference.policy.config, camera, str(checkpoint), synchronous)
