@@ -254,3 +254,13 @@ def test_a_dp_skill_drives_the_arms_with_a_shipped_checkpoint(tmp_path):
     assert runner.skills[0].live.status.chunks_used >= 2 and runner.skills[0].live.status.failures == 0
     assert moved > 0.05  # the policy's chunks, not a hold, drove the arms
     assert obs.time == pytest.approx(1.5, abs=0.021)
+
+
+def test_on_hardware_the_grasp_aims_at_the_handle_where_the_scene_layout_puts_it():
+    from toddlerbot.sim.scenes import WagonLayout
+
+    model = scene_model(DESCRIPTION, "wagon")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)  # stands in for a RealRobot: no probe, so no sensed scene
+    runner = ChainRunner(load_chain("wagon", GROUPS), robot, model, probe=None)
+    layout = WagonLayout()
+    np.testing.assert_allclose(runner.skills[0]._bar(), [layout.handle_x, 0.0, layout.handle_height], atol=1e-9)

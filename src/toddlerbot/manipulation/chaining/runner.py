@@ -35,11 +35,14 @@ class ChainRunner:
         for s in chain.skills:
             if s.until.predicate is not None:
                 check_available(s.until.predicate, probe is None, f"{chain.source}: skill {s.name}: until")
+        layout = mujoco.MjData(model)  # the scene as its layout puts it
+        layout.qpos[:] = model.key("home").qpos
+        mujoco.mj_kinematics(model, layout)
+        layout_pos = SceneProbe(model, layout).geom_pos
         if probe is None:
-            home = model.key("home").qpos.copy()
-            env = SkillEnv(robot, model, lambda: home, None, head_image)
+            env = SkillEnv(robot, model, lambda: layout.qpos, None, layout_pos, head_image)
         else:
-            env = SkillEnv(robot, model, lambda: probe.data.qpos, probe.geom_pos, head_image)
+            env = SkillEnv(robot, model, lambda: probe.data.qpos, probe.geom_pos, layout_pos, head_image)
         self.skills: list[Skill] = [make_skill(s.kind, s.params, env) for s in chain.skills]
         d = robot.description
         self._hold = [np.concatenate([d.groups[g] for g in s.hold]) if s.hold else np.zeros(0, int)

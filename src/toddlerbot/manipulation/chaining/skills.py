@@ -4,7 +4,8 @@ returns motor targets and firmware gains (the runner applies `hold` and sends th
 * ``scripted_grasp``: both (or one) grippers grasp a bar lying across the robot (the wagon handle): each grasp
   point moves to a pre-grasp point behind the bar, then onto it along the fingers, then the grippers close; DLS IK
   every step, targets leading the IK solution by the gravity sag, a slow integral of the measured error (as the
-  pick demonstrator does). In sim the bar's position comes from the scene; on hardware from ``target_pos``.
+  pick demonstrator does). In sim the bar's position comes from the scene; on hardware from ``target_pos`` or, by
+  default, where the scene's layout puts it.
 * ``dp``: a diffusion-policy checkpoint drives the arm and gripper motors (torch is imported only here).
 * ``walk``: a walking policy (walk-zmp, walk-rl) with a fixed command.
 * ``hold``: every motor keeps the previous skill's last targets.
@@ -21,7 +22,6 @@ from typing import Literal
 import mujoco
 import numpy as np
 
-from toddlerbot.errors import ToddlerbotError
 from toddlerbot.manipulation.demonstrator import min_jerk
 from toddlerbot.manipulation.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, GraspPointCorrection
 from toddlerbot.robot.interface import Observation, Robot
@@ -87,6 +87,8 @@ class SkillEnv:
     """The model's full qpos for the base and free bodies: the simulated state, or the home keyframe on hardware."""
     target_pos: Callable[[str], np.ndarray] | None
     """World position of a named geom (sim), None on hardware."""
+    layout_pos: Callable[[str], np.ndarray]
+    """World position of a named geom where the scene's layout puts it (the home keyframe): hardware's default."""
     head_image: Callable[[], np.ndarray] | None
     """The head camera's 96x96 RGB image (sim), None where the `Robot` has no camera."""
 
@@ -109,8 +111,6 @@ class Skill(ABC):
 
 class ScriptedGrasp(Skill):
     def __init__(self, env: SkillEnv, p: GraspParams, why: str) -> None:
-        if env.target_pos is None and p.target_pos is None:
-            raise ToddlerbotError(f"scripted_grasp of {p.target!r}: on hardware the chain must give target_pos")
         self.env, self.p, self.by = env, p, f"scripted ({why})"
         d = env.robot.description
         sides = SIDES if p.hands == "both" else (p.hands,)
@@ -120,9 +120,11 @@ class ScriptedGrasp(Skill):
         self._stiffness = d.actuator_arrays(self.kp).kp
 
     def _bar(self) -> np.ndarray:
-        if self.env.target_pos is not None:
+        if self.env.target_pos is not None:  # sim: where the bar is now
             return self.env.target_pos(self.p.target)
-        return np.array(self.p.target_pos, dtype=float)
+        if self.p.target_pos is not None:  # hardware: where the chain file says it is
+            return np.array(self.p.target_pos, dtype=float)
+        return self.env.layout_pos(self.p.target)
 
     def start(self, obs: Observation, targets: np.ndarray) -> None:
         p, base, bar = self.p, self.env.base_qpos(), self._bar()
