@@ -36,10 +36,6 @@ def _description(spec_path: Path | None, variant: str | None, motor_params: list
     return RobotDescription.load(spec_path, variant, motor_params or [])
 
 
-def _raise_interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt(signal.Signals(signum).name)
-
-
 @app.command()
 def emulate(
     hil: Annotated[bool, typer.Option("--hil", help="Hardware in the loop: MuJoCo produces the motion.")] = False,
@@ -56,6 +52,7 @@ def emulate(
 ) -> None:
     """Serve the robot's motors on a pseudo-terminal: prints the device path as the first line, then serves until
     interrupted (Ctrl-C, SIGTERM, SIGHUP), then prints one JSON line of statistics."""
+    from toddlerbot.hardware.driver import raise_on_stop_signals
     from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
     from toddlerbot.hardware.plant import HilPlant
 
@@ -68,9 +65,7 @@ def emulate(
         offsets = {m.name: m.mounting_offset for m in bus.motors}
         save_calibration(Calibration("emulated", spec_label(bus.description), offsets, {}), write_calibration)
     server = PtyServer(bus)
-    # SIGINT too: a shell starts background jobs with it ignored, and the emulator must still stop on it
-    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(signum, _raise_interrupt)
+    raise_on_stop_signals()  # every stop signal ends serving, even a SIGINT a background shell job ignores
     try:
         print(server.path, flush=True)
         server.serve_forever()
