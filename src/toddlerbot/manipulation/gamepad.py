@@ -43,11 +43,11 @@ class AxisMap(_Strict):
 
 class TriggerMap(_Strict):
     axis: int = Field(ge=0)
-    threshold: float = Field(default=0.5, gt=-1, lt=1)
+    threshold: float = Field(gt=-1, lt=1)
 
 
 class DpadMap(_Strict):
-    hat: int = Field(default=0, ge=0)
+    hat: int = Field(ge=0)
     waist_roll_rate: float = Field(gt=0)
     waist_yaw_rate: float = Field(gt=0)
 
@@ -70,7 +70,7 @@ class ButtonsMap(_Strict):
 
 
 class TeleopMapping(_Strict):
-    dead_zone: float = Field(default=0.1, ge=0, lt=1)
+    dead_zone: float = Field(ge=0, lt=1)
     axes: AxesMap
     buttons: ButtonsMap
     triggers: dict[str, TriggerMap] = Field(default_factory=dict)
