@@ -10,14 +10,14 @@ import typer
 
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.sim.scenes import SCENES
 
 app = typer.Typer(help="Teleoperation: game controller (Table 4), keyboard, leader-follower arms; record episodes.",
                   invoke_without_command=True)
 
 BACKENDS = ("sim", "real")
 INPUTS = ("joystick", "keyboard", "leader")
-SIM_TASKS = ("walk", "pick", "wagon")
-DEFAULT_LINK = "tcp://127.0.0.1:5591"
+SIM_TASKS = ("walk", *SCENES)
 
 
 @app.callback()
@@ -36,7 +36,8 @@ def teleop(
         = None,
     seconds: Annotated[float, typer.Option("--seconds", help="Stop after this long (0: run until Esc/Ctrl-C).")]
         = 0.0,
-    link: Annotated[str, typer.Option("--link", help="Leader link endpoint (ZeroMQ).")] = DEFAULT_LINK,
+    link: Annotated[str | None, typer.Option("--link", help="Leader link endpoint (ZeroMQ; default: the local "
+                                             "one, manipulation.link.DEFAULT_ENDPOINT).")] = None,
     port: Annotated[str | None, typer.Option("--port", help="Serial port of the robot (real backend).")] = None,
     calibration: Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
         = None,
@@ -152,13 +153,13 @@ def _source(input_kind: str, pad):
         return KeyboardInput(pad)
 
 
-def _leader_link(endpoint: str, robot):
+def _leader_link(endpoint: str | None, robot):
     from toddlerbot.manipulation.follower import ArmFollower
-    from toddlerbot.manipulation.link import LinkSubscriber
+    from toddlerbot.manipulation.link import DEFAULT_ENDPOINT, LinkSubscriber
     from toddlerbot.manipulation.tasks import ManipulationSpace
 
     space = ManipulationSpace.of(robot.description)
-    return LinkSubscriber(endpoint), ArmFollower(robot.motor_names, space.names)
+    return LinkSubscriber(endpoint or DEFAULT_ENDPOINT), ArmFollower(robot.motor_names, space.names)
 
 
 def _run(session, robot, source, seconds: float, viewer: bool) -> None:
@@ -207,7 +208,8 @@ def _write(out: Path, recorder) -> None:
 def leader(
     port: Annotated[str, typer.Option("--port", help="Serial port of the leader arms' bus.")],
     calibration: Annotated[Path, typer.Option("--calibration", help="Leader calibration YAML (zero offsets).")],
-    link: Annotated[str, typer.Option("--link", help="Endpoint to publish on (bind).")] = DEFAULT_LINK,
+    link: Annotated[str | None, typer.Option("--link", help="Endpoint to publish on (bind; default: the local "
+                                             "one, manipulation.link.DEFAULT_ENDPOINT).")] = None,
     rate: Annotated[float, typer.Option("--rate", help="Read/publish rate, Hz.")] = 50.0,
 ) -> None:
     """Leader side: read the leader arms (torque off) and publish their angles until Ctrl-C."""
@@ -216,8 +218,10 @@ def leader(
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.leader import LeaderArms
     from toddlerbot.manipulation.leader_follower import stream_leader
-    from toddlerbot.manipulation.link import LinkPublisher
+    from toddlerbot.manipulation.link import DEFAULT_ENDPOINT, LinkPublisher
     from toddlerbot.robot.description import RobotDescription
+
+    link = link or DEFAULT_ENDPOINT
 
     description = RobotDescription.load(variant="gripper")
     offsets = load_calibration(calibration, description).offsets
