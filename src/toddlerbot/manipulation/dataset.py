@@ -132,6 +132,15 @@ class Windows:
         return samples
 
 
+def bounds_tile(bounds: np.ndarray, rows: int) -> bool:
+    """Do the (E, 2) [from, to) episode row ranges cover rows 0..rows in order, each episode non-empty?"""
+    bounds = np.asarray(bounds)
+    if bounds.ndim != 2 or bounds.shape[1] != 2 or len(bounds) == 0:
+        return False
+    starts = np.concatenate([[0], bounds[:-1, 1]])
+    return bool(np.all(bounds[:, 0] == starts) and bounds[-1, 1] == rows and np.all(bounds[:, 1] > bounds[:, 0]))
+
+
 def save_decoded(dataset: Dataset, path: str | Path) -> Path:
     """Write ``dataset`` (images decoded) as one compressed ``.npz``; metadata as JSON text inside it."""
     meta = {"format": DECODED_FORMAT, "root": str(dataset.root), "info": dataset.info, "tasks": list(dataset.tasks),
@@ -162,8 +171,7 @@ def load_decoded(path: str | Path) -> Dataset:
         if len(contents[name]) != n:
             raise DatasetError(f"{path}: {name} has {len(contents[name])} rows, state has {n}")
     bounds = contents["episode_bounds"]
-    if bounds.ndim != 2 or bounds.shape[1] != 2 or len(bounds) == 0 or bounds[0, 0] != 0 or bounds[-1, 1] != n \
-            or np.any(bounds[1:, 0] != bounds[:-1, 1]):
+    if not bounds_tile(bounds, n):
         raise DatasetError(f"{path}: episode_bounds do not tile rows 0..{n}")
     for name in ("state", "action"):
         if not np.isfinite(contents[name]).all():

@@ -17,7 +17,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from toddlerbot.manipulation.dataset import Dataset, DatasetError
+from toddlerbot.manipulation.dataset import Dataset, DatasetError, bounds_tile
 from toddlerbot.manipulation.lerobot_writer import (
     CODEBASE_VERSION,
     DATA_FILE,
@@ -62,9 +62,7 @@ def load_dataset(root: str | Path, decode_video: bool = True) -> Dataset:
     if len(bounds) != int(info.get("total_episodes", -1)):
         raise DatasetError(f"{root / EPISODES_FILE}: {len(bounds)} episodes, but meta/info.json says "
                            f"total_episodes={info.get('total_episodes')}")
-    expected_from = np.concatenate([[0], bounds[:-1, 1]])
-    if len(bounds) == 0 or np.any(bounds[:, 0] != expected_from) or bounds[-1, 1] != total or np.any(
-            bounds[:, 1] <= bounds[:, 0]):
+    if not bounds_tile(bounds, total):
         raise DatasetError(f"{root / EPISODES_FILE}: episode row ranges do not tile rows 0..{total}")
     for e, (start, end) in enumerate(bounds):
         if np.any(episode_index[start:end] != e):
