@@ -40,9 +40,10 @@ class ChainRunner:
         mujoco.mj_kinematics(model, layout)
         layout_pos = SceneProbe(model, layout).geom_pos
         if probe is None:
-            env = SkillEnv(robot, model, lambda: layout.qpos, None, layout_pos, head_image)
+            env = SkillEnv(robot, model, lambda: layout.qpos, None, layout_pos, head_image, simulated=False)
         else:
-            env = SkillEnv(robot, model, lambda: probe.data.qpos, probe.geom_pos, layout_pos, head_image)
+            env = SkillEnv(robot, model, lambda: probe.data.qpos, probe.geom_pos, layout_pos, head_image,
+                           simulated=True)
         self.skills: list[Skill] = [make_skill(s.kind, s.params, env) for s in chain.skills]
         d = robot.description
         self._hold = [np.concatenate([d.groups[g] for g in s.hold]) if s.hold else np.zeros(0, int)

@@ -91,6 +91,8 @@ class SkillEnv:
     """World position of a named geom where the scene's layout puts it (the home keyframe): hardware's default."""
     head_image: Callable[[], np.ndarray] | None
     """The head camera's 96x96 RGB image (sim), None where the `Robot` has no camera."""
+    simulated: bool
+    """True in sim (time is the simulation's), False on a real robot (the control loop runs in real time)."""
 
 
 class Skill(ABC):
@@ -167,15 +169,16 @@ class ScriptedGrasp(Skill):
 
 
 class DPSkill(Skill):
-    """A checkpoint as the runtime runs it (`dp.live.LiveDPPolicy`), with inference inline as `dp eval` does: its
-    motors found by name, observations at the policy rate, the other motors held."""
+    """A checkpoint as the runtime runs it (`dp.live.LiveDPPolicy`): its motors found by name, observations at the
+    policy rate, the other motors held; inference inline in sim (as `dp eval`), on the worker thread on a real
+    robot (the 50 Hz loop must not wait for it)."""
 
     def __init__(self, env: SkillEnv, p: DPParams) -> None:
         from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
         from toddlerbot.manipulation.dp.live import load_live_policy
 
         path = Path(p.checkpoint) if p.checkpoint.endswith(".pt") else shipped_checkpoint(p.checkpoint)
-        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=True, seed=p.seed)
+        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated, seed=p.seed)
         self.by = f"dp ({path.name})"
 
     def start(self, obs: Observation, targets: np.ndarray) -> None:
