@@ -20,7 +20,17 @@ port_handler = pytest.importorskip("dynamixel_sdk.port_handler")
 def emulated(
     robot: RobotDescription | RobotSpec | None = None, faults: Faults | None = None, **kwargs
 ) -> Iterator[tuple[EmulatedBus, str]]:
-    """An emulated bus served from a thread; yields (bus, device path).
+    """An emulated bus served from a thread; yields (bus, device path)."""
+    with emulated_server(robot, faults, **kwargs) as server:
+        yield server.bus, server.path
+
+
+@contextmanager
+def emulated_server(
+    robot: RobotDescription | RobotSpec | None = None, faults: Faults | None = None, **kwargs
+) -> Iterator[PtyServer]:
+    """`emulated`, yielding the server itself (its `stop()` closes the pty: the bus is lost, as when a U2D2 is
+    unplugged).
 
     The SDK busy-waits for status packets while holding the GIL; a short switch interval lets the emulator
     thread answer promptly (the CLI emulator runs in its own process and needs no such thing). The SDK's status
@@ -32,10 +42,9 @@ def emulated(
     port_handler.LATENCY_TIMER = 50
     if not isinstance(robot, RobotDescription):
         robot = RobotDescription.load() if robot is None else RobotDescription(robot)
-    bus = EmulatedBus(robot, faults=faults, **kwargs)
-    server = PtyServer(bus).start()
+    server = PtyServer(EmulatedBus(robot, faults=faults, **kwargs)).start()
     try:
-        yield bus, server.path
+        yield server
     finally:
         server.stop()
         sys.setswitchinterval(old)

@@ -23,17 +23,31 @@ def read_yaml(path: str | Path, what: str, error: type[ToddlerbotError] = Toddle
               max_bytes: int = MAX_YAML_BYTES) -> object:
     """The parsed document of `path`; `error` (one line: the file, then the problem) for a missing, oversized,
     non-UTF-8, malformed or alias-bomb file. `what` names the kind of file in messages, e.g. "robot spec"."""
+    return parse_yaml(read_text(path, what, error, max_bytes, "a YAML text file"), str(path), what, error)
+
+
+def read_text(path: str | Path, what: str, error: type[ToddlerbotError] = ToddlerbotError,
+              max_bytes: int = MAX_YAML_BYTES, kind: str = "a text file") -> str:
+    """The UTF-8 text of `path`, read up to `max_bytes` (so /dev/zero or a FIFO cannot make it read forever);
+    `error` naming the file for a missing, oversized or non-UTF-8 one. `kind` says what a `what` is in messages."""
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > max_bytes:
-            raise error(f"{path}: {size} bytes is too large for a {what} (at most {max_bytes} bytes)")
-        text = path.read_bytes().decode("utf-8")
+        with path.open("rb") as f:
+            data = f.read(max_bytes + 1)
     except OSError as exc:
         raise error(f"{path}: cannot read {what} ({exc.strerror or exc})") from None
+    if len(data) > max_bytes:
+        raise error(f"{path}: {_size(path, max_bytes)} is too large for a {what} (at most {max_bytes} bytes)")
+    try:
+        return data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise error(f"{path}: not UTF-8 text (byte {exc.start}); a {what} is a YAML text file") from None
-    return parse_yaml(text, str(path), what, error)
+        raise error(f"{path}: not UTF-8 text (byte {exc.start}); a {what} is {kind}") from None
+
+
+def _size(path: Path, max_bytes: int) -> str:
+    """The file's size in bytes, or "more than `max_bytes` bytes" for a device or FIFO (no size to report)."""
+    size = path.stat().st_size
+    return f"{size} bytes" if size > max_bytes else f"more than {max_bytes} bytes"
 
 
 def parse_yaml(text: str, source: str, what: str, error: type[ToddlerbotError] = ToddlerbotError) -> object:

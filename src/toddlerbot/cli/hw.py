@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import signal
 import sys
 from contextlib import ExitStack
@@ -14,9 +13,10 @@ import typer
 from rich.table import Table
 
 from toddlerbot.cli.dp_live import RUN_POLICIES
-from toddlerbot.cli.options import positive, writable
-from toddlerbot.cli.output import console
+from toddlerbot.cli.options import duration, output_file, positive
+from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import json_text
 from toddlerbot.robot.description import RobotDescription
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
@@ -27,6 +27,8 @@ MotorParamsOption = Annotated[list[Path] | None, typer.Option(
     "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): fitted actuator parameters.")]
 PortOption = Annotated[str, typer.Option("--port", help="Serial device of the bus, e.g. /dev/ttyUSB0.")]
 BaudOption = Annotated[int, typer.Option("--baud", help="Bus baud rate.")]
+MAX_CONTROL_DT = 0.1
+"""Longest control period of `hw run`, s: a goal at least every 100 ms keeps well inside the 0.5 s Bus Watchdog."""
 LatencyOption = Annotated[float, typer.Option("--latency-ms", help="USB-serial latency timer, ms: status packets "
                                               "are awaited 2 x this + 2 ms (raise it on a loaded machine).")]
 
@@ -57,6 +59,8 @@ def emulate(
     from toddlerbot.hardware.plant import HilPlant
 
     parsed = Faults.parse(faults or [])
+    if write_calibration is not None:
+        output_file(write_calibration, "--write-calibration")
     bus = EmulatedBus(_description(spec_path, variant, motor_params), hil=hil, faults=parsed,
                       fast_sync_read=not no_fast_sync_read, offsets_seed=offsets_seed)
     if write_calibration is not None:
@@ -81,12 +85,12 @@ def emulate(
                    "torso_upright": round(bus.plant.torso_uprightness(), 4),
                    "powered_min_torso_height": _finite(bus.plant.powered_min_height),
                    "powered_min_torso_upright": _finite(bus.plant.powered_min_upright)}
-    print(json.dumps(report), flush=True)
+    print(json_text(report), flush=True)
 
 
-def _finite(value: float) -> float | None:
-    """Rounded value, or None (JSON null) if never measured."""
-    return round(value, 4) if np.isfinite(value) else None
+def _finite(value: float) -> float:
+    """Rounded value (NaN, never measured, becomes JSON null)."""
+    return round(value, 4) if np.isfinite(value) else value
 
 
 @app.command()
@@ -135,7 +139,7 @@ def calibrate(
 
     description = _description(spec_path, variant)
     existing = load_calibration(output) if output.exists() else None
-    writable(output, "--output")
+    output_file(output, "--output")
     cal = existing
     for g in group or list(GROUPS):
         ids = {m.id for m in group_motors(description, g)}
@@ -164,8 +168,8 @@ def run(
     camera: Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "
                                                "(/dev/video0) or a video file (played at its frame rate).")] = None,
     threads: Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")] = 1,
-    seconds: Annotated[float, typer.Option("--seconds", help="Duration, s.")] = 5.0,
-    control_dt: Annotated[float, typer.Option("--dt", help="Control period, s.")] = 0.02,
+    seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (at most an hour).")] = 5.0,
+    control_dt: Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")] = 0.02,
     log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
     baud: BaudOption = 2_000_000,
     latency_ms: LatencyOption = 16.0,
@@ -175,25 +179,29 @@ def run(
 ) -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
-    with 128 + its number."""
+    with 128 + its number. A run that stops early keeps the steps so far: in --log, or, when the bus or a motor
+    failed, in a temporary file whose name is printed."""
     from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.driver import BusInterrupt, raise_on_stop_signals, raise_pending_stop
+    from toddlerbot.hardware.driver import BusInterrupt, HardwareError, raise_on_stop_signals, raise_pending_stop
     from toddlerbot.hardware.real_robot import RealRobot
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
+    from toddlerbot.runtime.log import LogRecorder
     from toddlerbot.runtime.runner import run_policy
 
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
+    recorder, pol = LogRecorder(), None
     try:
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
         if policy not in RUN_POLICIES:
             raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
-        positive(seconds, "--seconds", "seconds")
-        positive(control_dt, "--dt", "seconds")
+        duration(seconds, "--seconds")
+        # longer periods would leave the motors' 0.5 s Bus Watchdog waiting for the next goal
+        duration(control_dt, "--dt", MAX_CONTROL_DT)
         positive(latency_ms, "--latency-ms", "milliseconds")
         if log is not None:
-            writable(log, "--log")
+            output_file(log, "--log")
         description = _description(spec_path, variant, motor_params)
         cal = load_calibration(calibration, description)
         schedule = CommandSchedule.parse(command)
@@ -210,10 +218,15 @@ def run(
         else:
             pol = make_policy(policy, robot, motion, weights)
         with robot:
-            result = run_policy(robot, pol, schedule, seconds)
-    except BusInterrupt as exc:
-        console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
-        raise typer.Exit(128 + exc.signum) from None
+            result = run_policy(robot, pol, schedule, seconds, recorder=recorder)
+    except BaseException as exc:
+        if len(recorder) and (log is not None or isinstance(exc, HardwareError)):
+            partial = recorder.finish(robot.motor_names, robot.joint_names, robot.control_dt, pol.name)
+            save_or_fallback(partial.save, log, f"the log of the {len(recorder)} steps before the stop")
+        if isinstance(exc, BusInterrupt):
+            console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
+            raise typer.Exit(128 + exc.signum) from None
+        raise
     finally:
         stack.close()
         for signum, handler in previous.items():
@@ -227,6 +240,5 @@ def run(
 
         console.print(describe_status(pol.status), highlight=False)
     if log:
-        result.log.save(log)
-        console.print(f"wrote {log}")
+        save_or_fallback(result.log.save, log, "the run log")
     sys.stdout.flush()

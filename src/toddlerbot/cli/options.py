@@ -5,9 +5,27 @@ from __future__ import annotations
 
 import math
 import os
+import tempfile
 from pathlib import Path
 
 from toddlerbot.errors import ToddlerbotError
+
+MAX_RUN_SECONDS = 3600.0
+"""Longest run a command accepts, s: an hour (the battery's run time; a simulated hour logs about 180,000 steps)."""
+
+
+def duration(value: float, option: str, max_s: float = MAX_RUN_SECONDS) -> float:
+    """`value` if it is a finite number of seconds in (0, `max_s`] (a run of 1e300 s would never end)."""
+    if not (math.isfinite(value) and 0 < value <= max_s):
+        raise ToddlerbotError(f"{option} {value:g}: expected a duration in (0, {max_s:g}] seconds")
+    return value
+
+
+def within(value: float, option: str, low: float, high: float, unit: str) -> float:
+    """`value` if it lies in [`low`, `high`] (plausible physical ranges: NaN and inf never do)."""
+    if not low <= value <= high:  # False for NaN
+        raise ToddlerbotError(f"{option} {value:g}: expected a number of {unit} in [{low:g}, {high:g}]")
+    return value
 
 
 def positive(value: float, option: str, unit: str) -> float:
@@ -17,12 +35,34 @@ def positive(value: float, option: str, unit: str) -> float:
     return value
 
 
-def writable(path: Path, option: str) -> Path:
-    """`path` if a file can be written there (its nearest existing folder is writable, it is not a folder)."""
-    if path.is_dir():
-        raise ToddlerbotError(f"{option} {path}: is a directory, expected a file name")
-    existing = next((p for p in path.absolute().parents if p.exists()), Path("/"))
-    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK) or (
-            path.exists() and not os.access(path, os.W_OK)):
-        raise ToddlerbotError(f"{option} {path}: cannot write there ({existing} is not a writable folder)")
+def output_file(path: Path, option: str) -> Path:
+    """`path` once a file has been shown writable there: the parent folders are created and a probe file is created
+    and removed beside it (`os.access` is not enough: it says yes to root under /proc); an existing folder or
+    special file (device, FIFO, socket) at `path` is refused."""
+    if path.exists() and not path.is_file():
+        kind = "a directory" if path.is_dir() else "a special file"
+        raise ToddlerbotError(f"{option} {path}: is {kind}, expected the name of a regular file to write")
+    _probe(path.absolute().parent, path.name, option, path)
     return path
+
+
+def output_dir(path: Path, option: str) -> Path:
+    """`path` as a folder to write files into: created if missing and probed by creating a file in it; an existing
+    file at `path` is refused."""
+    if path.exists() and not path.is_dir():
+        raise ToddlerbotError(f"{option} {path}: is not a folder, expected a folder to write into")
+    _probe(path.absolute(), "probe", option, path)
+    return path
+
+
+def _probe(folder: Path, name: str, option: str, path: Path) -> None:
+    existing = next(p for p in (folder, *folder.parents) if p.exists())
+    if not existing.is_dir():
+        raise ToddlerbotError(f"{option} {path}: cannot write there ({existing} is not a folder)")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=f".{name}.", suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ToddlerbotError(f"{option} {path}: cannot write there ({exc.strerror or exc})") from None

@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from toddlerbot.cli.dp_live import RUN_POLICIES
-from toddlerbot.cli.options import positive, writable
+from toddlerbot.cli.options import duration, output_dir, output_file, positive
 from toddlerbot.cli.output import console
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.files import atomic_write_text
+from toddlerbot.files import atomic_write_text, json_text
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -67,16 +66,17 @@ def run(
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
     if (task is not None or checkpoint is not None) and policy != "dp":
         raise ToddlerbotError("--task and --checkpoint are for --policy dp")
-    positive(seconds, "--seconds", "seconds")
+    duration(seconds, "--seconds")
     positive(control_hz, "--control-hz", "Hz")
     outputs = {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json}
     for option, path in outputs.items():
         if path is not None:
-            writable(path, option)
+            output_file(path, option)
     if command is None:
         command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
     schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)
     description = RobotDescription.load(motor_params=motor_params or [])
+    _check_control_rate(control_hz, description.spec.simulation.timestep)
     scene = None
     if policy == "dp":
         from toddlerbot.cli.dp_live import sim_dp_policy
@@ -138,7 +138,7 @@ def run(
         result.log.save(log)
         console.print(f"wrote {log}")
     if summary_json:
-        atomic_write_text(summary_json, json.dumps(summary.to_dict() | extra, indent=2))
+        atomic_write_text(summary_json, json_text(summary.to_dict() | extra, indent=2))
     t = summary.tracking
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
     console.print(
@@ -158,6 +158,14 @@ def run(
         raise typer.Exit(1)
 
 
+def _check_control_rate(control_hz: float, timestep: float) -> None:
+    """The simulator takes whole physics steps (`timestep`, s) per control step: refuse other rates in one line."""
+    substeps = round(1.0 / (control_hz * timestep))
+    if substeps < 1 or abs(substeps * timestep - 1.0 / control_hz) > 1e-9:
+        raise ToddlerbotError(f"--control-hz {control_hz:g}: expected the {1 / timestep:g} Hz physics rate divided "
+                              "by a whole number, e.g. 50")
+
+
 @app.command()
 def plot(
     log: Annotated[Path, typer.Argument(help="Run log (.npz) from `sim run --log`.")],
@@ -167,5 +175,6 @@ def plot(
     from toddlerbot.runtime.log import RunLog
     from toddlerbot.runtime.plot import plot_log
 
-    for path in plot_log(RunLog.load(log), out):
+    run_log = RunLog.load(log)
+    for path in plot_log(run_log, output_dir(out, "--out")):
         console.print(f"wrote {path}")

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import within
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.sim.scenes import SCENES
@@ -222,7 +223,7 @@ def leader(
     from toddlerbot.robot.description import RobotDescription
 
     link = link or DEFAULT_ENDPOINT
-
+    within(rate, "--rate", 0.1, 1000.0, "Hz")
     description = RobotDescription.load(variant="gripper")
     offsets = load_calibration(calibration, description).offsets
     stop = threading.Event()
@@ -235,7 +236,8 @@ def leader(
         except KeyboardInterrupt:
             stop.set()
             sent = publisher.seq
-        publisher.close()
+        finally:
+            publisher.close()
     console.print(f"sent {sent} messages in {time.monotonic() - started:.1f} s")
 
 

@@ -15,7 +15,10 @@ Safety policy (docs/hardware.md, "Safety"):
 * torque goes off when the bus is closed, on any exception inside ``with DynamixelBus(...)`` and on SIGINT,
   SIGTERM, SIGHUP and SIGQUIT (which raise `BusInterrupt`); closing releases the SDK port even if a
   transaction was interrupted, blocks those signals while it works, and retries torque-off until every motor
-  confirms or `torque_off_deadline` passes, then raises `TorqueOffError` naming the unconfirmed motors.
+  confirms or `torque_off_deadline` passes, then raises `TorqueOffError` naming the unconfirmed motors;
+* a lost port (the adapter unplugged or its device gone: EIO, ENXIO, ENODEV, a device node that disappeared) is
+  not retried: `BusLostError` stops the run at once, and the torque-off that follows reports, in one line, every
+  powered motor it could not confirm ("TORQUE MAY STILL BE ON for ids ...").
 
 Positions here are raw motor readings (pulses, multi-turn); `real_robot` converts them to calibrated angles.
 """
@@ -23,7 +26,9 @@ Positions here are raw motor readings (pulses, multi-turn); `real_robot` convert
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
+import os
 import signal
 import threading
 import time
@@ -59,6 +64,14 @@ try:  # optional at install time: the [hw] extra
     import dynamixel_sdk as sdk
 except ImportError:  # pragma: no cover - exercised only without the extra
     sdk = None
+try:  # pyserial's tcflush raises termios.error, which is no OSError, when the device is gone
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover - Windows
+    _TermiosError = OSError
+PORT_ERRORS = (OSError, _TermiosError)
+"""What the serial port raises (pyserial's SerialException is an OSError)."""
+LOST_ERRNOS = {errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF}
+"""Errors of a serial device that is gone for good (a USB adapter unplugged, a pty whose other end closed)."""
 
 
 class HardwareError(ToddlerbotError):
@@ -67,6 +80,10 @@ class HardwareError(ToddlerbotError):
 
 class BusError(HardwareError):
     pass
+
+
+class BusLostError(BusError):
+    """The serial port itself is gone (adapter unplugged or dead): nothing on the bus can be reached."""
 
 
 class TorqueOffError(HardwareError):
@@ -212,6 +229,8 @@ class DynamixelBus:
         self.bytes_tx = 0
         self.bytes_rx = 0
         self.is_open = False
+        self.lost: str | None = None
+        """Why the port is gone (None while it works); set by the first port error that means a lost device."""
         self._old_handlers: dict[int, object] = {}
         self._state_reader = sdk.GroupSyncRead(self.port, self.ph, *ct.STATE_BLOCK)
         self._goal_writer = sdk.GroupSyncWrite(self.port, self.ph, ct.ENTRIES["goal_position"].address, 4)
@@ -245,7 +264,8 @@ class DynamixelBus:
         try:
             self._release_port()
             unconfirmed = self._torque_off_until(time.perf_counter() + self.torque_off_deadline, self._powered)
-            self.port.closePort()
+            with contextlib.suppress(*PORT_ERRORS):  # a lost port fails to close too; it is released either way
+                self.port.closePort()
             self.is_open = False
         finally:
             _deferring -= 1
@@ -255,10 +275,7 @@ class DynamixelBus:
             signals = list(_deferred)
             _deferred.clear()
         if unconfirmed:  # louder than the signal that may have arrived meanwhile
-            raise TorqueOffError(
-                f"bus {self.port_name}: TORQUE MAY STILL BE ON: no torque-off confirmation within "
-                f"{self.torque_off_deadline:g} s from {'; '.join(unconfirmed)}; cut the motor power"
-            )
+            raise TorqueOffError(self._torque_may_be_on(unconfirmed))
         if signals:
             raise BusInterrupt(signals[0])
 
@@ -282,8 +299,35 @@ class DynamixelBus:
     def _release_port(self) -> None:
         """Undo what an interrupted SDK transaction leaves behind: the in-use flag and half-read answers."""
         self.port.is_using = False
-        with contextlib.suppress(OSError, AttributeError):  # port already gone: the writes below report it
+        with contextlib.suppress(*PORT_ERRORS, AttributeError):  # port already gone: the writes below report it
             self.port.clearPort()
+
+    def _port_error(self, exc: BaseException) -> str:
+        """Release the port after `exc` and describe it; a device that is gone sets `lost` and raises
+        `BusLostError` (retrying a dead port only delays the torque-off)."""
+        self._release_port()
+        code = exc.errno if isinstance(exc, OSError) else (exc.args or [None])[0]
+        reason = os.strerror(code) if isinstance(code, int) else " ".join(str(exc).split()) or type(exc).__name__
+        # pyserial reports a vanished USB device on read as a SerialException without errno ("device disconnected")
+        if code in LOST_ERRNOS or not os.path.exists(self.port_name) or "disconnected" in reason:
+            self.lost = self.lost or reason
+            raise BusLostError(f"bus {self.port_name} lost: {self.lost}; the serial adapter was unplugged or lost "
+                               "power")
+        return f"serial port error ({reason})"
+
+    def _torque_may_be_on(self, unconfirmed: dict[int, str]) -> str:
+        """The one-line report of motors that never confirmed torque off: their ids, why, and what to do."""
+        labels = {m.id: m.label for m in self.motors}
+        if self.lost:
+            why = f"bus lost: {self.lost}"
+        elif len(unconfirmed) <= 3:
+            why = "; ".join(f"{labels[i]}: {problem}" for i, problem in unconfirmed.items())
+        else:
+            why = "; ".join(sorted(set(unconfirmed.values())))
+        waited = "" if self.lost else f" within {self.torque_off_deadline:g} s"
+        return (f"bus {self.port_name}: TORQUE MAY STILL BE ON for ids {_id_list(unconfirmed)}: no torque-off "
+                f"confirmation{waited} ({why}); the motors' Bus Watchdog holds them in place with torque on, it does "
+                "not make them limp: press the E-stop or cut the motor power")
 
     # ---- single-motor transactions ---------------------------------------------------------------------
     def _result(self, comm: int, error: int) -> str | None:
@@ -303,9 +347,8 @@ class DynamixelBus:
             except IndexError:  # the SDK indexes past the end of a short (but CRC-valid) status packet
                 problem = "malformed status packet"
                 continue
-            except OSError as exc:  # the serial device went away (USB unplugged)
-                self._release_port()
-                problem = f"serial port error ({exc})"
+            except PORT_ERRORS as exc:  # a lost device raises BusLostError; anything else is retried
+                problem = self._port_error(exc)
                 continue
             problem = self._result(comm, error)
             if problem is None:
@@ -320,6 +363,8 @@ class DynamixelBus:
             data, comm, _ = self._read_tx_rx(motor.id, ct.ENTRIES["hardware_error_status"].address, 1)
         except IndexError:
             comm = sdk.COMM_RX_CORRUPT
+        except PORT_ERRORS as exc:
+            return f"hardware alert (hardware error status unreadable: {self._port_error(exc)})"
         if comm != sdk.COMM_SUCCESS:
             return "hardware alert (hardware error status unreadable)"
         return f"hardware error: {ct.describe_hardware_error(data[0])}"
@@ -404,7 +449,15 @@ class DynamixelBus:
 
     def _fast_sync_read_works(self) -> bool:
         """Whether every motor answers Fast Sync Read (firmware support); else the cycle uses Sync Read."""
-        return any(self._state_reader.fastSyncRead() == sdk.COMM_SUCCESS for _ in range(self.retries))
+        for _ in range(self.retries):
+            try:
+                if self._state_reader.fastSyncRead() == sdk.COMM_SUCCESS:
+                    return True
+            except PORT_ERRORS as exc:
+                self._port_error(exc)
+            except IndexError:
+                self._release_port()
+        return False
 
     def enable_torque(self, goal_positions: np.ndarray | None = None) -> None:
         """Set goals to `goal_positions` (default: where the motors are) and enable torque, motor by motor."""
@@ -436,8 +489,11 @@ class DynamixelBus:
             self._send(writer, "bus watchdog")
             try:
                 answers, _ = self._sync_read(pending, address, 1)
-            except (IndexError, OSError):
+            except IndexError:
                 self._release_port()
+                continue
+            except PORT_ERRORS as exc:
+                self._port_error(exc)
                 continue
             pending = [i for i in pending if answers.get(i) != bytes([self.watchdog_units])]
             if not pending:
@@ -451,12 +507,12 @@ class DynamixelBus:
         self._release_port()
         unconfirmed = self._torque_off_until(time.perf_counter() + self.torque_off_deadline, set(self.ids))
         if unconfirmed:
-            raise TorqueOffError(f"bus {self.port_name}: could not confirm torque off: {'; '.join(unconfirmed)}")
+            raise TorqueOffError(self._torque_may_be_on(unconfirmed))
 
-    def _torque_off_until(self, deadline: float, must_confirm: set[int]) -> list[str]:
+    def _torque_off_until(self, deadline: float, must_confirm: set[int]) -> dict[int, str]:
         """Rounds of (broadcast torque-off, one checked write per unconfirmed motor) until every motor in
-        `must_confirm` confirms or the deadline passes; returns '<motor>: <last problem>' for each of those that
-        never confirmed (the others get one round, best effort)."""
+        `must_confirm` confirms, the deadline passes or the port is lost; returns {id: last problem} for each of
+        those that never confirmed (the others get one round, best effort)."""
         address = ct.ENTRIES["torque_enable"].address
         pending = {m.id: "not tried" for m in self.motors}
         while True:
@@ -465,27 +521,35 @@ class DynamixelBus:
                 for i in pending:
                     writer.addParam(i, [0])
                 writer.txPacket()
-            except OSError:
-                self._release_port()
+            except PORT_ERRORS as exc:
+                with contextlib.suppress(BusLostError):
+                    self._port_error(exc)
             for m in self.motors:
                 if m.id not in pending:
+                    continue
+                if self.lost:  # nothing can answer through a port that is gone
+                    pending[m.id] = "bus lost"
                     continue
                 try:
                     comm, error = self.ph.write1ByteTxRx(self.port, m.id, address, 0)
                     problem = self._result(comm, error)
-                except (IndexError, OSError) as exc:
+                except IndexError:
                     self._release_port()
-                    problem = f"{type(exc).__name__}: {exc}"
+                    problem = "malformed status packet"
+                except PORT_ERRORS as exc:
+                    try:
+                        problem = self._port_error(exc)
+                    except BusLostError:
+                        problem = "bus lost"
                 if problem is None:
                     del pending[m.id]
                 else:
                     pending[m.id] = problem
             self._powered &= set(pending)
             self.torque_enabled = bool(self._powered)
-            if not pending.keys() & must_confirm or time.perf_counter() >= deadline:
+            if not pending.keys() & must_confirm or self.lost or time.perf_counter() >= deadline:
                 break
-        labels = {m.id: m.label for m in self.motors}
-        return [f"{labels[i]}: {problem}" for i, problem in pending.items() if i in must_confirm]
+        return {i: problem for i, problem in pending.items() if i in must_confirm}
 
     # ---- control cycle ---------------------------------------------------------------------------------
     def read_state(self) -> MotorState:
@@ -540,9 +604,8 @@ class DynamixelBus:
             return self._sync_read(ids, *ct.STATE_BLOCK)
         except IndexError:
             return {}, "malformed status packet"
-        except OSError as exc:
-            self._release_port()
-            return {}, f"serial port error ({exc})"
+        except PORT_ERRORS as exc:
+            return {}, self._port_error(exc)
 
     def _sync_read(self, ids: list[int], address: int, length: int) -> tuple[dict[int, bytes], str]:
         """Sync Read of `length` bytes at `address`: every status packet that arrives before the timeout counts,
@@ -641,9 +704,20 @@ class DynamixelBus:
         for _ in range(self.retries):
             try:
                 comm = writer.txPacket()
-            except OSError:
-                self._release_port()
+            except PORT_ERRORS as exc:
+                self._port_error(exc)
                 comm = sdk.COMM_TX_FAIL
             if comm == sdk.COMM_SUCCESS:
                 return
         raise BusError(f"bus {self.port_name}: sync write of {what} failed: {self.ph.getTxRxResult(comm)}")
+
+
+def _id_list(ids: object) -> str:
+    """Motor ids as runs: [1, 2, 3, 5] -> '1-3, 5'."""
+    runs: list[list[int]] = []
+    for i in sorted(ids):
+        if runs and i == runs[-1][-1] + 1:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)

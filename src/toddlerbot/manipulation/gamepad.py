@@ -12,12 +12,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.yaml_input import read_yaml
 
 DEFAULT_MAPPING = Path(__file__).with_name("teleop_mapping.yaml")
+MAX_MAPPING_BYTES = 100_000
+"""Size cap of a controller mapping file, bytes (the packaged one is about 2 kB)."""
 SKILLS = ("skill_l1", "skill_r1", "skill_l2", "skill_r2")
 KEY_ACTIONS = (
     "walk_forward", "walk_backward", "walk_left", "walk_right", "turn_left", "turn_right", "stand_up", "squat_down",
@@ -82,15 +84,7 @@ class TeleopMapping(_Strict):
 def load_mapping(path: str | Path | None = None) -> TeleopMapping:
     """Read and validate a mapping file (default: the packaged Table 4 mapping)."""
     path = Path(path) if path else DEFAULT_MAPPING
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise MappingError(f"{path}: no such mapping file") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}, column {mark.column + 1}:" if mark else ""
-        problem = " ".join((getattr(exc, "problem", None) or "syntax error").split())
-        raise MappingError(f"{path}:{where} not valid YAML ({problem})") from None
+    raw = read_yaml(path, "controller mapping", MappingError, MAX_MAPPING_BYTES)
     try:
         mapping = TeleopMapping.model_validate(raw)
     except ValidationError as exc:

@@ -1,7 +1,8 @@
 """Leader-follower loops: the leader side streams its arm angles, the follower side turns them into targets.
 
-Both run at the control rate (50 Hz). The leader side never stops on a bus error: it reports it (a message of
-kind ``"error"``) and keeps trying, so the follower learns why it holds.
+Both run at the control rate (50 Hz). The leader side reports a bus error (a message of kind ``"error"``) so the
+follower learns why it holds, and keeps trying, unless the leader's serial port itself is gone (unplugged): then
+it stops with `BusLostError` after that last message.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import time
 
 import numpy as np
 
-from toddlerbot.hardware.driver import HardwareError
+from toddlerbot.hardware.driver import BusLostError, HardwareError
 from toddlerbot.hardware.leader import LeaderArms
 from toddlerbot.manipulation.follower import ArmFollower
 from toddlerbot.manipulation.link import LinkPublisher, LinkSubscriber
@@ -20,7 +21,8 @@ from toddlerbot.robot.interface import Observation, Robot
 
 def stream_leader(leader: LeaderArms, publisher: LinkPublisher, stop: threading.Event, rate_hz: float = 50.0,
                   on_error=None) -> int:
-    """Read the leader and publish its angles at `rate_hz` until `stop` is set; returns the messages sent."""
+    """Read the leader and publish its angles at `rate_hz` until `stop` is set; returns the messages sent. Raises
+    `BusLostError` (after publishing an error message) when the leader's port is gone."""
     period = 1.0 / rate_hz
     next_tick = time.monotonic()
     sent = 0
@@ -30,6 +32,8 @@ def stream_leader(leader: LeaderArms, publisher: LinkPublisher, stop: threading.
             publisher.send(leader.names, reading.positions)
         except HardwareError as exc:
             publisher.send((), np.zeros(0), kind="error")
+            if isinstance(exc, BusLostError):  # no retry can reach an unplugged adapter
+                raise
             if on_error:
                 on_error(str(exc))
         sent += 1

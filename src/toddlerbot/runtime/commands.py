@@ -11,6 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.yaml_input import read_text
+
+MAX_COMMAND_FILE_BYTES = 1_000_000
+"""Size cap of a command file, bytes (a schedule of one entry per second for a day is about 400 kB)."""
 
 
 class CommandError(ToddlerbotError):
@@ -56,9 +60,6 @@ class CommandSchedule:
 
     @classmethod
     def from_file(cls, path: str | Path) -> CommandSchedule:
-        path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            raise CommandError(f"cannot read command file {path}: {exc.strerror}") from None
+        """The schedule in a text file (UTF-8, at most `MAX_COMMAND_FILE_BYTES`; /dev/zero is refused, not read)."""
+        text = read_text(path, "command file", CommandError, MAX_COMMAND_FILE_BYTES)
         return cls.parse(text, source=str(path))

@@ -122,6 +122,10 @@ class LogRecorder:
     def __init__(self) -> None:
         self.rows: dict[str, list[np.ndarray]] = {k: [] for k in (*STEP_KEYS, *OPTIONAL_STEP_KEYS)}
 
+    def __len__(self) -> int:
+        """Steps recorded so far."""
+        return len(self.rows["time"])
+
     def append(self, **row: np.ndarray | float) -> None:
         for key in (*STEP_KEYS, *(k for k in OPTIONAL_STEP_KEYS if k in row)):
             self.rows[key].append(np.asarray(row[key], dtype=float))

@@ -47,11 +47,13 @@ def run_policy(
     realtime: bool = False,
     stop_on_fall: bool = True,
     on_step: Callable[[Observation], None] | None = None,
+    recorder: LogRecorder | None = None,
 ) -> RunResult:
-    """Run ``policy`` on ``robot`` for ``seconds`` (or until the policy is done / the robot falls)."""
+    """Run ``policy`` on ``robot`` for ``seconds`` (or until the policy is done / the robot falls). Steps are logged
+    into ``recorder`` (a new one if None): give one to keep the steps of a run that stops on an exception."""
+    recorder = LogRecorder() if recorder is None else recorder
     obs = robot.reset()
     policy.reset(obs)
-    recorder = LogRecorder()
     n_steps = round(seconds / robot.control_dt)
     fall_time = None
     has_ground_truth = hasattr(robot, "base_pos")
