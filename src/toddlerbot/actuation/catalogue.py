@@ -15,6 +15,13 @@ from toddlerbot.errors import SpecError
 from toddlerbot.yaml_input import read_yaml
 
 DEFAULT_CATALOGUE = resources.files("toddlerbot.actuation") / "motors.yaml"
+ACTUATOR_MAX = {"damping": 10.0, "armature": 1.0, "frictionloss": 100.0, "tau_max": 1000.0, "q_dot_tau_max": 1000.0,
+                "q_dot_max": 1000.0, "tau_q_dot_max": 1000.0, "kd_min": 100.0, "tau_brake": 1000.0,
+                "kp_scale": 1e5, "stiction": 100.0, "stribeck_velocity": 1000.0, "load_friction": 1.0}
+"""Plausible upper bound of each actuator parameter (units as in `ActuatorParams`): finite is not enough (tau_max
+1e300 is finite); each lies orders of magnitude above the system-ID search bounds and any Dynamixel's figure."""
+MOTOR_RANGES = {"stall_torque_nm": (1e-3, 1000.0), "mass_kg": (1e-3, 100.0), "rated_voltage": (1.0, 100.0)}
+"""Plausible (low, high) of a motor model's datasheet figures, N*m, kg, V."""
 
 
 @dataclass(frozen=True)
@@ -53,6 +60,8 @@ class ActuatorParams:
             value = getattr(self, field.name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise ValueError(f"{field.name} must be a finite number >= 0, got {value!r}")
+            if value > ACTUATOR_MAX[field.name]:
+                raise ValueError(f"{field.name} must be at most {ACTUATOR_MAX[field.name]:g}, got {value:g}")
         if self.q_dot_max <= self.q_dot_tau_max:
             raise ValueError(f"q_dot_max ({self.q_dot_max}) must exceed q_dot_tau_max ({self.q_dot_tau_max})")
         if self.kp_scale <= 0:
@@ -133,8 +142,9 @@ def _parse(raw: object, source: str) -> Catalogue:
                 model_number=int(entry["model_number"]) if "model_number" in entry else None,
                 rated_voltage=float(entry.get("rated_voltage", 12.0)),
             )
-            if models[name].rated_voltage <= 0:
-                raise ValueError(f"rated_voltage must be > 0 V, got {models[name].rated_voltage}")
+            for figure, (low, high) in MOTOR_RANGES.items():
+                if not low <= getattr(models[name], figure) <= high:  # False for NaN
+                    raise ValueError(f"{figure} must lie in [{low:g}, {high:g}], got {getattr(models[name], figure)}")
         except KeyError as exc:
             raise SpecError(f"{where}: missing field {exc.args[0]!r}") from None
         except (TypeError, ValueError, AttributeError) as exc:
