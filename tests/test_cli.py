@@ -1,5 +1,7 @@
+import json
 import subprocess
 import sys
+from dataclasses import replace
 
 import mujoco
 import pytest
@@ -69,3 +71,40 @@ def test_model_build_uses_fitted_motor_params(tmp_path):
     assert model.dof_damping[neck.dofadr[0]] == pytest.approx(0.0456)
     knee = model.joint("left_knee_drive")  # an XM430: unchanged
     assert model.dof_armature[knee.dofadr[0]] == pytest.approx(0.0022)
+
+
+def _main(args, monkeypatch, capsys):
+    from toddlerbot.cli import main as cli_main
+
+    monkeypatch.setattr(sys, "argv", ["toddlerbot", *args])
+    with pytest.raises(SystemExit) as exit_:
+        cli_main.main()
+    return exit_.value.code, *capsys.readouterr()
+
+
+def test_a_chain_that_fails_its_success_check_exits_1(tmp_path, monkeypatch, capsys):
+    chain = tmp_path / "still.yaml"
+    chain.write_text("name: still\nscene: wagon\nsuccess:\n  moved: {body: wagon, at_least: 0.5}\n"
+                     "skills:\n  - {name: wait, kind: hold, until: {after: 0.1}}\n")
+    code, out, err = _main(["chain", "run", "wagon", "--chain", str(chain), "--json"], monkeypatch, capsys)
+    outcome = json.loads(out)
+    assert code == 1 and err == ""
+    assert outcome["success"] is False and outcome["wagon_displacement_m"] < 0.01
+
+
+def test_an_evaluation_with_falls_exits_1_and_its_json_holds_no_nan(monkeypatch, capsys):
+    import numpy as np
+
+    from toddlerbot.runtime import tracking
+
+    fell = tracking.TrackingResult(position_m=float("nan"), lin_vel_mps=0.1, ang_vel_radps=0.2, falls=1,
+                                   duration_s=3.0, time=np.zeros(1), command=np.zeros((1, 3)),
+                                   achieved=np.zeros((1, 3)))
+    monkeypatch.setattr(tracking, "evaluate_policy", lambda *args: fell)
+    code, out, _ = _main(["eval", "tracking", "--policy", "walk-zmp", "--json"], monkeypatch, capsys)
+    assert code == 1
+    assert json.loads(out) == {"position_m": None, "lin_vel_mps": 0.1, "ang_vel_radps": 0.2, "falls": 1,
+                               "duration_s": 3.0}
+    monkeypatch.setattr(tracking, "evaluate_policy", lambda *args: replace(fell, falls=0, position_m=0.05))
+    code, out, _ = _main(["eval", "tracking", "--policy", "walk-zmp"], monkeypatch, capsys)
+    assert code == 0 and "falls 0" in out

@@ -5,6 +5,7 @@ Each bad file gets a one-line `ToddlerbotError` subclass that starts with the fi
 
 from __future__ import annotations
 
+import re
 import time
 from pathlib import Path
 
@@ -42,6 +43,15 @@ SPEC_CASES = [
     ("nan_range", SPEC_TEXT.replace("range: [-1.74533, 0.785398]", "range: [.nan, 0.785398]", 1),
      "range[0]: " + FINITE),
     ("negative_mass", SPEC_TEXT.replace("mass: 1.08507", "mass: -1.0", 1), TORSO + "mass: Input should be greater"),
+    # finite but absurd: plausible ranges, not only finite
+    ("huge_mass", SPEC_TEXT.replace("mass: 1.08507", "mass: 1.0e+308", 1),
+     TORSO + "mass: Input should be less than or equal to 1000"),
+    ("huge_inertia", SPEC_TEXT.replace("inertia: [0.00283944,", "inertia: [1.0e+300,", 1),
+     TORSO + "inertia: principal inertias must lie in (0, 100] kg*m^2, got (1e+300,"),
+    ("huge_timestep", SPEC_TEXT.replace("timestep: 0.001", "timestep: 1.0e+300", 1),
+     "simulation.timestep: Input should be less than or equal to 0.05"),
+    ("zero_timestep", SPEC_TEXT.replace("timestep: 0.001", "timestep: 1.0e-300", 1),
+     "simulation.timestep: Input should be greater than or equal to 0.00001"),
     ("truncated", SPEC_TEXT[: len(SPEC_TEXT) // 3] + "\n  - [", "not valid YAML"),
     ("empty", "", "expected a mapping at the top level"),
     ("alias_bomb", ALIAS_BOMB, "YAML aliases expand to more than 1000000 nodes"),
@@ -76,6 +86,10 @@ CATALOGUE_CASES = [
     ("nan_damping", CATALOGUE_TEXT.replace("damping: 0.0036", "damping: .nan", 1), "damping"),
     ("inf_armature", CATALOGUE_TEXT.replace("armature: 0.0040", "armature: .inf", 1), "armature"),
     ("bool_param", CATALOGUE_TEXT.replace("tau_max: 0.76", "tau_max: true", 1), "tau_max"),
+    ("huge_tau_max", CATALOGUE_TEXT.replace("tau_max: 0.76", "tau_max: 1.0e+300", 1),
+     "tau_max must be at most 1000, got 1e+300"),
+    ("nan_stall_torque", re.sub(r"(\n\s+stall_torque_nm: )[0-9.]+", r"\1.nan", CATALOGUE_TEXT, count=1),
+     "stall_torque_nm must lie in [0.001, 1000], got nan"),
     ("alias_bomb", ALIAS_BOMB, "YAML aliases expand"),
     ("empty", "", ""),
 ]
@@ -205,3 +219,132 @@ def test_hostile_run_logs_get_one_line_errors(tmp_path):
         with pytest.raises(ToddlerbotError) as info:
             RunLog.load(path)
         assert expected[name] in _one_line_error(info.value, path)
+
+
+# ---- hostile command lines: each is one line on stderr and exit code 2, before any work starts ---------------------
+PARAMS_1E300 = '{"motor": "XC330", "actuator": {"tau_max": 1e300}}'
+CLI_CASES = [
+    # output paths: a folder, a file where a folder is expected, an unwritable place, a special file
+    ("model_build_dir", "model build -o {dir}", "--output {dir}: is a directory, expected the name of a regular file"),
+    ("manip_demo_file", "manip demo -o {file}", "--out {file}: is not a folder, expected a folder to write into"),
+    ("sim_plot_file", "sim plot {file} -o {file}", "--out {file}: is not a folder"),
+    ("dp_eval_video_dir", "dp eval --video {dir}", "--video {dir}: is a directory"),
+    ("eval_plot_dir", "eval tracking --plot {dir}", "--plot {dir}: is a directory"),
+    ("sysid_fit_dir", "sysid fit {file} -o {dir}", "--output {dir}: is a directory"),
+    ("sim_log_proc", "sim run --policy stand --log /proc/self/runs/run.npz",
+     "--log /proc/self/runs/run.npz: cannot write there ("),
+    ("sim_summary_proc", "sim run --policy stand --summary-json /proc/version",
+     "--summary-json /proc/version: cannot write there ("),
+    ("sim_video_devnull", "sim run --policy stand --video /dev/null",
+     "--video /dev/null: is a special file, expected the name of a regular file to write"),
+    ("sim_log_under_file", "sim run --policy stand --log {file}/run.npz",
+     "--log {file}/run.npz: cannot write there ({file} is not a folder)"),
+    ("design_plot_file", "design report --plot {file}", "--plot {file}: is not a folder"),
+    ("chain_video_dir", "chain run wagon --video {dir}", "--video {dir}: is a directory"),
+    ("emulate_calibration_dir", "hw emulate --write-calibration {dir}", "--write-calibration {dir}: is a directory"),
+    ("hw_log_dir", "hw run --port /dev/ttyNOPE --calibration {cal} --log {dir}", "--log {dir}: is a directory"),
+    # numbers a run cannot use
+    ("control_hz_1e9", "sim run --policy stand --control-hz 1e9",
+     "--control-hz 1e+09: expected the 1000 Hz physics rate divided by a whole number, e.g. 50"),
+    ("control_hz_3", "sim run --policy stand --control-hz 3", "--control-hz 3: expected the 1000 Hz physics rate"),
+    ("eval_seconds_nan", "eval tracking --seconds nan", "--seconds nan: expected a duration in (0, 3600] seconds"),
+    ("sim_seconds_1e300", "sim run --policy stand --seconds 1e300",
+     "--seconds 1e+300: expected a duration in (0, 3600]"),
+    ("hw_seconds_1e300", "hw run --port /dev/ttyNOPE --calibration {cal} --seconds 1e300",
+     "--seconds 1e+300: expected"),
+    ("hw_walk_zmp_dt_1e-9", "hw run --port /dev/ttyNOPE --calibration {cal} --policy walk-zmp --dt 1e-9",
+     "walk-zmp cannot plan at a control period of 1e-09 s: its 1.2 s preview would be 1200000000 ticks (at most 2400)"),
+    ("sim_walk_zmp_2_hz", "sim run --policy walk-zmp --control-hz 2",
+     "walk-zmp cannot plan at a control period of 0.5 s: cycle_time 0.72 s and double_support_ratio 0.25 leave no"),
+    ("design_height_nan", "design report --height nan", "--height nan: expected a number of m in [0.1, 2.5]"),
+    ("design_height_inf", "design report --height inf --json", "--height inf: expected a number of m in [0.1, 2.5]"),
+    ("design_mass_1e308", "design report --mass 1e308", "--mass 1e+308: expected a number of kg in [0.05, 300]"),
+    ("design_battery_nan", "design report --battery-ah nan", "battery_capacity_ah must be in (0, 1000], got nan"),
+    ("dp_train_steps_negative", "dp train {dir} -o {dir}/run --steps -5", "--steps -5: expected a whole number >= 1"),
+    ("dp_train_minutes_nan", "dp train {dir} -o {dir}/run --minutes nan",
+     "--minutes nan: expected a duration in (0, 10080] minutes"),
+    ("rl_train_minutes_inf", "rl train --minutes inf", "--minutes inf: expected a duration in (0, 10080]"),
+    ("rl_train_epochs_zero", "rl train --epochs 0", "--epochs 0: expected a whole number >= 1"),
+    ("teleop_leader_rate_nan", "teleop leader --port /dev/ttyNOPE --calibration {cal} --rate nan",
+     "--rate nan: expected a number of Hz in [0.1, 1000]"),
+    # input files: not UTF-8, endless, absurd values
+    ("command_file_binary", "sim run --policy stand --command-file {binary}", "{binary}: not UTF-8 text (byte 2)"),
+    ("command_file_dev_zero", "sim run --policy stand --command-file /dev/zero",
+     "/dev/zero: more than 1000000 bytes is too large for a command file (at most 1000000 bytes)"),
+    ("spec_mass_1e308", "model info --spec {huge_mass}", "bodies[0] (torso).mass: Input should be less than or equal"),
+    ("spec_timestep_1e300", "model build --spec {huge_timestep} -o {dir}/robot.xml",
+     "simulation.timestep: Input should be less than or equal to 0.05"),
+    ("params_tau_max_1e300", "model info --motor-params {params}",
+     "{params}: tau_max must be at most 1000, got 1e+300"),
+    # typer's own option errors: one line, not a 5-line box
+    ("typer_not_a_number", "sim run --seconds abc",
+     "toddlerbot sim run: Invalid value for '--seconds': Input should be a valid number"),
+    ("typer_unknown_option", "sim run --bogus", "toddlerbot sim run: No such option: --bogus"),
+    ("typer_missing_option", "model build", "toddlerbot model build: Missing option '-o' / '--output'."),
+]
+
+
+@pytest.fixture(scope="module")
+def cli_files(tmp_path_factory):
+    from toddlerbot.hardware.calibration import Calibration, save_calibration
+    from toddlerbot.robot.description import RobotDescription
+
+    root = tmp_path_factory.mktemp("cli")
+    files = {"dir": root / "a_dir", "file": root / "a_file", "cal": root / "cal.yaml", "binary": root / "cmd.txt",
+             "huge_mass": root / "huge_mass.yaml", "huge_timestep": root / "huge_timestep.yaml",
+             "params": root / "params.json"}
+    files["dir"].mkdir()
+    files["file"].write_text("x")
+    save_calibration(Calibration("tb", "toddlerbot_v1", {n: 2048 for n in RobotDescription.load().motor_names}),
+                     files["cal"])
+    files["binary"].write_bytes(b"0:\xff\xfe0.1,0,0\n")
+    files["huge_mass"].write_text(SPEC_TEXT.replace("mass: 1.08507", "mass: 1.0e+308", 1))
+    files["huge_timestep"].write_text(SPEC_TEXT.replace("timestep: 0.001", "timestep: 1.0e+300", 1))
+    files["params"].write_text(PARAMS_1E300)
+    return {k: str(v) for k, v in files.items()}
+
+
+def _main(args: list[str], capsys, monkeypatch) -> tuple[int, str, str]:
+    import sys
+
+    from toddlerbot.cli import main as cli_main
+
+    monkeypatch.setattr(sys, "argv", ["toddlerbot", *args])
+    with pytest.raises(SystemExit) as exit_:
+        cli_main.main()
+    out, err = capsys.readouterr()
+    return exit_.value.code, out, err
+
+
+@pytest.mark.parametrize(("name", "command", "expected"), CLI_CASES, ids=[c[0] for c in CLI_CASES])
+def test_hostile_command_lines_get_one_line_errors_and_exit_2(name, command, expected, cli_files, capsys,
+                                                              monkeypatch):
+    if name.startswith("dp_"):
+        pytest.importorskip("torch")
+    code, out, err = _main(command.format(**cli_files).split(), capsys, monkeypatch)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "Traceback" not in out + err, err
+    assert lines[0].startswith("error: ") and expected.format(**cli_files) in lines[0], lines[0]
+    assert not (Path(cli_files["dir"]) / "run").exists()  # nothing created by a refused training run
+
+
+def test_real_use_stays_within_the_ranges(cli_files, capsys, monkeypatch):
+    """What-if designs up to 1.8 m tall, two hours of training, and `stand` at the signal benchmark's 1 ns period
+    are all accepted; design JSON never holds NaN or Infinity."""
+    import json
+
+    from toddlerbot.cli.options import training_budget
+    from toddlerbot.hardware.calibration import Calibration
+    from toddlerbot.hardware.real_robot import RealRobot
+    from toddlerbot.policies import make_policy
+    from toddlerbot.robot.description import RobotDescription
+
+    code, out, _ = _main(["design", "report", "--height", "1.8", "--mass", "70", "--json"], capsys, monkeypatch)
+    assert code == 0
+    report = json.loads(out, parse_constant=lambda token: pytest.fail(f"non-JSON token {token}"))
+    assert report["height_m"] == 1.8 and report["mass_kg"] == 70.0
+    training_budget(120.0, None)
+    description = RobotDescription.load()
+    robot = RealRobot(description, "/dev/ttyNOPE", Calibration("tb", "toddlerbot_v1", {
+        n: 2048 for n in description.motor_names}), control_dt=1e-9)  # no port is opened
+    assert make_policy("stand", robot).name == "stand"

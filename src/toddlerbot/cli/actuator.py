@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -13,7 +12,9 @@ from rich.table import Table
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.envelope_plot import plot_torque_envelope
 from toddlerbot.actuation.params_file import load_params
+from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
+from toddlerbot.files import json_text
 
 app = typer.Typer(help="Actuator model: parameters per motor model and the torque-speed plot.", no_args_is_help=True)
 
@@ -37,6 +38,7 @@ def plot(
     params_path: ParamsOption = None,
 ) -> None:
     """Plot the torque limit versus joint speed (appendix Figure 12) for one motor model."""
+    output_file(output, "--output")
     name, params = _params(motor, params_path)
     plot_torque_envelope(params, name, output)
     console.print(f"wrote {output} ({name})")
@@ -52,7 +54,7 @@ def show(
     name, params = _params(motor, params_path)
     values = dataclasses.asdict(params)
     if as_json:
-        typer.echo(json.dumps({"motor": name, "actuator": values}, indent=2))
+        typer.echo(json_text({"motor": name, "actuator": values}, indent=2))
         return
     table = Table(title=name)
     table.add_column("parameter")

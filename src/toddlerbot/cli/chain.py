@@ -3,14 +3,15 @@ the real robot."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import json_text
 
 app = typer.Typer(help="Skill chains: run a chain file's skills in order (docs/manipulation.md, Skill chaining).")
 
@@ -28,7 +29,8 @@ def run(
         = None,
 ) -> None:
     """Run a chain to its end. Sim: success is the chain's success predicates (wagon: moved >= 0.5 m and the
-    handle still held). With --port and --calibration it runs on the real robot through the same interface."""
+    handle still held). With --port and --calibration it runs on the real robot through the same interface.
+    Exit code 1 when the chain fails (a predicate, a skill or a switch), 2 on bad input."""
     from toddlerbot.manipulation.chaining.spec import load_chain
     from toddlerbot.robot.description import RobotDescription
 
@@ -36,6 +38,8 @@ def run(
     chain = load_chain(chain_file or name, tuple(description.groups))
     if (port is None) != (calibration is None):
         raise ToddlerbotError("the real robot needs both --port and --calibration")
+    if video is not None and port is None:
+        output_file(video, "--video")
     if port is not None:
         _run_real(chain, description, port, calibration, json_output, video)  # type: ignore[arg-type]
         return
@@ -43,8 +47,14 @@ def run(
 
     result = run_in_sim(chain, seed, video, description)
     if json_output:
-        console.print_json(json.dumps(result.as_json()))
-        return
+        console.print_json(json_text(result.as_json()))
+    else:
+        _print(result, seed, video)
+    if not result.success:
+        raise typer.Exit(1)
+
+
+def _print(result, seed: int, video: Path | None) -> None:
     console.print(f"chain {result.chain} seed {seed}: {'success' if result.success else 'FAILED'}"
                   + (f" ({result.failure})" if result.failure else ""))
     for skill, by in result.driven_by.items():
@@ -70,6 +80,8 @@ def _run_real(chain, description, port: str, calibration: Path, json_output: boo
     outcome = {"chain": chain.name, "success": status.failure is None, "failure": status.failure,
                "switches": [{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in status.switches]}
     if json_output:
-        console.print_json(json.dumps(outcome))
+        console.print_json(json_text(outcome))
     else:
         console.print(f"chain {chain.name}: {'ended' if status.failure is None else 'FAILED: ' + status.failure}")
+    if status.failure is not None:
+        raise typer.Exit(1)

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.table import Table
 
+from toddlerbot.cli.options import output_dir, within
 from toddlerbot.cli.output import console
 from toddlerbot.design.budget import PowerInputs
-from toddlerbot.design.report import DesignReport, design_report
+from toddlerbot.design.report import HEIGHT_RANGE_M, MASS_RANGE_KG, DesignReport, design_report
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import json_text
 from toddlerbot.robot.builder import VARIANTS
 from toddlerbot.robot.description import load_variant
 
@@ -31,9 +32,12 @@ def report(
     spec_path: Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML.")] = None,
 ) -> None:
     """Print the design report (and optionally write its figures)."""
-    for name, value in (("--height", height), ("--mass", mass)):
-        if value is not None and value <= 0:
-            raise typer.BadParameter(f"must be positive, got {value}", param_hint=name)
+    for name, value, (low, high), unit in (("--height", height, HEIGHT_RANGE_M, "m"),
+                                           ("--mass", mass, MASS_RANGE_KG, "kg")):
+        if value is not None:
+            within(value, name, low, high, unit)
+    if plot is not None:
+        output_dir(plot, "--plot")
     if variant not in VARIANTS:
         raise typer.BadParameter(f"{variant!r} is not one of {', '.join(VARIANTS)}", param_hint="--variant")
     description, _ = load_variant(variant, spec_path)
@@ -47,7 +51,7 @@ def report(
 
         paths = write_plots(result, plot)
     if as_json:
-        typer.echo(json.dumps(result.to_json(), indent=2))
+        typer.echo(json_text(result.to_json(), indent=2))
         return
     _print(result)
     if plot is not None:

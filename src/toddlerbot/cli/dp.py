@@ -7,14 +7,18 @@ from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import duration, output_dir, output_file, training_budget
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import json_text
 from toddlerbot.manipulation.dp import require_torch
 
 app = typer.Typer(help="Diffusion policy from demonstrations (needs the \\[dp] extra: torch==2.13.0).",
                   no_args_is_help=True)
 
 PRESET_NAMES = ("small", "tiny", "appendix")
+MAX_EPISODE_SECONDS = 600.0
+"""Longest simulated evaluation episode, s (a pick takes about 6 s)."""
 
 
 @app.command()
@@ -30,7 +34,7 @@ def train(
     imagenet_weights: Annotated[Path | None, typer.Option(help="Local torchvision ResNet-18 state dict (ImageNet) "
                                                                 "to start the appendix config's encoder from.")]
     = None,
-    threads: Annotated[int, typer.Option(help="CPU threads for torch.")] = 2,
+    threads: Annotated[int, typer.Option(min=1, help="CPU threads for torch.")] = 2,
     device: Annotated[str, typer.Option(help="Torch device to train on: cpu, cuda, cuda:1, ...")] = "cpu",
     checkpoint_every: Annotated[int, typer.Option(min=1, help="Save checkpoint.pt every this many steps (and at "
                                                                "the end).")] = 500,
@@ -48,6 +52,8 @@ def train(
         raise ToddlerbotError(f"--config {config!r}: expected one of {', '.join(PRESET_NAMES)}")
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
+    training_budget(minutes, steps)
+    output_dir(out, "--out")
     preset = PRESETS[config]
     previous_threads = torch.get_num_threads()
     torch.set_num_threads(threads)
@@ -73,13 +79,12 @@ def info(
 ) -> None:
     """Print a checkpoint's training step, size, last losses and configuration."""
     require_torch()
-    import json
 
     from toddlerbot.manipulation.dp.checkpoint import checkpoint_summary
 
     summary = checkpoint_summary(checkpoint)
     if json_output:
-        print(json.dumps(summary))
+        print(json_text(summary))
         return
     cfg, last = summary["config"], summary["last"] or {}
     console.print(f"{checkpoint}: step {summary['step']}, {summary['parameters'] / 1e6:.2f} M parameters, "
@@ -98,6 +103,7 @@ def export(
     require_torch()
     from toddlerbot.manipulation.dp.checkpoint import export_policy
 
+    output_file(out, "--out")
     written = export_policy(checkpoint, out)
     console.print(f"wrote {written}: {written.stat().st_size / 1e6:.1f} MB (from {checkpoint}, "
                   f"{checkpoint.stat().st_size / 1e6:.1f} MB)")
@@ -110,17 +116,17 @@ def evaluate(
                                                          "task, if any).")] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Episodes (seeds --seed, --seed+1, ...).")] = 50,
     seed: Annotated[int, typer.Option(help="First scene seed (use seeds the demonstrations did not).")] = 1000,
-    seconds: Annotated[float, typer.Option(min=0.1, help="Simulated time limit per episode, s.")] = 8.0,
+    seconds: Annotated[float, typer.Option(min=0.1, help="Simulated time limit per episode, s (at most 600).")]
+    = 8.0,
     json_output: Annotated[bool, typer.Option("--json", help="Print JSON: success_rate, episodes, inference_ms.")]
     = False,
     video: Annotated[Path | None, typer.Option(help="MP4 of all episodes: scene camera and head camera, 10 fps.")]
     = None,
-    threads: Annotated[int, typer.Option(help="CPU threads for torch.")] = 1,
+    threads: Annotated[int, typer.Option(min=1, help="CPU threads for torch.")] = 1,
     device: Annotated[str, typer.Option(help="Torch device for the network: cpu, cuda, ...")] = "cpu",
 ) -> None:
     """Run a checkpoint closed-loop on a simulated task (50 Hz control, 10 Hz observations) and report success."""
     require_torch()
-    import json
 
     import torch
     from rich.progress import Progress
@@ -131,6 +137,9 @@ def evaluate(
 
     if task not in TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS)}")
+    duration(seconds, "--seconds", MAX_EPISODE_SECONDS)
+    if video is not None:
+        output_file(video, "--video")
     checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task)
     torch.set_num_threads(threads)
     with Progress(console=console, transient=True) as progress:
@@ -139,7 +148,7 @@ def evaluate(
                                 on_episode=lambda _: progress.advance(bar), device=device)
     summary = result.summary()
     if json_output:
-        print(json.dumps(summary))
+        print(json_text(summary))
         return
     console.print(f"{task}: success {summary['success_rate']:.0%} over seeds {seed}..{seed + episodes - 1} "
                   f"(failed: {summary['failed_seeds'] or 'none'}), {summary['inference_ms']:.1f} ms per inference "

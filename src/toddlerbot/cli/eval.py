@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import duration, output_file
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import json_text
 
 app = typer.Typer(help="Evaluate policies in simulation (appendix Table 7).", no_args_is_help=True)
 
@@ -28,7 +29,8 @@ def tracking(
     motor_params: Annotated[list[Path] | None, typer.Option(
         "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")] = None,
 ) -> None:
-    """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls."""
+    """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
+    (exit code 1 if the robot fell)."""
     from toddlerbot.policies import POLICIES
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.commands import CommandSchedule
@@ -39,8 +41,9 @@ def tracking(
     schedule_text = commands or DEFAULT_COMMANDS
     if seconds is None:
         seconds = DEFAULT_SECONDS if commands is None else CommandSchedule.parse(commands, "--commands").times[-1] + 5
-    if seconds <= 0:
-        raise ToddlerbotError(f"--seconds must be > 0, got {seconds}")
+    duration(seconds, "--seconds")
+    if plot is not None:
+        output_file(plot, "--plot")
     description = RobotDescription.load(motor_params=motor_params or [])
     with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not as_json else _null():
         result = evaluate_policy(description, policy, schedule_text, seconds, weights)
@@ -48,8 +51,14 @@ def tracking(
     if plot is not None:
         plot_velocity_tracking(result, policy, plot)
     if as_json:
-        print(json.dumps(summary))
-        return
+        print(json_text(summary))
+    else:
+        _print(policy, summary, plot)
+    if summary["falls"]:
+        raise typer.Exit(1)
+
+
+def _print(policy: str, summary: dict, plot: Path | None) -> None:
     console.print(f"[bold]{policy}[/]: position {summary['position_m']:.3f} m, linear velocity "
                   f"{summary['lin_vel_mps']:.3f} m/s, angular velocity {summary['ang_vel_radps']:.3f} rad/s, "
                   f"falls {summary['falls']} ({summary['duration_s']:.1f} s simulated)")

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import output_dir, output_file
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import json_text
 
 app = typer.Typer(help="Manipulation: scripted demonstrations, datasets (LeRobot v3.0).", no_args_is_help=True)
 dataset_app = typer.Typer(help="Inspect and validate LeRobot v3.0 datasets.", no_args_is_help=True)
@@ -45,8 +46,12 @@ def demo(
     _check_task(task)
     if snapshot is not None and video is None:
         raise ToddlerbotError("--snapshot takes a frame of the video: give --video too")
-    if out.exists() and any(out.iterdir()) and not overwrite:
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
         raise ToddlerbotError(f"{out} exists and is not empty; pass --overwrite to replace it")
+    output_dir(out, "--out")
+    for option, path in (("--video", video), ("--snapshot", snapshot)):
+        if path is not None:
+            output_file(path, option)
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"recording {task} demonstrations", total=episodes)
 
@@ -98,7 +103,7 @@ def demo_rate(
     result = {"task": task, "episodes": episodes, "success_rate": 1 - len(failed) / episodes,
               "failed_seeds": failed, "seconds_per_episode": (time.perf_counter() - started) / episodes}
     if as_json:
-        print(json.dumps(result))
+        print(json_text(result))
     else:
         console.print(f"{task}: success {result['success_rate']:.0%} over seeds {seed}..{seed + episodes - 1} "
                       f"(failed: {failed or 'none'}), {result['seconds_per_episode']:.1f} s per episode")
@@ -115,6 +120,7 @@ def decode(
 
     if out.suffix != ".npz":
         raise ToddlerbotError(f"--out {out}: expected a file name ending in .npz")
+    output_file(out, "--out")
     dataset = load_dataset(root)
     written = save_decoded(dataset, out)
     console.print(f"wrote {written}: {dataset.n_episodes} episodes, {len(dataset)} frames, "
@@ -131,7 +137,7 @@ def info(
 
     summary = load_dataset(root, decode_video=False).summary()
     if as_json:
-        print(json.dumps(summary))
+        print(json_text(summary))
         return
     ep = summary["episode_seconds"]
     console.print(

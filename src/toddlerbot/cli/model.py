@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict
 from pathlib import Path
 from typing import Annotated
@@ -10,8 +9,9 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
+from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
-from toddlerbot.files import atomic_write_text
+from toddlerbot.files import atomic_write_text, json_text
 from toddlerbot.robot.builder import VARIANTS
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
@@ -42,6 +42,7 @@ def build(
     """Write the MJCF of the robot (deterministic: same spec, same bytes)."""
     from toddlerbot.robot.description import load_variant
 
+    output_file(output, "--output")
     description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
     mjspec = description.mjspec(base, scene)  # compiled: a model MuJoCo cannot compile is never written
     atomic_write_text(output, mjspec.to_xml())
@@ -62,7 +63,7 @@ def info(
     description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
     summary = summarize_model(description, description.model(base, scene=False))
     if as_json:
-        typer.echo(json.dumps(asdict(summary), indent=2))
+        typer.echo(json_text(asdict(summary), indent=2))
         return
     console.print(f"[bold]{summary.name}[/] ({variant})")
     console.print(

@@ -14,11 +14,24 @@ MAX_RUN_SECONDS = 3600.0
 """Longest run a command accepts, s: an hour (the battery's run time; a simulated hour logs about 180,000 steps)."""
 
 
-def duration(value: float, option: str, max_s: float = MAX_RUN_SECONDS) -> float:
-    """`value` if it is a finite number of seconds in (0, `max_s`] (a run of 1e300 s would never end)."""
+def duration(value: float, option: str, max_s: float = MAX_RUN_SECONDS, unit: str = "seconds") -> float:
+    """`value` if it is a finite duration in (0, `max_s`] (a run of 1e300 s would never end)."""
     if not (math.isfinite(value) and 0 < value <= max_s):
-        raise ToddlerbotError(f"{option} {value:g}: expected a duration in (0, {max_s:g}] seconds")
+        raise ToddlerbotError(f"{option} {value:g}: expected a duration in (0, {max_s:g}] {unit}")
     return value
+
+
+MAX_TRAINING_MINUTES = 7 * 24 * 60.0
+"""Longest training budget a command accepts, minutes (a week; a budget must end)."""
+
+
+def training_budget(minutes: float | None, steps: int | None, step_option: str = "--steps") -> None:
+    """Refuse a training budget that would not end or not start: --minutes must be finite in (0, a week], the step
+    count >= 1."""
+    if minutes is not None:
+        duration(minutes, "--minutes", MAX_TRAINING_MINUTES, "minutes")
+    if steps is not None and steps < 1:
+        raise ToddlerbotError(f"{step_option} {steps}: expected a whole number >= 1")
 
 
 def within(value: float, option: str, low: float, high: float, unit: str) -> float:
@@ -47,11 +60,12 @@ def output_file(path: Path, option: str) -> Path:
 
 
 def output_dir(path: Path, option: str) -> Path:
-    """`path` as a folder to write files into: created if missing and probed by creating a file in it; an existing
-    file at `path` is refused."""
+    """`path` as a folder to write files into, shown writable by creating a probe file in it (or, if it does not
+    exist yet, in its parent, created if missing: the command creates the folder itself once its input checks
+    out); an existing file at `path` is refused."""
     if path.exists() and not path.is_dir():
         raise ToddlerbotError(f"{option} {path}: is not a folder, expected a folder to write into")
-    _probe(path.absolute(), "probe", option, path)
+    _probe(path.absolute() if path.is_dir() else path.absolute().parent, path.name, option, path)
     return path
 
 

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import output_dir, output_file, training_budget
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
@@ -53,6 +54,9 @@ def train(
 
     from toddlerbot.rl.config import SMOKE_XLA_FLAGS
 
+    training_budget(minutes, epochs, "--epochs")
+    for option, count in (("--timesteps", timesteps), ("--num-envs", num_envs)):
+        training_budget(None, count, option)
     smoke_run = smoke or (resume is not None and (resume / "smoke").is_file())
     if smoke_run:  # must be set before JAX starts its CPU backend
         os.environ.setdefault("XLA_FLAGS", SMOKE_XLA_FLAGS)
@@ -72,7 +76,7 @@ def train(
             raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations: a resumed run keeps the "
                                   "settings it started with")
     else:
-        run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
+        run_dir = output_dir(out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S"), "--out")
         env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
         try:
             env_cfg = replace(
@@ -123,6 +127,7 @@ def export(
     out: Annotated[Path, typer.Option(help="Exported .npz.")] = DEFAULT_WEIGHTS,
 ) -> None:
     """Write the run's latest checkpoint as a numpy-only policy file for the `walk-rl` runtime policy."""
+    output_file(out, "--out")
     _require_jax()
     from toddlerbot.rl.export import export_run
 

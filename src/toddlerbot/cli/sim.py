@@ -175,6 +175,6 @@ def plot(
     from toddlerbot.runtime.log import RunLog
     from toddlerbot.runtime.plot import plot_log
 
-    run_log = RunLog.load(log)
-    for path in plot_log(run_log, output_dir(out, "--out")):
+    output_dir(out, "--out")
+    for path in plot_log(RunLog.load(log), out):
         console.print(f"wrote {path}")

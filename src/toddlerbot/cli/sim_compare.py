@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.table import Table
 
+from toddlerbot.cli.options import output_dir
 from toddlerbot.cli.output import console
+from toddlerbot.files import json_text
 
 
 def compare_command(
@@ -26,11 +27,13 @@ def compare_command(
     from toddlerbot.runtime.log import RunLog
     from toddlerbot.runtime.sim_compare import plot_comparison, replay_in_sim
 
+    if plot is not None:
+        output_dir(plot, "--plot")
     run = RunLog.load(log)
     result = replay_in_sim(run, RobotDescription.load(motor_params=motor_params or []))
     written = plot_comparison(result, plot, top=min(top, 6)) if plot is not None else []
     if as_json:
-        typer.echo(json.dumps(result.to_json(), indent=2))
+        typer.echo(json_text(result.to_json(), indent=2))
         return
     table = Table(title=f"{log.name}: simulated vs logged ({len(result.time)} steps, {run.policy})")
     for col in ("motor", "pos MAE (deg)", "pos max (deg)", "vel MAE (rad/s)"):

@@ -13,6 +13,7 @@ from rich.table import Table
 
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.params_file import load_params
+from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
 from toddlerbot.cli.sysid_record import record_command
 from toddlerbot.sysid.errors import SysIDError
@@ -57,6 +58,7 @@ def fit_command(
     """Fit damping, friction loss, armature, tau_max, q_dot_tau_max, tau_q_dot_max, q_dot_max, kd_min, tau_brake
     (--model extended: also stiction, stribeck_velocity, load_friction). Reports parameters left at a bound."""
     parameter_names(fit_kp_scale, model)  # an unknown --model fails before any work
+    output_file(output, "--output")  # and an unwritable -o: not after minutes of fitting
     m = load_manifest(manifest)
     start_params = None
     if start is not None:

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import within
+from toddlerbot.cli.options import duration, output_dir, within
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.sim.scenes import SCENES
@@ -19,6 +19,8 @@ app = typer.Typer(help="Teleoperation: game controller (Table 4), keyboard, lead
 BACKENDS = ("sim", "real")
 INPUTS = ("joystick", "keyboard", "leader")
 SIM_TASKS = ("walk", *SCENES)
+MAX_TELEOP_SECONDS = 12 * 3600.0
+"""Longest timed teleoperation session, s (a day of data collection; 0 runs until Esc)."""
 
 
 @app.callback()
@@ -60,8 +62,12 @@ def teleop(
                                  ("--task", task, SIM_TASKS), ("--policy", policy, ("walk-zmp", "walk-rl"))):
         if value not in allowed:
             raise ToddlerbotError(f"{name} {value!r}: expected one of {', '.join(allowed)}")
-    if out is not None and out.exists() and any(out.iterdir()):
+    if out is not None and out.is_dir() and any(out.iterdir()):
         raise ToddlerbotError(f"{out} exists and is not empty")
+    if out is not None:
+        output_dir(out, "--out")
+    if seconds:  # 0: until Esc or Ctrl-C
+        duration(seconds, "--seconds", MAX_TELEOP_SECONDS)
     pad = load_mapping(mapping)
     robot, camera, walks = _robot(backend, task, port, calibration, seed)
     source = _source(input_kind, pad)
@@ -249,6 +255,7 @@ def probe(
     from toddlerbot.manipulation.gamepad import load_mapping
     from toddlerbot.manipulation.sdl_input import JoystickInput
 
+    duration(seconds, "--seconds")
     source = JoystickInput(load_mapping())
     console.print(f"{source.name}: move sticks and press buttons ({seconds:g} s)")
     last = source.state()

@@ -63,6 +63,11 @@ class PowerInputs:
         for name in ("duty_cycle", "usable_fraction"):
             if not 0 < getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in (0, 1], got {getattr(self, name)}")
+        for name, high in (("electronics_w", 1e4), ("motors_active_w", 1e5), ("battery_voltage_v", 1000.0),
+                           ("battery_capacity_ah", 1000.0), ("target_runtime_h", 1000.0),
+                           ("battery_peak_current_a", 1e4)):
+            if not 0 < getattr(self, name) <= high:  # False for NaN: no NaN in the budget or its JSON
+                raise ValueError(f"{name} must be in (0, {high:g}], got {getattr(self, name)}")
 
 
 @dataclass(frozen=True)

@@ -63,6 +63,12 @@ class DesignReport:
         }
 
 
+HEIGHT_RANGE_M = (0.1, 2.5)
+"""Heights the design metrics accept, m: from a hand-sized robot to beyond a tall adult (what-if designs of 1.8 m)."""
+MASS_RANGE_KG = (0.05, 300.0)
+"""Masses the design metrics accept, kg."""
+
+
 def design_report(
     description: RobotDescription,
     height_m: float | None = None,
@@ -75,8 +81,8 @@ def design_report(
     spec = description.spec
     height = float(height_m if height_m is not None else standing_height(description.model("floating", scene=False)))
     mass = float(mass_kg if mass_kg is not None else spec.total_mass)
-    if height <= 0 or mass <= 0:
-        raise ValueError(f"height and mass must be positive, got {height} m and {mass} kg")
+    if not (HEIGHT_RANGE_M[0] <= height <= HEIGHT_RANGE_M[1] and MASS_RANGE_KG[0] <= mass <= MASS_RANGE_KG[1]):
+        raise ValueError(f"height {height} m and mass {mass} kg: expected {HEIGHT_RANGE_M} m and {MASS_RANGE_KG} kg")
     return DesignReport(
         robot=spec.name if spec.variant is None else f"{spec.name} ({spec.variant})",
         height_m=height,

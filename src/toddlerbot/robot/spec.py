@@ -24,6 +24,17 @@ Quat = tuple[float, float, float, float]
 IDENTITY: Quat = (1.0, 0.0, 0.0, 0.0)
 
 
+MAX_BODY_MASS_KG = 1000.0
+"""Plausible ranges: finite is not enough (a 1e308 kg torso is finite). Bounds are far beyond any humanoid link but
+far below what overflows a sum or a matrix product."""
+MAX_INERTIA_KGM2 = 100.0
+MAX_JOINT_DYNAMICS = 1000.0
+"""Largest joint damping (N*m*s/rad), armature (kg*m^2) or friction loss (N*m)."""
+TIMESTEP_RANGE_S = (1e-5, 0.05)
+"""Physics timesteps MuJoCo can integrate this robot at (the spec uses 1 ms)."""
+MAX_SOLVER_ITERATIONS = 1000
+
+
 class _Strict(BaseModel):
     # allow_inf_nan: a NaN centre of mass or an infinite mass must never reach the model builder
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -38,9 +49,9 @@ class JointSpec(_Strict):
     pos: Vec3 = (0.0, 0.0, 0.0)
     range: tuple[float, float] | None = None
     """Lower and upper limit (rad or m); absent means unlimited."""
-    damping: float = Field(0.0, ge=0)
-    armature: float = Field(0.0, ge=0)
-    frictionloss: float = Field(0.0, ge=0)
+    damping: float = Field(0.0, ge=0, le=MAX_JOINT_DYNAMICS)
+    armature: float = Field(0.0, ge=0, le=MAX_JOINT_DYNAMICS)
+    frictionloss: float = Field(0.0, ge=0, le=MAX_JOINT_DYNAMICS)
 
     @field_validator("range")
     @classmethod
@@ -91,7 +102,7 @@ class BodySpec(_Strict):
     parent: str
     pos: Vec3
     quat: Quat = IDENTITY
-    mass: float = Field(gt=0)
+    mass: float = Field(gt=0, le=MAX_BODY_MASS_KG)
     """kg"""
     com: Vec3
     """Centre of mass in the body frame, m."""
@@ -107,8 +118,8 @@ class BodySpec(_Strict):
     @field_validator("inertia")
     @classmethod
     def _positive(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
-        if any(v <= 0 for v in value):
-            raise ValueError(f"principal inertias must be positive, got {value}")
+        if not all(0 < v <= MAX_INERTIA_KGM2 for v in value):
+            raise ValueError(f"principal inertias must lie in (0, {MAX_INERTIA_KGM2:g}] kg*m^2, got {value}")
         return value
 
 
@@ -220,11 +231,12 @@ Transmission = Annotated[
 class SimulationSpec(_Strict):
     """MuJoCo solver settings written into the generated model."""
 
-    timestep: float = Field(gt=0)
+    timestep: float = Field(ge=TIMESTEP_RANGE_S[0], le=TIMESTEP_RANGE_S[1])
+    """Physics timestep, s."""
     integrator: Literal["Euler", "implicitfast", "implicit", "RK4"]
     solver: Literal["Newton", "CG", "PGS"]
-    iterations: int = Field(gt=0)
-    ls_iterations: int = Field(gt=0)
+    iterations: int = Field(gt=0, le=MAX_SOLVER_ITERATIONS)
+    ls_iterations: int = Field(gt=0, le=MAX_SOLVER_ITERATIONS)
     cone: Literal["pyramidal", "elliptic"]
 
 

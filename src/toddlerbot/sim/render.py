@@ -107,8 +107,13 @@ class Recorder:
     """Renders frames of a MuJoCo model/data pair from a named camera (``width`` x ``height`` pixels)."""
 
     def __init__(self, model, data, camera: str = "perspective", width: int = 640, height: int = 360) -> None:
+        """Raises `ToddlerbotError` for a camera the model lacks (before any rendering set-up), `RenderError` when no
+        OpenGL backend can render."""
         import mujoco
 
+        cameras = [model.camera(i).name for i in range(model.ncam)]
+        if camera not in cameras:
+            raise ToddlerbotError(f"camera {camera!r} is not in the model; expected one of {', '.join(cameras)}")
         backend = configure_gl()
         self.data = data
         self.camera = camera
