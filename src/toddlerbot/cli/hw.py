@@ -191,7 +191,7 @@ def run(
 
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
-    recorder, pol = LogRecorder(), None
+    recorder, pol, video = LogRecorder(), None, None
     try:
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
         if policy not in RUN_POLICIES:
@@ -239,6 +239,8 @@ def run(
         from toddlerbot.cli.dp_live import describe_status
 
         console.print(describe_status(pol.status), highlight=False)
+        if video is not None and video.error:  # e.g. the USB camera was unplugged: the policy held meanwhile
+            console.print(f"camera {camera}: stopped after {video.frames} frames ({video.error})", highlight=False)
     if log:
         save_or_fallback(result.log.save, log, "the run log")
     sys.stdout.flush()

@@ -8,6 +8,7 @@ A run directory holds ``checkpoint.pt`` (latest, resumable), ``config.json`` (th
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -55,6 +56,13 @@ class TrainSchedule:
     val_batches: int = 4
     """Validation batches per evaluation (of the validation episodes)."""
     checkpoint_every: int = 500
+
+    def __post_init__(self) -> None:
+        # a budget must end and must run: NaN minutes trained forever, -5 steps saved a NaN-loss checkpoint
+        if self.max_steps is not None and self.max_steps < 1:
+            raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
+        if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
+            raise ValueError(f"minutes must be a finite number > 0, got {self.minutes}")
 
 
 @dataclass(frozen=True)
