@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import re
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -254,6 +255,8 @@ CLI_CASES = [
      "--seconds 1e+300: expected"),
     ("hw_walk_zmp_dt_1e-9", "hw run --port /dev/ttyNOPE --calibration {cal} --policy walk-zmp --dt 1e-9",
      "walk-zmp cannot plan at a control period of 1e-09 s: its 1.2 s preview would be 1200000000 ticks (at most 2400)"),
+    ("sim_camera_unknown", "sim run --policy stand --seconds 0.1 --camera nonexistent --video {dir}/v.mp4",
+     "camera 'nonexistent' is not in the model; expected one of "),
     ("sim_walk_zmp_2_hz", "sim run --policy walk-zmp --control-hz 2",
      "walk-zmp cannot plan at a control period of 0.5 s: cycle_time 0.72 s and double_support_ratio 0.25 leave no"),
     ("design_height_nan", "design report --height nan", "--height nan: expected a number of m in [0.1, 2.5]"),
@@ -348,3 +351,16 @@ def test_real_use_stays_within_the_ranges(cli_files, capsys, monkeypatch):
     robot = RealRobot(description, "/dev/ttyNOPE", Calibration("tb", "toddlerbot_v1", {
         n: 2048 for n in description.motor_names}), control_dt=1e-9)  # no port is opened
     assert make_policy("stand", robot).name == "stand"
+
+
+def test_a_run_log_that_expands_beyond_the_cap_is_refused_before_decompressing(tmp_path, monkeypatch):
+    from toddlerbot.runtime import log as run_log
+
+    path = _run_log(n=200).save(tmp_path / "log.npz")
+    with zipfile.ZipFile(path) as archive:
+        expanded = sum(i.file_size for i in archive.infolist())
+    monkeypatch.setattr(run_log, "MAX_RUN_LOG_BYTES", expanded - 1)  # a 1 GiB cap, scaled down to this log
+    with pytest.raises(ToddlerbotError) as info:
+        run_log.RunLog.load(path)
+    assert f"expands to {expanded} bytes; a run log has at most {expanded - 1} bytes" in _one_line_error(info.value,
+                                                                                                      path)

@@ -42,6 +42,8 @@ STEP_KEYS = (
     "joint_target", "imu_quat", "imu_ang_vel", "imu_lin_acc", "foot_contact", "base_pos", "base_quat",
     "compute_time", "step_period",
 )
+MAX_RUN_LOG_BYTES = 1 << 30
+"""Largest run log (uncompressed), bytes: a compressed .npz of a few kB could otherwise expand to gigabytes."""
 OPTIONAL_STEP_KEYS = ("motor_kp", "motor_kd")
 """Recorded when given to `LogRecorder.append`; logs written before they existed load with None."""
 
@@ -99,8 +101,15 @@ class RunLog:
 
     @classmethod
     def load(cls, path: str | Path) -> RunLog:
+        """The log in `path`; one line naming the file for anything else (not an .npz, expanding to more than
+        `MAX_RUN_LOG_BYTES`, inconsistent shapes)."""
         path = Path(path)
         try:
+            with zipfile.ZipFile(path) as archive:  # checked before np.load decompresses anything
+                expanded = sum(info.file_size for info in archive.infolist())
+            if expanded > MAX_RUN_LOG_BYTES:
+                raise ToddlerbotError(f"{path}: expands to {expanded} bytes; a run log has at most "
+                                      f"{MAX_RUN_LOG_BYTES} bytes (an hour at 50 Hz is about 450 MB)")
             with np.load(path, allow_pickle=False) as data:
                 values = {f.name: data[f.name] for f in fields(cls) if f.name in data or f.name not in
                           OPTIONAL_STEP_KEYS}
