@@ -39,7 +39,8 @@ def _error(app, args: list[str]) -> str:
     ("--dt", "nan", "--dt nan: expected a duration in (0, 0.1] seconds"),
     ("--dt", "1e400", "--dt inf: expected"),
     ("--dt", "5", "--dt 5: expected a duration in (0, 0.1] seconds"),
-    ("--latency-ms", "0", "--latency-ms 0.0: expected a finite number of milliseconds > 0"),
+    ("--latency-ms", "0", "--latency-ms 0: expected a duration in (0, 1000] milliseconds"),
+    ("--latency-ms", "5000", "--latency-ms 5000: expected a duration in (0, 1000] milliseconds"),
 ])
 def test_hw_run_refuses_unusable_numbers(calibration, option, value, expected):
     assert expected in _error(hw.app, ["run", "--port", NO_PORT, "--calibration", str(calibration), option, value])

@@ -114,7 +114,7 @@ def evaluate(
     task: Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s).")] = "pick",
     checkpoint: Annotated[Path | None, typer.Option(help="Checkpoint to run (default: the one shipped for the "
                                                          "task, if any).")] = None,
-    episodes: Annotated[int, typer.Option(min=1, help="Episodes (seeds --seed, --seed+1, ...).")] = 50,
+    episodes: Annotated[int, typer.Option(min=1, max=10_000, help="Episodes (seeds --seed, --seed+1, ...).")] = 50,
     seed: Annotated[int, typer.Option(help="First scene seed (use seeds the demonstrations did not).")] = 1000,
     seconds: Annotated[float, typer.Option(min=0.1, help="Simulated time limit per episode, s (at most 600).")]
     = 8.0,

@@ -13,7 +13,7 @@ import typer
 from rich.table import Table
 
 from toddlerbot.cli.dp_live import RUN_POLICIES
-from toddlerbot.cli.options import duration, output_file, positive
+from toddlerbot.cli.options import duration, output_file
 from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
@@ -199,7 +199,7 @@ def run(
         duration(seconds, "--seconds")
         # longer periods would leave the motors' 0.5 s Bus Watchdog waiting for the next goal
         duration(control_dt, "--dt", MAX_CONTROL_DT)
-        positive(latency_ms, "--latency-ms", "milliseconds")
+        duration(latency_ms, "--latency-ms", 1000.0, "milliseconds")  # the driver's bound on the latency timer
         if log is not None:
             output_file(log, "--log")
         description = _description(spec_path, variant, motor_params)

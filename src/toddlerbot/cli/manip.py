@@ -30,7 +30,7 @@ def _check_task(task: str) -> None:
 def demo(
     out: Annotated[Path, typer.Option("-o", "--out", help="Dataset directory to write (LeRobot v3.0 + raw/).")],
     task: Annotated[str, typer.Option("--task", help=TASK_HELP)] = "pick",
-    episodes: Annotated[int, typer.Option("--episodes", min=1, help="Successful episodes to record.")] = 10,
+    episodes: Annotated[int, typer.Option("--episodes", min=1, max=10_000, help="Successful episodes to record.")] = 10,
     seed: Annotated[int, typer.Option("--seed", help="First scene seed (then seed+1, ...).")] = 0,
     video: Annotated[Path | None, typer.Option("--video", help="MP4: scene camera and head camera side by side.")]
         = None,
@@ -76,7 +76,7 @@ def demo(
 @app.command("demo-rate")
 def demo_rate(
     task: Annotated[str, typer.Option("--task", help=TASK_HELP)] = "pick",
-    episodes: Annotated[int, typer.Option("--episodes", min=1, help="Seeds to try.")] = 50,
+    episodes: Annotated[int, typer.Option("--episodes", min=1, max=10_000, help="Seeds to try.")] = 50,
     seed: Annotated[int, typer.Option("--seed", help="First seed.")] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
