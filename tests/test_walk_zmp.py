@@ -3,13 +3,14 @@
 import numpy as np
 import pytest
 
-from toddlerbot.locomotion.config import WalkConfig
+from toddlerbot.locomotion.config import WALK_REACH, WalkConfig
 from toddlerbot.locomotion.preview import preview_gains, preview_step
 from toddlerbot.locomotion.zmp_walk import ZMPWalk
 from toddlerbot.policies.walk_feedback import VelocityLoop, VelocityTracking
 from toddlerbot.policies.walk_zmp import WalkZMPPolicy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.commands import CommandSchedule
+from toddlerbot.runtime.robustness import conditions, reach_commands, run_trial
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.runtime.summary import summarize
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -64,14 +65,19 @@ def test_gait_config_is_validated():
 def test_leg_mass_correction_puts_the_whole_robot_com_on_the_plan(description):
     walk = ZMPWalk(description, WalkConfig(leg_mass_correction=True))
     traj = walk.trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
-    for i in (30, 40, 47):  # standing, double support, single support (swing leg moving)
+    cfg = walk.config
+    step1 = cfg.start_ticks + cfg.step_ticks
+    mid_swing = step1 + cfg.double_support_ticks + (cfg.step_ticks - cfg.double_support_ticks) // 2
+    for i in (cfg.start_ticks - 5, step1 + 1, mid_swing):  # standing, double support, single support
         com = traj.torso_pos[i] + walk.ik.com(traj.joint_pos[i][walk.leg_index])  # torso upright, yaw ~0
         np.testing.assert_allclose(com[:2], traj.com_pos[i, :2], atol=2e-3)
+    corrected = np.linalg.norm(com[:2] - traj.com_pos[mid_swing, :2])
     # without it the home-pose CoM offset is kept and the swing leg moves the real CoM off the plan
     home = ZMPWalk(description).trajectory(np.array([0.1, 0.05, 0.0]), 2.0)
-    i = 47
+    i = mid_swing
     com = home.torso_pos[i] + walk.ik.com(home.joint_pos[i][walk.leg_index])
-    assert np.linalg.norm(com[:2] - home.com_pos[i, :2]) > 2e-3
+    uncorrected = np.linalg.norm(com[:2] - home.com_pos[i, :2])
+    assert uncorrected > 1.5e-3 and uncorrected > 3 * corrected  # measured 1.7 mm vs 0.17 mm
 
 
 def _walk(cmd, seconds=10.0):
@@ -91,19 +97,18 @@ def _commanded(commands, seconds, dt=0.02):
 
 SCHEDULE = "0:0.1,0,0; 3:0,0.05,0; 5.5:-0.05,0,0.2"
 # (command, achieved/commanded ratio window per axis that is asserted; axes with a small command get an
-# absolute drift bound instead). Ratios measured on 6 s walks with the forward velocity loop (docs/simulation.md):
-# the plan itself reaches x0.89-0.93 of the command in 6 s (0.4 s standing start, acceleration), the forward
-# commands x0.86-0.94. Known gap with a regression window around the measured value, not a goal: fast sideways
-# (x0.75).
+# absolute drift bound instead). Ratios measured on 6 s walks (0.6 s gait cycle, docs/simulation.md): the plan
+# itself reaches x0.89-0.93 of the command in 6 s (0.4 s standing start, acceleration), the forward commands
+# x0.91-0.97, sideways x0.90-1.06.
 GRID = [
     ((-0.1, 0.0, 0.0), {0: (0.85, 1.05)}),
     ((0.05, 0.0, 0.0), {0: (0.75, 1.0)}),
     ((0.15, 0.0, 0.0), {0: (0.8, 1.0)}),
     ((0.0, -0.05, 0.0), {1: (0.85, 1.1)}),
-    ((0.0, 0.08, 0.0), {1: (0.65, 0.85)}),
+    ((0.0, 0.08, 0.0), {1: (0.8, 1.0)}),
     ((0.0, 0.0, -0.3), {2: (0.85, 1.05)}),
     ((0.08, 0.03, 0.2), {0: (0.7, 1.0), 1: (0.8, 1.0), 2: (0.85, 1.05)}),
-    (SCHEDULE, {0: (0.8, 1.0), 1: (0.95, 1.2)}),
+    (SCHEDULE, {0: (0.75, 1.0), 1: (0.95, 1.3)}),
 ]
 
 
@@ -129,7 +134,7 @@ def test_command_grid_6_s(cmd, windows):
 def test_walks_forward_0p1_mps_for_10_s():
     s = _walk([0.1, 0.0, 0.0])
     assert not s.fell
-    assert 0.9 <= s.displacement_m[0] <= 1.05  # issue window 0.8-1.2 m; 0.94 m planned; measured 0.937 m
+    assert 0.9 <= s.displacement_m[0] <= 1.05  # issue window 0.8-1.2 m; 0.94 m planned; measured 0.954 m
     assert abs(s.displacement_m[1]) < 0.08  # heading hold: no sideways drift
     assert abs(s.yaw_change_rad) < 0.1
     assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03 and s.tracking.ang_vel_radps < 0.05
@@ -148,7 +153,9 @@ def test_turns_in_place_at_0p3_radps():
 def test_steps_sideways_at_0p05_mps():
     s = _walk([0.0, 0.05, 0.0])
     assert not s.fell
-    assert 0.45 <= s.displacement_m[1] <= 0.55  # issue window 0.35-0.65 m; 0.48 m planned after the start
+    # issue window 0.35-0.65 m; 0.48 m planned after the start; measured 0.575 m (the 0.6 s cycle over-strides
+    # sideways x1.2 at this command, x0.9 at 0.08 m/s: docs/simulation.md)
+    assert 0.5 <= s.displacement_m[1] <= 0.65
     assert abs(s.displacement_m[0]) < 0.12  # the forward velocity loop cancels the backward slip
     assert abs(s.yaw_change_rad) < 0.1
     assert s.tracking.position_m < 0.08 and s.tracking.lin_vel_mps < 0.03
@@ -157,9 +164,22 @@ def test_steps_sideways_at_0p05_mps():
 @pytest.mark.slow
 def test_walks_fast_0p15_mps_for_10_s():
     s = _walk([0.15, 0.0, 0.0])
-    assert not s.fell  # fell at 7.5 s before the capture-point feedback and the stiffer swing leg
-    assert 1.35 <= s.displacement_m[0] <= 1.6  # 1.44 m planned after the 0.4 s start; measured 1.455 m
+    assert not s.fell  # 1 in 16 micro-perturbed walks fell at the 0.72 s cycle; 0 in 16 at 0.6 s
+    assert 1.35 <= s.displacement_m[0] <= 1.6  # 1.44 m planned after the 0.4 s start; measured 1.416 m
     assert abs(s.displacement_m[1]) < 0.1 and abs(s.yaw_change_rad) < 0.1
+
+
+@pytest.mark.slow
+def test_walks_the_whole_reach_without_a_fall_under_small_perturbations(description):
+    """Robust, not lucky: every reach command on two perturbed robots (joint offsets, torso mass, friction, motor
+    parameters: `Perturbation.sample`), 6 s each; the full table is `benchmarks/bench_walk_robustness.py`."""
+    perturbed = next(c for c in conditions() if c.name == "perturbed")
+    trials = [run_trial(description, WalkZMPPolicy, command, perturbed, seed, 6.0)
+              for command in reach_commands(WALK_REACH) for seed in (0, 1)]
+    assert len(trials) == 20
+    assert [(t.command, t.seed, t.fall_time) for t in trials if t.fell] == []
+    forward = [t.displacement[0] for t in trials if t.command == (WALK_REACH.high[0], 0.0, 0.0)]
+    assert min(forward) > 0.7  # and it walks: 0.15 m/s for 6 s is 0.84 m planned
 
 
 def test_dcm_error_from_leg_kinematics_and_imu_tilt():

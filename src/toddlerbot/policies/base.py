@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import logging
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
 
+from toddlerbot.locomotion.config import CommandReach
 from toddlerbot.robot.interface import Observation, Robot
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -25,8 +29,11 @@ class Policy(ABC):
     """A controller the runner calls once per control period."""
 
     name: str = "policy"
+    command_reach: CommandReach | None = None
+    """The velocity commands the policy follows (None: it ignores commands); `within_reach` clamps to it."""
 
     def __init__(self, robot: Robot) -> None:
+        self._warned_reach = False
         self.robot = robot
         self.transmission = robot.transmission
         self.control_dt = robot.control_dt
@@ -40,6 +47,19 @@ class Policy(ABC):
     @abstractmethod
     def act(self, obs: Observation, command: np.ndarray) -> Action:
         """Targets for the next control period; command = (vx m/s, vy m/s, yaw rate rad/s) in the robot frame."""
+
+    def within_reach(self, command: np.ndarray) -> np.ndarray:
+        """The command clamped to `command_reach`; the first clamp of a run logs one warning."""
+        command = np.asarray(command, dtype=float)
+        if self.command_reach is None:
+            return command
+        clamped = self.command_reach.clamp(command)
+        if not self._warned_reach and not np.array_equal(clamped, command):
+            self._warned_reach = True
+            log.warning("%s: command (%s) is beyond its reach (%s); clamped to (%s)", self.name,
+                        ", ".join(f"{v:g}" for v in command), self.command_reach.describe(),
+                        ", ".join(f"{v:g}" for v in clamped))
+        return clamped
 
     @property
     def done(self) -> bool:

@@ -98,6 +98,7 @@ class WalkZMPPolicy(Policy):
         super().__init__(robot)
         names = list(robot.joint_names)
         self.walk = ZMPWalk(robot.description, config or WalkConfig(dt=robot.control_dt))
+        self.command_reach = self.walk.config.reach
         if abs(self.walk.config.dt - robot.control_dt) > 1e-12:
             raise ValueError(f"walk dt {self.walk.config.dt} s must equal the control period {robot.control_dt} s")
         chains = self.walk.ik.chains.joint_names
@@ -139,7 +140,7 @@ class WalkZMPPolicy(Policy):
 
     def act(self, obs: Observation, command: np.ndarray) -> Action:
         fb = self.feedback
-        command = np.asarray(command, dtype=float)
+        command = self.within_reach(command)
         if self.walk_state is None:
             self.walk_state = self.walk.start(command)
         roll, pitch, heading = attitude(obs.imu_quat)

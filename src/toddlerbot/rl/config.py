@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
+from toddlerbot.locomotion.config import WALK_REACH
 from toddlerbot.policies.rl_inference import ObsConfig
 
 __all__ = ["ObsConfig"]
@@ -16,12 +17,12 @@ __all__ = ["ObsConfig"]
 class CommandConfig:
     """Velocity commands (torso yaw frame): vx, vy m/s, yaw rate rad/s, snapped to the reference grid.
 
-    The ranges are walk-zmp's (every grid point, corners included, is tabulated by the ZMP generator without
-    leg-IK failures); steps of 0.05 m/s, 0.04 m/s and 0.2 rad/s."""
+    The ranges default to the walking policies' reach (`locomotion.config.WALK_REACH`: every grid point, corners
+    included, is tabulated by the ZMP generator without leg-IK failures); steps of 0.05 m/s, 0.04 m/s and 0.2 rad/s."""
 
-    vx: tuple[float, float] = (-0.1, 0.15)
-    vy: tuple[float, float] = (-0.08, 0.08)
-    yaw: tuple[float, float] = (-0.4, 0.4)
+    vx: tuple[float, float] = (WALK_REACH.low[0], WALK_REACH.high[0])
+    vy: tuple[float, float] = (WALK_REACH.low[1], WALK_REACH.high[1])
+    yaw: tuple[float, float] = (WALK_REACH.low[2], WALK_REACH.high[2])
     grid: tuple[int, int, int] = (6, 5, 5)
     """Grid points along vx, vy, yaw (each range includes 0 as a grid point when it straddles 0)."""
     stand_prob: float = 0.15

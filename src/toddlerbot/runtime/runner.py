@@ -61,7 +61,7 @@ def run_policy(
     kp, kd = robot.default_kp, robot.default_kd  # gains stay in effect until a policy sends others
     for _ in range(n_steps):
         start = time.perf_counter()
-        command = np.asarray(commands(obs.time), dtype=float)
+        command = policy.within_reach(commands(obs.time))  # logged as the policy follows it
         try:
             action = policy.act(obs, command)
         except ToddlerbotError:

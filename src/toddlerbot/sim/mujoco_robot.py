@@ -85,6 +85,8 @@ class MuJoCoRobot(Robot):
         self._home_key = m.key("home").id
         self._targets = np.zeros(len(self.motor_names))
         self._torque = np.zeros(len(self.motor_names))
+        self.initial_motor_offset = np.zeros(len(self.motor_names))
+        """Motor angles added to the home keyframe at `reset`, rad (a perturbation; zero by default)."""
         self.set_gains(self.default_kp, self.default_kd)
         self.reset()
         self.standing_height = float(self.data.xpos[self._torso, 2])
@@ -92,6 +94,7 @@ class MuJoCoRobot(Robot):
     # -- Robot interface -------------------------------------------------------------------------------------
     def reset(self) -> Observation:
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._home_key)
+        self.data.qpos[self._qadr] += self.initial_motor_offset
         mujoco.mj_forward(self.model, self.data)
         self._targets = self.data.qpos[self._qadr].copy()
         self.last_targets = None
@@ -141,6 +144,10 @@ class MuJoCoRobot(Robot):
         geoms = self.data.contact.geom[:ncon]
         with_floor = geoms[(geoms == self._floor).any(axis=1)]
         return np.isin(self._foot_geoms, with_floor)
+
+    def push(self, velocity_change: np.ndarray) -> None:
+        """Add a horizontal velocity (dvx, dvy), m/s, world frame, to the torso: a kick."""
+        self.data.qvel[0:2] += np.asarray(velocity_change, dtype=float)
 
     @property
     def base_pos(self) -> np.ndarray:

@@ -1,0 +1,94 @@
+"""Falls of a walking policy per command x perturbation (`toddlerbot.runtime.robustness`).
+
+Ten commands across the policy's reach, each walked for `--seconds` under every condition (nominal, torso 10 %
+heavier, floor friction 0.5, small random perturbations, velocity kicks of 0.1, 0.2 and 0.3 m/s) and `--seeds`
+seeds; prints a table of falls (falls / trials per cell) and the totals per condition. Trials run in `--workers`
+subprocesses that print one JSON line per trial (nothing is pickled between processes).
+
+Run: PYTHONPATH=src python benchmarks/bench_walk_robustness.py [--policy walk-zmp|walk-rl] [--weights F.npz]
+     [--seeds 3] [--seconds 8] [--workers 2] [--conditions nominal,perturbed]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import time
+
+from toddlerbot.policies import make_policy
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.runtime.robustness import conditions, reach_commands, run_trial
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+
+def _policy_factory(args):
+    return lambda robot: make_policy(args.policy, robot, weights=args.weights)
+
+
+def _jobs(args, names, description):
+    """(command, condition, seed) of every trial; the commands span the policy's reach."""
+    reach = make_policy(args.policy, MuJoCoRobot(description), weights=args.weights).command_reach
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    return [(c, name, seed) for name in names for c in reach_commands(reach) for seed in seeds]
+
+
+def worker(args, names) -> None:
+    """Run every `--workers`-th trial starting at `--worker` and print each as a JSON line."""
+    description = RobotDescription.load()
+    by_name = {c.name: c for c in conditions()}
+    for i, (command, name, seed) in enumerate(_jobs(args, names, description)):
+        if i % args.workers != args.worker:
+            continue
+        trial = run_trial(description, _policy_factory(args), command, by_name[name], seed, args.seconds)
+        print(json.dumps({"command": trial.command, "condition": name, "seed": seed,
+                          "fall_time": trial.fall_time}), flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--policy", default="walk-zmp")
+    parser.add_argument("--weights", default=None)
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--seconds", type=float, default=8.0)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--conditions", default=",".join(c.name for c in conditions()))
+    parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    names = args.conditions.split(",")
+    unknown = set(names) - {c.name for c in conditions()}
+    if unknown:
+        parser.error(f"unknown condition(s) {sorted(unknown)}; expected some of {[c.name for c in conditions()]}")
+    if args.worker is not None:
+        worker(args, names)
+        return
+    start = time.perf_counter()
+    procs = [subprocess.Popen([sys.executable, __file__, *sys.argv[1:], "--worker", str(w)], stdout=subprocess.PIPE,
+                              text=True) for w in range(args.workers)]
+    rows = [json.loads(line) for p in procs for line in p.stdout]
+    if any(p.wait() != 0 for p in procs):
+        sys.exit("a worker failed")
+    wall = time.perf_counter() - start
+    commands = list(dict.fromkeys(tuple(c) for c, _, _ in _jobs(args, names, RobotDescription.load())))
+    print(f"{args.policy}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell "
+          f"({platform.processor() or platform.machine()}, {wall:.0f} s wall, {args.workers} workers)")
+    width = max(len(n) for n in names) + 2
+    print("command (vx, vy, yaw)".ljust(24) + "".join(n.rjust(width) for n in names))
+    for command in commands:
+        cells = []
+        for name in names:
+            trials = [r for r in rows if tuple(r["command"]) == command and r["condition"] == name]
+            cells.append(f"{sum(r['fall_time'] is not None for r in trials)}/{len(trials)}".rjust(width))
+        print(f"({command[0]:+.3f}, {command[1]:+.3f}, {command[2]:+.2f})".ljust(24) + "".join(cells))
+    totals = []
+    for name in names:
+        trials = [r for r in rows if r["condition"] == name]
+        totals.append(f"{sum(r['fall_time'] is not None for r in trials)}/{len(trials)}".rjust(width))
+    print("all".ljust(24) + "".join(totals))
+
+
+if __name__ == "__main__":
+    main()

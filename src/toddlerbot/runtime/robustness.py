@@ -1,0 +1,82 @@
+"""How often a walking policy falls across its command reach under seeded perturbations (`sim.perturbation`).
+
+A trial walks one constant command for a few seconds on a perturbed robot, optionally kicked; what is reported and
+asserted is the count of falls over many trials, never one trajectory (walking is chaotic: the last bit of a
+floating-point sum can decide a marginal step). `benchmarks/bench_walk_robustness.py` prints the full table.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from toddlerbot.locomotion.config import CommandReach
+from toddlerbot.policies.base import Policy
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import Robot
+from toddlerbot.runtime.runner import run_policy
+from toddlerbot.sim.perturbation import KickSchedule, Perturbation, perturbed_robot
+
+PolicyFactory = Callable[[Robot], Policy]
+
+
+def reach_commands(reach: CommandReach) -> list[tuple[float, float, float]]:
+    """Ten commands across a reach: each axis at both ends, half forward, two combined commands, standing."""
+    lo, hi = reach.low, reach.high
+    return [
+        (hi[0], 0.0, 0.0), (hi[0] / 2, 0.0, 0.0), (lo[0], 0.0, 0.0),
+        (0.0, hi[1], 0.0), (0.0, lo[1], 0.0),
+        (0.0, 0.0, hi[2]), (0.0, 0.0, lo[2]),
+        (hi[0] / 2, hi[1] / 2, hi[2] / 2), (lo[0] / 2, lo[1] / 2, lo[2] / 2),
+        (0.0, 0.0, 0.0),
+    ]
+
+
+@dataclass(frozen=True)
+class Condition:
+    """A named way of perturbing the trials: one perturbation per seed."""
+
+    name: str
+    perturb: Callable[[RobotDescription, int], Perturbation]
+
+
+def conditions(kicks: tuple[float, ...] = (0.1, 0.2, 0.3)) -> list[Condition]:
+    """The benchmark's conditions: nominal, torso 10 % heavier, floor friction 0.5, small random perturbations
+    (`Perturbation.sample`: joint offsets 0.01 rad, torso mass +-10 %, friction 0.5-1.0, motor parameters
+    +-10 %) and each kick speed on the nominal robot (directions from the seed)."""
+    out = [
+        Condition("nominal", lambda d, s: Perturbation(seed=s)),
+        Condition("torso +10%", lambda d, s: Perturbation(seed=s, torso_mass_scale=1.1)),
+        Condition("friction 0.5", lambda d, s: Perturbation(seed=s, friction=0.5)),
+        Condition("perturbed", lambda d, s: Perturbation.sample(s, d)),
+    ]
+    out += [Condition(f"kicks {v:g} m/s", lambda d, s, v=v: Perturbation(seed=s, kick_speed=v)) for v in kicks]
+    return out
+
+
+@dataclass(frozen=True)
+class Trial:
+    command: tuple[float, float, float]
+    condition: str
+    seed: int
+    fall_time: float | None
+    """s, None when the robot walked the whole trial."""
+    displacement: tuple[float, float]
+    """Torso (dx, dy) over the trial, m, world frame."""
+
+    @property
+    def fell(self) -> bool:
+        return self.fall_time is not None
+
+
+def run_trial(description: RobotDescription, make_policy: PolicyFactory, command: tuple[float, float, float],
+              condition: Condition, seed: int, seconds: float) -> Trial:
+    """Walk ``command`` for ``seconds`` on the robot perturbed by ``condition`` at ``seed``."""
+    perturbation = condition.perturb(description, seed)
+    robot = perturbed_robot(description, perturbation)
+    result = run_policy(robot, make_policy(robot), lambda t: np.asarray(command), seconds,
+                        on_step=KickSchedule(robot, perturbation))
+    moved = robot.base_pos - result.log.base_pos[0]
+    return Trial(tuple(command), condition.name, seed, result.fall_time, (float(moved[0]), float(moved[1])))

@@ -1,0 +1,73 @@
+"""Seeded perturbations of the simulated robot: each change lands in the model, kicks are exact, seeds repeat."""
+
+import dataclasses
+import logging
+
+import numpy as np
+import pytest
+
+from toddlerbot.locomotion.config import WALK_REACH, CommandReach
+from toddlerbot.policies.walk_zmp import WalkZMPPolicy
+from toddlerbot.runtime.robustness import reach_commands
+from toddlerbot.runtime.runner import run_policy
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+from toddlerbot.sim.perturbation import SCALED_MOTOR_PARAMS, KickSchedule, Perturbation, perturbed_robot
+
+
+def test_sampled_perturbations_stay_in_their_ranges_and_repeat_per_seed(description):
+    a, b = Perturbation.sample(3, description), Perturbation.sample(3, description)
+    assert a == b and a != Perturbation.sample(4, description)
+    assert len(a.joint_offset) == description.n_motors and max(map(abs, a.joint_offset)) <= 0.01
+    assert 0.9 <= a.torso_mass_scale <= 1.1 and 0.5 <= a.friction <= 1.0
+    models = {m.model for m in description.motors}
+    assert {(m, p) for m, p, _ in a.motor_scale} == {(m, p) for m in models for p in SCALED_MOTOR_PARAMS}
+    assert all(0.9 <= f <= 1.1 for _, _, f in a.motor_scale)
+
+
+def test_perturbed_robot_carries_mass_friction_motor_parameters_and_joint_offsets(description):
+    p = Perturbation.sample(1, description)
+    robot = perturbed_robot(description, p)
+    nominal = description.model("floating", scene=True)
+    torso = nominal.body(description.handles.torso).id
+    assert robot.model.body_mass[torso] == pytest.approx(nominal.body_mass[torso] * p.torso_mass_scale)
+    assert np.all(robot.model.geom_friction[:, 0] == p.friction)
+    assert nominal.geom_friction[0, 0] == 1.0  # the shared compiled model is untouched
+    model, param, factor = p.motor_scale[0]
+    nominal_value = getattr(description.catalogue[model].actuator, param)
+    assert getattr(robot.description.catalogue[model].actuator, param) == pytest.approx(nominal_value * factor)
+    obs = robot.reset()
+    np.testing.assert_allclose(obs.motor_pos - description.home_motor_pos, p.joint_offset, atol=2e-3)
+
+
+def test_kicks_add_exactly_the_speed_at_the_kick_times(description):
+    robot = MuJoCoRobot(description)
+    kicks = KickSchedule(robot, Perturbation(seed=5, kick_speed=0.3))
+    robot.reset()
+    for t in np.arange(0.0, 7.0, 0.02):
+        before = robot.base_lin_vel[:2]
+        kicks(dataclasses.replace(robot.observe(), time=float(t)))
+        if kicks.kicks and kicks.kicks[-1][0] == pytest.approx(t):
+            assert np.linalg.norm(robot.base_lin_vel[:2] - before) == pytest.approx(0.3)
+    assert [k[0] for k in kicks.kicks] == pytest.approx([2.0, 4.5])
+    assert all(np.hypot(dx, dy) == pytest.approx(0.3) for _, dx, dy in kicks.kicks)
+
+
+def test_reach_commands_span_each_axis_both_ways_and_standing():
+    commands = np.array(reach_commands(WALK_REACH))
+    assert len(commands) == 10 and (commands == 0).all(axis=1).sum() == 1
+    np.testing.assert_array_equal(commands.max(axis=0), WALK_REACH.high)
+    np.testing.assert_array_equal(commands.min(axis=0), WALK_REACH.low)
+
+
+def test_reach_must_straddle_zero():
+    with pytest.raises(ValueError, match="vy: expected finite low <= 0 <= high"):
+        CommandReach(low=(-0.1, 0.05, -0.4), high=(0.1, 0.08, 0.4))
+
+
+def test_commands_beyond_the_reach_are_clamped_with_one_warning(caplog, description):
+    robot = MuJoCoRobot(description)
+    with caplog.at_level(logging.WARNING):
+        result = run_policy(robot, WalkZMPPolicy(robot), lambda t: np.array([1e300, -5.0, 0.2]), 0.5)
+    np.testing.assert_array_equal(result.log.command[-1], [0.15, -0.08, 0.2])
+    warnings = [r.getMessage() for r in caplog.records if "beyond its reach" in r.getMessage()]
+    assert len(warnings) == 1 and "clamped to (0.15, -0.08, 0.2)" in warnings[0]
