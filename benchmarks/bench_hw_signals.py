@@ -112,8 +112,8 @@ def main() -> None:
         with checker:  # goals where the motors are, so that every register starts inside its range
             checker.write_goal_positions(checker.read_state().position)
         for trial in range(args.trials):
-            argv = ["hw", "run", "--port", port, "--calibration", str(cal_file), "--policy", "stand", "--seconds",
-                    "2", "--latency-ms", "50"] + (["--dt", "1e-9"] if trial % 2 else [])
+            argv = ["hw", "run", "--port", port, "--calibration", str(cal_file), "--imu", "none", "--policy", "stand",
+                    "--seconds", "2", "--latency-ms", "50"] + (["--dt", "1e-9"] if trial % 2 else [])
             if args.spawn:
                 with (work / "trial.log").open("w") as log:
                     proc = subprocess.Popen([sys.executable, "-m", "toddlerbot.cli.main", *argv], stdout=log,

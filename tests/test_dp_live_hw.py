@@ -58,8 +58,8 @@ def test_hw_run_dp_drives_the_gripper_robot_through_the_emulator(tmp_path):
                                                                         for m in emu.motors}), cal)
         proc = subprocess.run(
             [sys.executable, "-m", "toddlerbot.cli.main", "hw", "run", "--port", port, "--calibration", str(cal),
-             "--variant", "gripper", "--policy", "dp", "--checkpoint", str(run.checkpoint), "--camera", str(video),
-             "--seconds", "2", "--latency-ms", "50", "--log", str(log_file)],
+             "--variant", "gripper", "--imu", "none", "--policy", "dp", "--checkpoint", str(run.checkpoint),
+             "--camera", str(video), "--seconds", "2", "--latency-ms", "50", "--log", str(log_file)],
             capture_output=True, text=True, env=ENV, timeout=240)
         with emu.lock:
             powered = [m.name for m in emu.motors if m.torque_on]
@@ -94,7 +94,7 @@ def test_hw_run_dp_refuses_a_bad_camera_or_a_gripper_checkpoint_on_the_default_r
         for camera in ("/nonexistent.mp4", str(video)):
             proc = subprocess.run(
                 [sys.executable, "-m", "toddlerbot.cli.main", "hw", "run", "--port", port, "--calibration", str(cal),
-                 "--policy", "dp", "--checkpoint", str(run.checkpoint), "--camera", camera],
+                 "--imu", "none", "--policy", "dp", "--checkpoint", str(run.checkpoint), "--camera", camera],
                 capture_output=True, text=True, env=ENV, timeout=120)
             lines = [line for line in proc.stderr.splitlines() if line.strip()]
             assert proc.returncode == 2 and len(lines) == 1, proc.stderr

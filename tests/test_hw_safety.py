@@ -35,7 +35,7 @@ def _calibration(emu: EmulatedBus, path: Path) -> Path:
 def _hw_run(port: str, cal: Path, *args: str) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-m", "toddlerbot.cli.main", "hw", "run", "--port", port, "--calibration", str(cal),
-         "--latency-ms", "50", *args],  # ~100 ms status timeouts: this machine is shared and loaded
+         "--latency-ms", "50", "--imu", "none", *args],  # ~100 ms status timeouts: this machine is shared and loaded
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
         # as from an interactive shell, even when pytest itself runs as a background job (SIGINT ignored)
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
@@ -156,7 +156,7 @@ except KeyboardInterrupt:
     pass
 from toddlerbot.cli.main import main
 sys.argv = ["toddlerbot", "hw", "run", "--port", sys.argv[1], "--calibration", sys.argv[2], "--latency-ms", "50",
-            "--policy", "stand", "--seconds", "30"]
+            "--imu", "none", "--policy", "stand", "--seconds", "30"]
 main()
 """
 

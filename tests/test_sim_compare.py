@@ -73,8 +73,9 @@ def test_hw_run_log_from_the_hil_emulator_agrees_with_the_simulator(tmp_path: Pa
         device = emulator.stdout.readline().strip()
         assert device.startswith("/dev/"), device
         run = subprocess.run([sys.executable, "-m", "toddlerbot.cli.main", "hw", "run", "--port", device,
-                              "--calibration", str(cal), "--policy", "replay", "--motion", "wave", "--seconds", "3",
-                              "--log", str(log_file)], capture_output=True, text=True, env=ENV, timeout=180)
+                              "--calibration", str(cal), "--imu", "none", "--policy", "replay", "--motion", "wave",
+                              "--seconds", "3", "--log", str(log_file)],
+                             capture_output=True, text=True, env=ENV, timeout=180)
     finally:
         emulator.send_signal(signal.SIGINT)
         emulator.communicate(timeout=30)

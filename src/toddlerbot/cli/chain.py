@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import output_file
+from toddlerbot.cli.options import ImuOption, open_robot_imu, output_file
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
@@ -27,6 +27,7 @@ def run(
     port: Annotated[str | None, typer.Option("--port", help="Serial port: run on the real robot.")] = None,
     calibration: Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
         = None,
+    imu: ImuOption = "bno08x",
 ) -> None:
     """Run a chain to its end. Sim: success is the chain's success predicates (wagon: moved >= 0.5 m and the
     handle still held). With --port and --calibration it runs on the real robot through the same interface.
@@ -41,7 +42,7 @@ def run(
     if video is not None and port is None:
         output_file(video, "--video")
     if port is not None:
-        _run_real(chain, description, port, calibration, json_output, video)  # type: ignore[arg-type]
+        _run_real(chain, description, port, calibration, imu, json_output, video)  # type: ignore[arg-type]
         return
     from toddlerbot.manipulation.chaining.sim_run import run_in_sim
 
@@ -68,14 +69,17 @@ def _print(result, seed: int, video: Path | None) -> None:
         console.print(f"wrote {video}")
 
 
-def _run_real(chain, description, port: str, calibration: Path, json_output: bool, video: Path | None) -> None:
+def _run_real(chain, description, port: str, calibration: Path, imu: str, json_output: bool,
+              video: Path | None) -> None:
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.real_robot import RealRobot
     from toddlerbot.manipulation.chaining.robot_run import run_on_robot
 
     if video is not None:
         raise ToddlerbotError("--video records the simulator; it is not available on the real robot")
-    robot = RealRobot(description, port, load_calibration(calibration, description))
+    walks = any(skill.kind == "walk" for skill in chain.skills)
+    robot = RealRobot(description, port, load_calibration(calibration, description),
+                      imu=open_robot_imu(imu, port, f"chain {chain.name} (it walks)" if walks else None))
     status = run_on_robot(chain, robot, on_switch=lambda line: None if json_output else console.print(line))
     outcome = {"chain": chain.name, "success": status.failure is None, "failure": status.failure,
                "switches": [{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in status.switches]}

@@ -13,11 +13,12 @@ import typer
 from rich.table import Table
 
 from toddlerbot.cli.dp_live import RUN_POLICIES
-from toddlerbot.cli.options import duration, output_file
+from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, output_file
 from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import FALL_TILT_RAD
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
 
@@ -53,9 +54,11 @@ def emulate(
     motor_params: MotorParamsOption = None,
 ) -> None:
     """Serve the robot's motors on a pseudo-terminal: prints the device path as the first line, then serves until
-    interrupted (Ctrl-C, SIGTERM, SIGHUP), then prints one JSON line of statistics."""
+    interrupted (Ctrl-C, SIGTERM, SIGHUP), then prints one JSON line of statistics. With --hil the simulated
+    robot's IMU is published too, as the BNO08x reports it (`hw run --imu emulator` reads it)."""
     from toddlerbot.hardware.driver import raise_on_stop_signals
     from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
+    from toddlerbot.hardware.imu_stream import ImuPublisher, imu_socket_path
     from toddlerbot.hardware.plant import HilPlant
 
     parsed = Faults.parse(faults or [])
@@ -69,6 +72,9 @@ def emulate(
         offsets = {m.name: m.mounting_offset for m in bus.motors}
         save_calibration(Calibration("emulated", spec_label(bus.description), offsets, {}), write_calibration)
     server = PtyServer(bus)
+    plant = bus.plant
+    imu = (ImuPublisher(imu_socket_path(server.path), lambda: plant.imu_sample).start()
+           if isinstance(plant, HilPlant) else None)
     raise_on_stop_signals()  # every stop signal ends serving, even a SIGINT a background shell job ignores
     try:
         print(server.path, flush=True)
@@ -77,6 +83,8 @@ def emulate(
         pass
     finally:
         server.stop()
+        if imu is not None:
+            imu.stop()
     report = {"packets": bus.stats.packets_in, "bytes_in": bus.stats.bytes_in, "bytes_out": bus.stats.bytes_out,
               "crc_errors": bus.stats.crc_errors}
     if isinstance(bus.plant, HilPlant):
@@ -84,13 +92,20 @@ def emulate(
                    "torso_height": round(bus.plant.torso_height(), 4),
                    "torso_upright": round(bus.plant.torso_uprightness(), 4),
                    "powered_min_torso_height": _finite(bus.plant.powered_min_height),
-                   "powered_min_torso_upright": _finite(bus.plant.powered_min_upright)}
+                   "powered_min_torso_upright": _finite(bus.plant.powered_min_upright),
+                   "powered_torso_motion": _rounded(bus.plant.powered_motion()), "imu_reports": imu.reports}
     print(json_text(report), flush=True)
 
 
 def _finite(value: float) -> float:
     """Rounded value (NaN, never measured, becomes JSON null)."""
     return round(value, 4) if np.isfinite(value) else value
+
+
+def _rounded(motion: tuple[float, float, float] | None) -> dict | None:
+    """The torso's planar motion while powered as JSON (dx, dy m; yaw rad), None if never powered."""
+    return None if motion is None else dict(zip(("dx_m", "dy_m", "yaw_rad"), (round(v, 4) for v in motion),
+                                                strict=True))
 
 
 @app.command()
@@ -171,6 +186,7 @@ def run(
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (at most an hour).")] = 5.0,
     control_dt: Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")] = 0.02,
     log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
+    imu: ImuOption = "bno08x",
     baud: BaudOption = 2_000_000,
     latency_ms: LatencyOption = 16.0,
     spec_path: SpecOption = None,
@@ -179,8 +195,9 @@ def run(
 ) -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
-    with 128 + its number. A run that stops early keeps the steps so far: in --log, or, when the bus or a motor
-    failed, in a temporary file whose name is printed."""
+    with 128 + its number, a fall (the IMU tilted past the simulator's threshold) with 1. A run that stops early
+    keeps the steps so far: in --log, or, when the bus or a motor failed, in a temporary file whose name is
+    printed."""
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.driver import BusInterrupt, HardwareError, raise_on_stop_signals, raise_pending_stop
     from toddlerbot.hardware.real_robot import RealRobot
@@ -217,6 +234,8 @@ def run(
                 stack.callback(video.close)
         else:
             pol = make_policy(policy, robot, motion, weights)
+        robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
+        stack.callback(robot.imu.close)
         with robot:
             result = run_policy(robot, pol, schedule, seconds, recorder=recorder)
     except BaseException as exc:
@@ -243,4 +262,8 @@ def run(
             console.print(f"camera {camera}: stopped after {video.frames} frames ({video.error})", highlight=False)
     if log:
         save_or_fallback(result.log.save, log, "the run log")
+    if result.fell:
+        console.print(f"{policy}: fell at {result.fall_time:.2f} s (torso tilted past {FALL_TILT_RAD:g} rad by the "
+                      "IMU); stopped, torque is off", highlight=False)
+        raise typer.Exit(1)
     sys.stdout.flush()

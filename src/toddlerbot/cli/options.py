@@ -7,11 +7,30 @@ import math
 import os
 import tempfile
 from pathlib import Path
+from typing import Annotated
+
+import typer
 
 from toddlerbot.errors import ToddlerbotError
 
 MAX_RUN_SECONDS = 3600.0
 """Longest run a command accepts, s: an hour (the battery's run time; a simulated hour logs about 180,000 steps)."""
+
+
+ImuOption = Annotated[str, typer.Option("--imu", help="The IMU: bno08x (the robot's, over I2C), emulator (the "
+                                        "simulated IMU of `hw emulate --hil` on --port) or none (an upright, still "
+                                        "stand-in; walking policies refuse it).")]
+
+
+def open_robot_imu(kind: str, port: str, balancing: str | None):
+    """The IMU for a robot on ``port``; ``balancing`` names what balances from it (a walking policy, a chain
+    with a walk), which ``none`` is refused for (one line)."""
+    from toddlerbot.hardware.imu import open_imu
+
+    if kind == "none" and balancing is not None:
+        raise ToddlerbotError(f"{balancing} balances from the IMU: --imu none would run it blind (it falls within "
+                              "seconds); use --imu bno08x or --imu emulator")
+    return open_imu(kind, port)
 
 
 def duration(value: float, option: str, max_s: float = MAX_RUN_SECONDS, unit: str = "seconds") -> float:

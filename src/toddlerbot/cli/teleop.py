@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import duration, output_dir, within
+from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, output_dir, within
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.sim.scenes import SCENES
@@ -44,6 +44,7 @@ def teleop(
     port: Annotated[str | None, typer.Option("--port", help="Serial port of the robot (real backend).")] = None,
     calibration: Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
         = None,
+    imu: ImuOption = "bno08x",
     seed: Annotated[int, typer.Option("--seed", help="Scene seed (pick).")] = 0,
     viewer: Annotated[bool, typer.Option("--viewer", help="Show the MuJoCo viewer (sim; needs a display).")] = False,
     chains: Annotated[list[str] | None, typer.Option("--chain", help="Skill chain (shipped name or file) run while "
@@ -69,7 +70,7 @@ def teleop(
     if seconds:  # 0: until Esc or Ctrl-C
         duration(seconds, "--seconds", MAX_TELEOP_SECONDS)
     pad = load_mapping(mapping)
-    robot, camera, walks = _robot(backend, task, port, calibration, seed)
+    robot, camera, walks = _robot(backend, task, port, calibration, seed, imu)
     source = _source(input_kind, pad)
     leader = _leader_link(link, robot) if input_kind == "leader" else None
     walker = None
@@ -87,7 +88,7 @@ def teleop(
         _write(out, recorder)
 
 
-def _robot(backend: str, task: str, port: str | None, calibration: Path | None, seed: int):
+def _robot(backend: str, task: str, port: str | None, calibration: Path | None, seed: int, imu: str):
     from toddlerbot.robot.description import RobotDescription
 
     description = RobotDescription.load(variant="gripper")
@@ -97,7 +98,8 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
         from toddlerbot.hardware.calibration import load_calibration
         from toddlerbot.hardware.real_robot import RealRobot
 
-        robot = RealRobot(description, port, load_calibration(calibration, description))
+        robot = RealRobot(description, port, load_calibration(calibration, description),
+                          imu=open_robot_imu(imu, port, "teleop (it walks)"))
         return robot, None, True
     from toddlerbot.manipulation.camera import HeadCamera
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot

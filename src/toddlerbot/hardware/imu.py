@@ -17,6 +17,13 @@ from scipy.spatial.transform import Rotation
 from toddlerbot.errors import ToddlerbotError
 
 GRAVITY = 9.81
+REPORT_INTERVAL_S = 0.01
+"""Interval `Bno08xImu` asks the sensor to report at, s (100 Hz). The Adafruit driver's default is 50 ms (20 Hz):
+with the IMU held for 50 ms, walk-zmp falls after 3.0 s of the tracking schedule in the simulator, while with 10 ms
+it walks it as with a fresh reading every control step (docs/hardware.md, "IMU")."""
+IMU_KINDS = ("bno08x", "emulator", "none")
+"""`--imu` choices: the robot's BNO08x, the hardware-in-the-loop emulator's simulated IMU, or none (an upright,
+still stand-in: only for policies that do not balance)."""
 
 
 @dataclass(frozen=True)
@@ -47,9 +54,10 @@ class StaticImu(Imu):
 class Bno08xImu(Imu):
     """BNO08x (BNO080/085/086) over I2C via the Adafruit CircuitPython driver.
 
-    Reports: game rotation vector (gravity-aligned, heading relative to power-up), calibrated gyroscope and
-    accelerometer. Pass `device` (anything with ``game_quaternion``, ``gyro``, ``acceleration``) to use an
-    already opened sensor; otherwise the sensor at `address` on the board's default I2C bus is opened.
+    Reports, each every `REPORT_INTERVAL_S`: game rotation vector (gravity-aligned, heading relative to
+    power-up), calibrated gyroscope and accelerometer. Pass `device` (anything with ``game_quaternion``,
+    ``gyro``, ``acceleration``) to use an already opened sensor; otherwise the sensor at `address` on the
+    board's default I2C bus is opened.
     """
 
     def __init__(self, address: int = 0x4A, mount_quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0),
@@ -71,12 +79,12 @@ class Bno08xImu(Imu):
             from adafruit_bno08x.i2c import BNO08X_I2C
         except ImportError:
             raise ToddlerbotError(
-                "the BNO08x IMU needs adafruit-circuitpython-bno08x (pip install adafruit-circuitpython-bno08x)"
+                "the BNO08x IMU needs adafruit-circuitpython-bno08x >= 1.3 (pip install 'toddlerbot[imu]')"
             ) from None
         try:
             sensor = BNO08X_I2C(busio.I2C(board.SCL, board.SDA, frequency=400_000), address=address)
             for report in (BNO_REPORT_GAME_ROTATION_VECTOR, BNO_REPORT_GYROSCOPE, BNO_REPORT_ACCELEROMETER):
-                sensor.enable_feature(report)
+                sensor.enable_feature(report, report_interval=round(REPORT_INTERVAL_S * 1e6))
         except (OSError, RuntimeError, ValueError) as exc:
             raise ToddlerbotError(f"BNO08x at I2C address 0x{address:02x}: {exc}") from None
         return sensor
@@ -91,3 +99,16 @@ class Bno08xImu(Imu):
             ang_vel=to_site.apply(np.asarray(self.device.gyro, dtype=float)),
             lin_acc=to_site.apply(np.asarray(self.device.acceleration, dtype=float)),
         )
+
+
+def open_imu(kind: str, bus_port: str) -> Imu:
+    """The IMU of `IMU_KINDS` for a robot on ``bus_port`` (the emulator's IMU is found from its bus port)."""
+    if kind == "bno08x":
+        return Bno08xImu()
+    if kind == "emulator":
+        from toddlerbot.hardware.imu_stream import StreamImu, imu_socket_path
+
+        return StreamImu(imu_socket_path(bus_port))
+    if kind == "none":
+        return StaticImu()
+    raise ToddlerbotError(f"--imu {kind!r}: expected one of {', '.join(IMU_KINDS)}")

@@ -26,6 +26,7 @@ from toddlerbot.hardware.control_table import (
     traits,
 )
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
+from toddlerbot.hardware.imu import ImuReading
 from toddlerbot.robot.description import RobotDescription
 
 LOAD_INERTIA = 0.002
@@ -148,13 +149,21 @@ class HilPlant:
         joints = self.model.actuator_trnid[:, 0]
         self.qadr = self.model.jnt_qposadr[joints]
         self.vadr = self.model.jnt_dofadr[joints]
-        self.torso = self.model.body("torso").id
+        self.torso = self.model.body(description.handles.torso).id
+        self._imu = [self.model.sensor(name) for name in ("imu_quat", "imu_gyro", "imu_accel")]
         self.sim_time = 0.0
         self.wall_time = 0.0
         self.powered_min_height = np.inf
         """Lowest torso height (m) seen while any motor had torque on."""
         self.powered_min_upright = np.inf
         """Lowest torso uprightness seen while any motor had torque on."""
+        self.powered_start: tuple[np.ndarray, float] | None = None
+        """Torso (x, y) position, m, and yaw, rad, when a motor's torque first came on."""
+        self.powered_end: tuple[np.ndarray, float] | None = None
+        """The same at the last step any motor had torque on: with `powered_start`, what motion capture sees."""
+        self.imu_sample: tuple[float, ImuReading] = (0.0, self._read_imu())
+        """(simulated time, IMU reading) after the latest physics batch (replaced whole: safe to read from
+        another thread)."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._lock: threading.Lock | None = None
@@ -171,6 +180,24 @@ class HilPlant:
     def torso_uprightness(self) -> float:
         """z component of the torso's up axis in the world (1 = upright, 0 = lying)."""
         return float(self.data.xmat[self.torso][8])
+
+    def torso_planar_pose(self) -> tuple[np.ndarray, float]:
+        """Torso (x, y) position, m, and heading (yaw of its x axis), rad."""
+        xmat = self.data.xmat[self.torso]
+        return self.data.xpos[self.torso][:2].copy(), float(np.arctan2(xmat[3], xmat[0]))
+
+    def powered_motion(self) -> tuple[float, float, float] | None:
+        """(dx, dy, yaw change) of the torso between the first and the last powered step (None if never
+        powered); the yaw change is unwrapped to (-pi, pi]."""
+        if self.powered_start is None or self.powered_end is None:
+            return None
+        (start, yaw0), (end, yaw1) = self.powered_start, self.powered_end
+        return float(end[0] - start[0]), float(end[1] - start[1]), float((yaw1 - yaw0 + np.pi) % (2 * np.pi) - np.pi)
+
+    def _read_imu(self) -> ImuReading:
+        d = self.data.sensordata
+        quat, gyro, accel = (d[s.adr[0]:s.adr[0] + s.dim[0]].copy() for s in self._imu)
+        return ImuReading(quat=quat, ang_vel=gyro, lin_acc=accel)
 
     def _publish(self) -> None:
         publish(self.motors, self.data.qpos[self.qadr], self.data.qvel[self.vadr], self.data.ctrl.copy())
@@ -228,6 +255,10 @@ class HilPlant:
             if cmd.torque_on.any():
                 self.powered_min_height = min(self.powered_min_height, self.torso_height())
                 self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
+                self.powered_end = self.torso_planar_pose()
+                if self.powered_start is None:
+                    self.powered_start = self.powered_end
+            self.imu_sample = (self.sim_time, self._read_imu())
             with self._lock:
                 self._publish()
             if cmd.torque_on.any():

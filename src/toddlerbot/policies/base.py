@@ -31,6 +31,8 @@ class Policy(ABC):
     name: str = "policy"
     command_reach: CommandReach | None = None
     """The velocity commands the policy follows (None: it ignores commands); `within_reach` clamps to it."""
+    needs_imu: bool = False
+    """True for a policy that balances from the IMU: the hardware commands refuse it without one."""
 
     def __init__(self, robot: Robot) -> None:
         self._warned_reach = False

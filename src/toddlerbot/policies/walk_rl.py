@@ -16,6 +16,7 @@ DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "walk_rl.npz"
 
 class WalkRLPolicy(Policy):
     name = "walk-rl"
+    needs_imu = True
 
     def __init__(self, robot: Robot, weights: str | Path = DEFAULT_WEIGHTS) -> None:
         super().__init__(robot)

@@ -85,6 +85,7 @@ class WalkZMPPolicy(Policy):
     (`CapturePointEstimator`) and `velocity_loop` (`VelocityLoop`)."""
 
     name = "walk-zmp"
+    needs_imu = True
 
     def __init__(
         self,

@@ -17,6 +17,16 @@ from toddlerbot.robot.safety import CommandGuard
 from toddlerbot.robot.spec import RobotSpec
 from toddlerbot.robot.transmission import TransmissionMap
 
+FALL_TILT_RAD = 1.0
+"""Torso tilt from upright (angle between its z axis and the world's), rad, beyond which a robot has fallen:
+the simulator's fall detector and the real robot's (from its IMU) use this one threshold."""
+
+
+def tilt(quat: np.ndarray) -> float:
+    """Angle between the z axis of a frame with orientation ``quat`` (w, x, y, z) and the world's z axis, rad."""
+    _, x, y, _ = quat
+    return float(np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0)))
+
 
 @dataclass(frozen=True)
 class Observation:
@@ -98,6 +108,12 @@ class Robot(ABC):
     @abstractmethod
     def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
         """Send already-checked targets and gains to the backend and advance one control period."""
+
+    @property
+    def fallen(self) -> bool:
+        """The torso (the IMU's frame: the spec's ``imu`` site is aligned with it) tilts beyond `FALL_TILT_RAD`
+        in the latest observation. Backends that know more (the simulator: torso height) refine it."""
+        return tilt(self.observe().imu_quat) > FALL_TILT_RAD
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release resources; hardware backends disable torque here."""

@@ -2,7 +2,7 @@
 
 ``realtime=True`` locks each step to wall-clock time (sleeping off the remainder of the control period; a real
 robot's backend blocks on its bus instead). The run stops early when the policy is done, or when the robot falls
-(backends with a ``fallen`` property, e.g. the simulator) unless ``stop_on_fall`` is False.
+(`Robot.fallen`: the IMU tilt, or the simulator's ground truth) unless ``stop_on_fall`` is False.
 
 A command the robot's guard refuses (`UnsafeCommandError`) or a policy that raises stops the run at once: the
 error propagates (a policy's own exception wrapped in `PolicyError`, which names the policy and the time) and
@@ -89,7 +89,7 @@ def run_policy(
         obs = new_obs
         if on_step is not None:
             on_step(obs)
-        if getattr(robot, "fallen", False):
+        if robot.fallen:
             fall_time = obs.time
             if stop_on_fall:
                 break
