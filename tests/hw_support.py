@@ -9,6 +9,8 @@ from contextlib import contextmanager
 import pytest
 
 from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
+from toddlerbot.hardware.imu import StaticImu
+from toddlerbot.hardware.imu_stream import ImuPublisher, imu_socket_path
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import RobotSpec
 
@@ -59,3 +61,14 @@ def sdk_port(path: str, baudrate: int = 2_000_000) -> Iterator[object]:
         yield port
     finally:
         port.closePort()
+
+
+@contextmanager
+def upright_imu_stream(port: str) -> Iterator[None]:
+    """An IMU stream for `hw run --imu emulator` on an emulated bus without a simulated body (the simple plant):
+    an upright robot at rest."""
+    publisher = ImuPublisher(imu_socket_path(port), lambda: (0.0, StaticImu().read())).start()
+    try:
+        yield
+    finally:
+        publisher.stop()

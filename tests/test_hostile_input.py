@@ -258,7 +258,7 @@ CLI_CASES = [
     ("sim_camera_unknown", "sim run --policy stand --seconds 0.1 --camera nonexistent --video {dir}/v.mp4",
      "camera 'nonexistent' is not in the model; expected one of "),
     ("sim_walk_zmp_2_hz", "sim run --policy walk-zmp --control-hz 2",
-     "walk-zmp cannot plan at a control period of 0.5 s: cycle_time 0.72 s and double_support_ratio 0.25 leave no"),
+     "walk-zmp cannot plan at a control period of 0.5 s: cycle_time 0.6 s and double_support_ratio 0.25 leave no"),
     ("design_height_nan", "design report --height nan", "--height nan: expected a number of m in [0.1, 2.5]"),
     ("design_height_inf", "design report --height inf --json", "--height inf: expected a number of m in [0.1, 2.5]"),
     ("design_mass_1e308", "design report --mass 1e308", "--mass 1e+308: expected a number of kg in [0.05, 300]"),

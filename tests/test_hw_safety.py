@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hw_support import emulated
+from hw_support import emulated, upright_imu_stream
 from toddlerbot.hardware.calibration import Calibration, save_calibration
 from toddlerbot.hardware.control_table import RAD_PER_PULSE, pulses_to_rad
 from toddlerbot.hardware.emulator import EmulatedBus, Faults
@@ -89,9 +89,9 @@ def overflowing_weights(path: Path) -> Path:
 def test_policy_that_outputs_nan_stops_the_run_with_torque_off(tmp_path):
     """`hw run --policy walk-rl --weights` a policy whose actions are NaN: one line, exit 2, torque off, and every
     goal register that was ever written stayed inside its joint range."""
-    with emulated(DESC) as (emu, port):
-        proc = _hw_run(port, _calibration(emu, tmp_path / "cal.yaml"), "--policy", "walk-rl", "--weights",
-                       str(overflowing_weights(tmp_path / "nan_out.npz")), "--seconds", "2")
+    with emulated(DESC) as (emu, port), upright_imu_stream(port):  # walk-rl refuses to run without an IMU
+        proc = _hw_run(port, _calibration(emu, tmp_path / "cal.yaml"), "--imu", "emulator", "--policy", "walk-rl",
+                       "--weights", str(overflowing_weights(tmp_path / "nan_out.npz")), "--seconds", "2")
         _, err = proc.communicate(timeout=240)
         assert proc.returncode == 2
         assert "non-finite motor target for 12 motor(s)" in _one_line(err)
