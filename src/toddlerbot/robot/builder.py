@@ -7,7 +7,9 @@ The result is deterministic: the same spec and options give a byte-identical MJC
 * Transmissions: spur gears and racks are joint equalities, the waist differential is two limited fixed
   tendons (range = backlash), parallel linkages are closed by weld equalities (relative pose from qpos0).
 * Robot geoms collide with the floor only (contype 1 / conaffinity 0 against a floor with contype 0 /
-  conaffinity 1), plus the spec's explicit self-collision pairs.
+  conaffinity 1), plus the spec's explicit self-collision pairs. They are in `COLLISION_GROUP`; the visual
+  geometry (`toddlerbot.robot.visuals`: motor housings, printed shells, camera lens, gripper jaws) is in
+  `VISUAL_GROUP` and has no contacts and no mass.
 * IMU sensors (orientation, gyro, accelerometer, velocimeter) at the ``imu`` site, when it exists.
 * A ``home`` keyframe: the spec's home pose, the motors and linkage rods derived through the transmissions,
   and (floating base) the torso raised so the lowest sole point touches z = 0.
@@ -30,6 +32,7 @@ from toddlerbot.robot.spec import (
     SpurGear,
 )
 from toddlerbot.robot.transmission import TransmissionMap, build_transmission_map
+from toddlerbot.robot.visuals import FINISHES, VISUAL_GROUP, visual_geoms
 
 Base = Literal["floating", "fixed"]
 VARIANTS = ("floating", "fixed", "gripper")
@@ -51,6 +54,10 @@ _INTEGRATORS = {
 _SOLVERS = {"Newton": mujoco.mjtSolver.mjSOL_NEWTON, "CG": mujoco.mjtSolver.mjSOL_CG, "PGS": mujoco.mjtSolver.mjSOL_PGS}
 _CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
 _ROBOT_RGBA = (0.85, 0.55, 0.2, 1.0)
+COLLISION_GROUP = 2
+"""Geom group of the robot's collision primitives: drawn by default (the head camera sees them, as it always has),
+left out by scene renders, which draw `VISUAL_GROUP` instead."""
+SKELETON_GROUP = 1
 _SKELETON_RADIUS = 0.007
 _SKELETON_MIN_LENGTH = 0.01
 
@@ -75,9 +82,10 @@ def build_mjspec(
     scene: bool = False,
     catalogue: Catalogue | None = None,
     transmission: TransmissionMap | None = None,
+    visuals: bool = True,
 ) -> mujoco.MjSpec:
     """An MjSpec of the robot, already compiled once (write it with ``.to_xml()``)."""
-    return compile_robot(spec, base, scene, catalogue, transmission)[0]
+    return compile_robot(spec, base, scene, catalogue, transmission, visuals)[0]
 
 
 def build_model(
@@ -93,11 +101,13 @@ def compile_robot(
     scene: bool = False,
     catalogue: Catalogue | None = None,
     transmission: TransmissionMap | None = None,
+    visuals: bool = True,
 ) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
     """The robot's MjSpec and its model, compiled once (the home keyframe is filled in on both).
 
     `RobotDescription` passes its catalogue and transmission map; standalone callers get the packaged catalogue
-    and a map built from `spec`."""
+    and a map built from `spec`. ``visuals=False`` leaves the visual geometry out (physics is the same either
+    way; a model that is never rendered, such as MJX training's, saves their kinematics)."""
     catalogue = catalogue or default_catalogue()
     transmission = transmission or build_transmission_map(spec)
     mj = mujoco.MjSpec()
@@ -132,7 +142,7 @@ def compile_robot(
         for g in body.collision:
             b.add_geom(
                 name=g.name, type=_GEOM_TYPES[g.type], size=_pad3(g.size), pos=g.pos, quat=g.quat,
-                contype=1, conaffinity=0, rgba=_ROBOT_RGBA,
+                contype=1, conaffinity=0, rgba=_ROBOT_RGBA, group=COLLISION_GROUP,
             )
         for s in body.sites:
             b.add_site(name=s.name, pos=s.pos, quat=s.quat, size=[0.005, 0, 0], rgba=(0.2, 0.6, 1.0, 0.5), group=4)
@@ -140,6 +150,8 @@ def compile_robot(
             b.add_camera(name=c.name, pos=c.pos, quat=c.quat, fovy=c.fovy)
 
     _add_skeleton(mj, spec)
+    if visuals:
+        _add_visuals(mj, spec, catalogue)
     _add_transmissions(mj, spec)
     for g1, g2 in spec.contacts.self_pairs:
         mj.add_pair(geomname1=g1, geomname2=g2)
@@ -175,7 +187,20 @@ def _add_skeleton(mj: mujoco.MjSpec, spec: RobotSpec) -> None:
             continue
         mj.body(body.parent).add_geom(
             name=f"{body.name}_link_visual", type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=(0, 0, 0, *body.pos),
-            size=(_SKELETON_RADIUS, 0, 0), contype=0, conaffinity=0, group=1, rgba=(0.35, 0.35, 0.38, 1.0),
+            size=(_SKELETON_RADIUS, 0, 0), contype=0, conaffinity=0, group=SKELETON_GROUP,
+            rgba=(0.35, 0.35, 0.38, 1.0),
+        )
+
+
+def _add_visuals(mj: mujoco.MjSpec, spec: RobotSpec, catalogue: Catalogue) -> None:
+    """The visual geometry: no contacts, no mass (every body has an explicit inertial), its own group."""
+    for name, finish in FINISHES.items():
+        mj.add_material(name=f"visual_{name}", emission=finish.emission, specular=finish.specular,
+                        shininess=finish.shininess)
+    for v in visual_geoms(spec, catalogue):
+        mj.body(v.body).add_geom(
+            name=v.name, type=_GEOM_TYPES[v.type], size=v.size, pos=v.pos, quat=v.quat, rgba=v.rgba,
+            material=f"visual_{v.finish}", contype=0, conaffinity=0, group=VISUAL_GROUP,
         )
 
 

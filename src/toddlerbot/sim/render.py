@@ -4,6 +4,11 @@ Headless by default: when no ``MUJOCO_GL`` is set, `configure_gl` picks EGL wher
 OSMesa otherwise (``apt-get install libosmesa6``), and points MuJoCo's renderer at that backend even when MuJoCo
 was imported first. An explicit ``MUJOCO_GL`` (set before starting Python) always wins.
 
+Scene renders draw the robot's visual geometry (motor housings, printed shells, camera lens, gripper jaws: see
+`toddlerbot.robot.visuals`) instead of its collision primitives; ``visuals=False`` draws the primitives as the
+physics sees them. The head camera (`toddlerbot.manipulation.camera`) renders with MuJoCo's default groups, so it
+sees the collision primitives it was trained on.
+
 A machine without the backend's library still simulates: `configure_gl` and `Recorder` raise `RenderError` naming
 the missing library and the package that provides it, and callers skip the video. `keep_mujoco_importable` covers
 the one case where the missing library would break ``import mujoco`` itself (``MUJOCO_GL`` set to it).
@@ -103,11 +108,36 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
+def show_visuals(option, visuals: bool = True) -> None:
+    """Set which robot geoms an ``mujoco.MjvOption`` draws: the visual geometry (``visuals=True``) or the collision
+    primitives and the skeleton of thin links (``False``). Scene geoms (group 0: floor, table, cube) always show."""
+    from toddlerbot.robot.builder import COLLISION_GROUP, SKELETON_GROUP
+    from toddlerbot.robot.visuals import VISUAL_GROUP
+
+    option.geomgroup[COLLISION_GROUP] = option.geomgroup[SKELETON_GROUP] = not visuals
+    option.geomgroup[VISUAL_GROUP] = visuals
+
+
+def scene_option(model, visuals: bool = True):
+    """A ``mujoco.MjvOption`` for scene renders of `model`; a model built without visual geometry is drawn with its
+    collision primitives either way."""
+    import mujoco
+
+    from toddlerbot.robot.visuals import VISUAL_GROUP
+
+    option = mujoco.MjvOption()
+    show_visuals(option, visuals and bool(np.any(model.geom_group == VISUAL_GROUP)))
+    return option
+
+
 class Recorder:
     """Renders frames of a MuJoCo model/data pair from a named camera (``width`` x ``height`` pixels)."""
 
-    def __init__(self, model, data, camera: str = "perspective", width: int = 640, height: int = 360) -> None:
-        """Raises `ToddlerbotError` for a camera the model lacks (before any rendering set-up), `RenderError` when no
+    def __init__(self, model, data, camera: str = "perspective", width: int = 640, height: int = 360,
+                 visuals: bool = True) -> None:
+        """`visuals`: draw the visual geometry (default) or the collision primitives.
+
+        Raises `ToddlerbotError` for a camera the model lacks (before any rendering set-up), `RenderError` when no
         OpenGL backend can render."""
         import mujoco
 
@@ -117,6 +147,7 @@ class Recorder:
         backend = configure_gl()
         self.data = data
         self.camera = camera
+        self.option = scene_option(model, visuals)
         quality = model.vis.quality
         saved = quality.offsamples, quality.shadowsize
         if backend.lower() == "osmesa":  # read once, when the render context is made; restored below
@@ -133,7 +164,7 @@ class Recorder:
 
     def capture(self) -> np.ndarray:
         """Render the current state; returns the (height, width, 3) uint8 RGB frame and keeps it for the video."""
-        self.renderer.update_scene(self.data, self.camera)
+        self.renderer.update_scene(self.data, self.camera, self.option)
         frame = self.renderer.render().copy()
         self.frames.append(frame)
         return frame
