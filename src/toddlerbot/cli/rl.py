@@ -45,11 +45,17 @@ def train(
                                                                "(default 4; see docs/rl.md before lowering).")]
     = None,
     ls_iterations: Annotated[int | None, typer.Option(help="Line-search iterations (default 8).")] = None,
+    backend: Annotated[str, typer.Option(help="Physics: cpu (classic MuJoCo on threads), mjx, or auto (mjx with a "
+                                               "GPU, else cpu: then the CPU recipe of docs/rl.md).")] = "auto",
+    imitation_iterations: Annotated[int | None, typer.Option(help="DAgger iterations of the warm start from "
+                                                                  "walk-zmp (0: none; default: the recipe's).")]
+    = None,
     motor_params: Annotated[list[Path] | None, typer.Option(
         "--motor-params", help="Fitted actuator parameters (sysID params.json; repeat for several motor models): "
                                "the robot trains on them, domain randomisation scales around them.")] = None,
 ) -> None:
-    """Run PPO (the one-GPU configuration of docs/rl.md unless --smoke) with checkpoints and a training curve."""
+    """Train with PPO (on a CPU: the CPU recipe of docs/rl.md, a DAgger warm start from walk-zmp then PPO; with a
+    GPU: the one-GPU configuration; --smoke: a tiny run) with checkpoints and a training curve."""
     import os
 
     from toddlerbot.rl.config import SMOKE_XLA_FLAGS
@@ -72,15 +78,22 @@ def train(
         run_dir, env_cfg, ppo_cfg = resume, None, None
         if not (resume / "config.json").is_file():
             raise ToddlerbotError(f"{resume}: no training run to resume (config.json missing)")
-        if motor_params or solver_iterations is not None or ls_iterations is not None:
-            raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations: a resumed run keeps the "
-                                  "settings it started with")
+        if motor_params or solver_iterations is not None or ls_iterations is not None or backend != "auto" \
+                or imitation_iterations is not None:
+            raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/"
+                                  "--imitation-iterations: a resumed run keeps the settings it started with")
+        imitation_cfg = None
     else:
         run_dir = output_dir(out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S"), "--out")
+        from toddlerbot.rl.env import resolve_backend
+
+        if backend not in ("auto", *config.PHYSICS_BACKENDS):
+            raise ToddlerbotError(f"--backend {backend!r}: expected auto, {', '.join(config.PHYSICS_BACKENDS)}")
+        backend = resolve_backend(backend)
         env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
         try:
             env_cfg = replace(
-                env_cfg,
+                env_cfg, backend=backend,
                 solver_iterations=env_cfg.solver_iterations if solver_iterations is None else solver_iterations,
                 solver_ls_iterations=env_cfg.solver_ls_iterations if ls_iterations is None else ls_iterations)
         except ValueError as exc:
@@ -90,7 +103,12 @@ def train(
 
             catalogue_with_params(motor_params)  # bad files fail here, before anything compiles
             env_cfg = replace(env_cfg, motor_params=tuple(str(p) for p in motor_params))
-        ppo_cfg = replace(config.SMOKE if smoke else config.FULL, seed=seed)
+        cpu = backend == "cpu"
+        ppo_cfg = replace(config.SMOKE if smoke else config.CPU if cpu else config.FULL, seed=seed)
+        imitation_cfg = config.SMOKE_IMITATION if smoke else config.CPU_IMITATION if cpu else config.ImitationConfig()
+        if imitation_iterations is not None:
+            training_budget(None, imitation_iterations or None, "--imitation-iterations")
+            imitation_cfg = replace(imitation_cfg, iterations=imitation_iterations)
         try:
             if timesteps is not None:
                 ppo_cfg = replace(ppo_cfg, num_timesteps=timesteps)
@@ -111,8 +129,14 @@ def train(
                        info=f"{done:,} steps  reward/step {m['step_reward']:.3f}  episode {m['episode_length']:.0f}"
                             f"  KL {m['kl_mean']:.3f}  {m['sps']:.0f} steps/s")
 
+        def imitation_progress(m: dict) -> None:
+            bar.update(task, description="DAgger from walk-zmp",
+                       info=f"iteration {m['iteration']}: {m['samples']:,} labels, BC loss {m['bc_loss']:.4f}, "
+                            f"falls/step {m['fall_rate']:.4f}")
+
         _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress,
-                                    time_limit_s=None if minutes is None else 60 * minutes, max_epochs=epochs)
+                                    time_limit_s=None if minutes is None else 60 * minutes, max_epochs=epochs,
+                                    imitation_cfg=imitation_cfg, imitation_progress=imitation_progress)
     if not history:
         raise ToddlerbotError(f"{run_dir}: no epoch ran (limits too tight?)")
     png = plot.training_curve(history, run_dir / "training_curve.png")

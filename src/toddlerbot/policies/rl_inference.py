@@ -10,7 +10,10 @@ An exported policy is one ``.npz`` file holding
 * ``obs_mean`` / ``obs_std``: the observation normalisation learned during training,
 * ``home_motor_pos``: motor angles of the home pose (rad, motor-id order), ``leg_motor_index``: the 12
   commanded motors, ``motor_names``,
-* ``obs_config``: the `ObsConfig` as JSON, ``meta``: training metadata as JSON.
+* ``obs_config``: the `ObsConfig` as JSON, ``meta``: training metadata as JSON,
+* for a residual policy (leg targets = gait reference + ``action_scale`` x action), the `GaitReference` arrays
+  (``ref_vx``, ``ref_vy``, ``ref_yaw``, ``ref_period``, ``ref_leg_motor_pos``, ``ref_contact``), and for a policy
+  trained with walk-zmp's leg gain schedule, ``kp_stance_scale`` / ``kp_swing_scale`` (`leg_gain_scale`).
 
 `obs_frame` is the single definition of one observation frame; the MJX environment builds its frames with the
 same function (``xp=jax.numpy``), which is what makes training and deployment agree.
@@ -85,6 +88,80 @@ def obs_frame(t, command, motor_pos, home_motor_pos, motor_vel, last_action, gyr
         phase, command, motor_pos - home_motor_pos, motor_vel * cfg.motor_vel_scale, last_action,
         gyro * cfg.gyro_scale, gravity,
     ])
+
+
+@dataclass(frozen=True)
+class GaitReference:
+    """The walking reference of a residual policy: leg motor angles and stance flags of the ZMP gait, tabulated on
+    a grid of commands (``vx`` x ``vy`` x ``yaw`` axes, m/s and rad/s) x one gait cycle of ``period`` s in
+    ``n_phase`` equal bins, and interpolated in between: multilinearly over the command (clamped to the grid) and
+    linearly over the phase (periodic). `at` is the one definition for the environment (``xp=jax.numpy``) and
+    the robot (numpy)."""
+
+    vx: np.ndarray
+    vy: np.ndarray
+    yaw: np.ndarray
+    period: float
+    """s per gait cycle; phase bin p holds the gait at t = p * period / n_phase (mod period) of a walk started at
+    t = 0."""
+    leg_motor_pos: np.ndarray
+    """(n_vx, n_vy, n_yaw, n_phase, n_legs) leg motor angles, rad (the ``leg`` group, motor-id order)."""
+    contact: np.ndarray
+    """(n_vx, n_vy, n_yaw, n_phase, 2) reference stance of the (left, right) foot, 1 = on the floor."""
+
+    @property
+    def n_phase(self) -> int:
+        return self.leg_motor_pos.shape[3]
+
+    def at(self, command, t, xp: ModuleType = np):
+        """(leg motor angles (n_legs,) rad, stance flags (2,) in [0, 1]) at command (vx, vy, yaw rate) and time t
+        (s since the gait started)."""
+        index, weight = [], []
+        for axis, x in zip((self.vx, self.vy, self.yaw), (command[0], command[1], command[2]), strict=True):
+            axis = xp.asarray(axis)
+            i = xp.clip(xp.searchsorted(axis, x, side="right") - 1, 0, axis.shape[0] - 2)
+            w = xp.clip((x - axis[i]) / (axis[i + 1] - axis[i]), 0.0, 1.0)
+            index.append(xp.stack([i, i + 1]))
+            weight.append(xp.stack([1.0 - w, w]))
+        s = xp.mod(t, self.period) / self.period * self.n_phase
+        p = xp.floor(s)
+        w = s - p
+        p = p.astype(int) % self.n_phase
+        index.append(xp.stack([p, (p + 1) % self.n_phase]))
+        weight.append(xp.stack([1.0 - w, w]))
+        i, j, k, q = (xp.reshape(ix, shape) for ix, shape in zip(index, _CORNERS, strict=True))
+        w = (xp.reshape(weight[0], _CORNERS[0]) * xp.reshape(weight[1], _CORNERS[1])
+             * xp.reshape(weight[2], _CORNERS[2]) * xp.reshape(weight[3], _CORNERS[3]))[..., None]
+        leg = xp.sum(w * xp.asarray(self.leg_motor_pos)[i, j, k, q], axis=(0, 1, 2, 3))
+        contact = xp.sum(w * xp.asarray(self.contact)[i, j, k, q], axis=(0, 1, 2, 3))
+        return leg, contact
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The reference as export arrays (``ref_*``)."""
+        return {"ref_vx": np.asarray(self.vx), "ref_vy": np.asarray(self.vy), "ref_yaw": np.asarray(self.yaw),
+                "ref_period": np.asarray(self.period), "ref_leg_motor_pos": np.asarray(self.leg_motor_pos),
+                "ref_contact": np.asarray(self.contact)}
+
+    @classmethod
+    def from_arrays(cls, data: dict[str, np.ndarray]) -> GaitReference:
+        return cls(data["ref_vx"].astype(float), data["ref_vy"].astype(float), data["ref_yaw"].astype(float),
+                   float(data["ref_period"]), data["ref_leg_motor_pos"].astype(float),
+                   data["ref_contact"].astype(float))
+
+
+_CORNERS = ((2, 1, 1, 1), (1, 2, 1, 1), (1, 1, 2, 1), (1, 1, 1, 2))
+"""Broadcast shapes of the two bracketing indices (and weights) along vx, vy, yaw and phase."""
+
+
+def leg_gain_scale(contact, stance, swing, xp: ModuleType = np):
+    """Per-motor factor on the spec's P gains (walk-zmp's schedule): ``stance`` (n_motors,) while both feet are
+    down, and for a foot whose reference stance flag is below 0.5 its leg's motors at ``swing[leg]`` (2, n_motors;
+    0 = not that leg's motor)."""
+    scale = xp.asarray(stance)
+    swing = xp.asarray(swing)
+    for leg in range(2):
+        scale = xp.where((contact[leg] < 0.5) & (swing[leg] > 0), swing[leg], scale)
+    return scale
 
 
 def _swish(x: np.ndarray) -> np.ndarray:
@@ -165,6 +242,11 @@ class RLPolicyFile:
             self.meta = json.loads(str(data["meta"]))
             self.distribution = str(data["distribution"]) if "distribution" in data else "tanh_normal"
             self.action_std = data["action_std"].astype(np.float32) if "action_std" in data else None
+            self.reference = GaitReference.from_arrays(data) if "ref_leg_motor_pos" in data else None
+            """The gait reference of a residual policy (None: leg targets are home + scale x action)."""
+            self.gain_scales = ((data["kp_stance_scale"].astype(float), data["kp_swing_scale"].astype(float))
+                                if "kp_stance_scale" in data else None)
+            """(stance, swing) P-gain factors of `leg_gain_scale` (None: the spec's gains)."""
         except KeyError as exc:
             raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from None
         except (ValueError, TypeError) as exc:  # wrong dtypes, malformed JSON or config fields
@@ -213,16 +295,21 @@ class RLController:
             self.history = np.concatenate([frame[None], self.history[:-1]])
         return self.history.reshape(-1)
 
-    def motor_targets(self, action: np.ndarray) -> np.ndarray:
-        """Motor position targets (rad, motor-id order): home pose with the leg offsets of the action."""
-        targets = self.policy.home_motor_pos.copy()
-        targets[self.policy.leg_motor_index] += self.cfg.action_scale * action
-        return targets
+    def motor_targets(self, action: np.ndarray, command: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray | None]:
+        """Motor position targets (rad, motor-id order) of an action at a command and time (s since the gait
+        started): the home pose with the legs at the gait reference (residual policies) or home, plus the action's
+        offsets; and the factor on each motor's P gain (None: the spec's gains)."""
+        p = self.policy
+        targets = p.home_motor_pos.copy()
+        legs, contact = (targets[p.leg_motor_index], np.ones(2)) if p.reference is None else \
+            p.reference.at(np.asarray(command, float), t)
+        targets[p.leg_motor_index] = legs + self.cfg.action_scale * action
+        return targets, None if p.gain_scales is None else leg_gain_scale(contact, *p.gain_scales)
 
     def step(self, t: float, command: np.ndarray, motor_pos: np.ndarray, motor_vel: np.ndarray,
-             gyro: np.ndarray, imu_quat: np.ndarray) -> np.ndarray:
-        """One 50 Hz control step: observation -> action -> motor targets."""
+             gyro: np.ndarray, imu_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """One 50 Hz control step: observation -> action -> (motor targets, P-gain factors or None)."""
         obs = self.observation(t, command, motor_pos, motor_vel, gyro, imu_quat)
         action = self.policy.action(obs)
         self.last_action = action
-        return self.motor_targets(action)
+        return self.motor_targets(action, command, t)

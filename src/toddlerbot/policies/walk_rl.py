@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.locomotion.config import CommandReach
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.policies.rl_inference import RLController, RLPolicyFile
 from toddlerbot.robot.interface import Observation, Robot
@@ -29,6 +30,9 @@ class WalkRLPolicy(Policy):
             raise ToddlerbotError(f"{policy.path}: trained at a {trained_dt} s control period; the robot runs at "
                                   f"{robot.control_dt} s")
         self.controller = RLController(policy)
+        low, high = policy.meta.get("command_low"), policy.meta.get("command_high")
+        if low is not None and high is not None:
+            self.command_reach = CommandReach(tuple(low), tuple(high))
         self._t0 = 0.0
 
     def reset(self, obs: Observation) -> None:
@@ -36,6 +40,7 @@ class WalkRLPolicy(Policy):
         self._t0 = obs.time
 
     def act(self, obs: Observation, command: np.ndarray) -> Action:
-        targets = self.controller.step(obs.time - self._t0, command, obs.motor_pos, obs.motor_vel, obs.imu_ang_vel,
-                                       obs.imu_quat)
-        return Action(motor_targets=targets, joint_targets=self.transmission.motor_to_joint(targets))
+        targets, kp_scale = self.controller.step(obs.time - self._t0, self.within_reach(command), obs.motor_pos,
+                                                 obs.motor_vel, obs.imu_ang_vel, obs.imu_quat)
+        kp = None if kp_scale is None else self.robot.default_kp * kp_scale
+        return Action(motor_targets=targets, joint_targets=self.transmission.motor_to_joint(targets), kp=kp)

@@ -15,22 +15,30 @@ __all__ = ["ObsConfig"]
 
 @dataclass(frozen=True)
 class CommandConfig:
-    """Velocity commands (torso yaw frame): vx, vy m/s, yaw rate rad/s, snapped to the reference grid.
+    """Velocity commands (torso yaw frame): vx, vy m/s, yaw rate rad/s, drawn continuously within the ranges.
 
     The ranges default to the walking policies' reach (`locomotion.config.WALK_REACH`: every grid point, corners
-    included, is tabulated by the ZMP generator without leg-IK failures); steps of 0.05 m/s, 0.04 m/s and 0.2 rad/s."""
+    included, is tabulated by the ZMP generator without leg-IK failures). The reference is tabulated on ``grid``
+    points (steps of 0.05 m/s, 0.04 m/s and 0.2 rad/s) and interpolated between them."""
 
     vx: tuple[float, float] = (WALK_REACH.low[0], WALK_REACH.high[0])
     vy: tuple[float, float] = (WALK_REACH.low[1], WALK_REACH.high[1])
     yaw: tuple[float, float] = (WALK_REACH.low[2], WALK_REACH.high[2])
     grid: tuple[int, int, int] = (6, 5, 5)
-    """Grid points along vx, vy, yaw (each range includes 0 as a grid point when it straddles 0)."""
+    """Tabulated reference points along vx, vy, yaw (each range includes 0 as a grid point when it straddles 0)."""
     stand_prob: float = 0.15
     """Probability that a sampled command is zero (stand still)."""
     turn_prob: float = 0.15
     """Probability that a sampled command is a pure turn in place."""
+    axis_prob: float = 0.3
+    """Probability that a sampled command walks along one axis only (vx or vy, equally likely); the rest are
+    uniform over the whole box."""
     resample_s: float = 5.0
     """Commands are resampled every this many seconds within an episode."""
+
+    def __post_init__(self) -> None:
+        if min(self.grid) < 2:
+            raise ValueError(f"CommandConfig.grid {self.grid}: the reference interpolates, so >= 2 points per axis")
 
 
 @dataclass(frozen=True)
@@ -86,6 +94,7 @@ class RandomizationConfig:
 
 CONTACT_SETS = ("feet_hands", "all")
 JACOBIANS = ("dense", "sparse")
+PHYSICS_BACKENDS = ("cpu", "mjx")
 
 
 @dataclass(frozen=True)
@@ -104,6 +113,17 @@ class EnvConfig:
     (`toddlerbot.rl.model`)."""
     jacobian: str = "dense"
     """Constraint Jacobian layout of the training model: ``dense`` or ``sparse``."""
+    backend: str = "auto"
+    """Physics backend (`toddlerbot.rl.physics`): ``cpu`` (classic MuJoCo on threads), ``mjx``, or ``auto`` (mjx
+    when JAX has a GPU, else cpu); a saved configuration holds the resolved name."""
+    cpu_threads: int = 0
+    """Threads of the CPU backend (0: one per CPU core)."""
+    residual: bool = True
+    """Leg motor target = gait reference (interpolated at the command and phase) + ``obs.action_scale`` x action;
+    False: home pose + ``obs.action_scale`` x action (upstream ToddlerBot)."""
+    teacher_gains: bool = True
+    """The leg motors' P gains follow walk-zmp's schedule (stance and swing-leg factors on the spec's gains, from
+    the reference's stance flags); False keeps the spec's gains."""
     motor_params: tuple[str, ...] = ()
     """Fitted actuator parameter files (sysID ``params.json``) the robot is built with; domain randomisation
     scales around them."""
@@ -122,6 +142,8 @@ class EnvConfig:
             raise ValueError(f"solver iterations {self.solver_iterations}/{self.solver_ls_iterations}: expected >= 1")
         if self.contacts not in CONTACT_SETS:
             raise ValueError(f"contacts {self.contacts!r}: expected one of {', '.join(CONTACT_SETS)}")
+        if self.backend not in ("auto", *PHYSICS_BACKENDS):
+            raise ValueError(f"backend {self.backend!r}: expected auto or one of {', '.join(PHYSICS_BACKENDS)}")
         if self.jacobian not in JACOBIANS:
             raise ValueError(f"jacobian {self.jacobian!r}: expected one of {', '.join(JACOBIANS)}")
 
@@ -184,12 +206,45 @@ class PPOConfig:
         return self.batch_size * self.num_minibatches * self.unroll_length
 
 
+@dataclass(frozen=True)
+class ImitationConfig:
+    """Warm start before PPO (`toddlerbot.rl.imitation`): DAgger with walk-zmp as the teacher, behaviour cloning of
+    the actor on the aggregated labels, and a value function fitted to the visited states' returns."""
+
+    iterations: int = 0
+    """DAgger iterations (0: no warm start)."""
+    teacher_iterations: int = 1
+    """The first iterations step the env with the teacher's actions; later ones with the student's."""
+    num_envs: int = 64
+    steps: int = 250
+    """Control steps of every env per iteration (episodes continue across iterations)."""
+    bc_steps: int = 1000
+    """Adam steps on the aggregated data after each iteration (actor, then critic)."""
+    batch_size: int = 512
+    learning_rate: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if min(self.num_envs, self.steps, self.bc_steps, self.batch_size) < 1 or self.iterations < 0:
+            raise ValueError("ImitationConfig: iterations >= 0 and positive envs, steps, bc_steps, batch_size")
+
+
 FULL = PPOConfig()
+CPU = PPOConfig(
+    num_timesteps=20_000_000, num_envs=256, batch_size=64, num_minibatches=4, num_updates_per_batch=4,
+    policy_hidden=(256, 128, 64), value_hidden=(256, 128, 64), init_std=0.2, num_evals=400,
+)
+"""The CPU recipe's PPO (docs/rl.md, "Training on a CPU"): 256 environments, one 20-step rollout of each per
+update (5,120 env steps), 4 minibatches, networks a quarter of Table 5's cost, and a narrower exploration noise
+around the warm-started policy; ~10 updates per epoch (stop it with ``--minutes``)."""
+CPU_IMITATION = ImitationConfig(iterations=6, num_envs=64, steps=250, bc_steps=2000)
+"""The CPU recipe's warm start: 6 DAgger iterations of 64 envs x 5 s (the first driven by walk-zmp)."""
 SMOKE = PPOConfig(
     num_timesteps=2 * 4 * 2 * 5, num_envs=4, episode_length=40, unroll_length=5, batch_size=4, num_minibatches=2,
     num_updates_per_batch=1, policy_hidden=(32, 32), value_hidden=(32, 32), num_evals=2, num_eval_envs=0,
 )
 """Tiny run for CPU tests: 2 epochs of one update (4 envs x 2 minibatches x 5 steps), no separate evaluation."""
+SMOKE_IMITATION = ImitationConfig(iterations=1, num_envs=4, steps=5, bc_steps=5, batch_size=8)
+"""Tiny warm start of the smoke run: one teacher-driven DAgger iteration of 4 envs x 5 steps."""
 
 SMOKE_XLA_FLAGS = "--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true"
 """XLA flags of `--smoke` runs: unoptimised CPU code compiles several times faster; the few steps it then runs
@@ -197,9 +252,9 @@ are slow, which a smoke run does not mind. Never use them for real training."""
 
 
 def smoke_env_config() -> EnvConfig:
-    """The environment of the smoke run: a 3-frame history and a 3 x 1 x 3 command grid (quick to tabulate)."""
+    """The environment of the smoke run: a 3-frame history and a 3 x 2 x 2 command grid (quick to tabulate)."""
     return EnvConfig(obs=replace(ObsConfig(), history=3),
-                     command=replace(CommandConfig(), grid=(3, 1, 3)))
+                     command=replace(CommandConfig(), grid=(3, 2, 2)))
 
 
 def to_dict(cfg: object) -> dict:

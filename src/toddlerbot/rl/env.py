@@ -1,11 +1,14 @@
-"""The MJX walking environment (Brax `Env` interface): velocity commands, ZMP imitation, 50 Hz control.
+"""The walking environment (Brax `Env` interface): velocity commands, ZMP imitation, 50 Hz control.
 
-* Physics: the training variant of the robot's model (`toddlerbot.rl.model.training_model`: MJX timestep
-  ``EnvConfig.sim_dt`` = 4 ms, 5 substeps per 20 ms control step, pruned contacts, solver settings) in full
-  float32 matmul precision (`toddlerbot.rl.precision`); every substep applies the shared actuator model
-  (`toddlerbot.actuation.model.motor_torque` with ``xp=jax.numpy``) as MuJoCo motor torques.
-* Actions: 12 numbers, clipped to [-1, 1]; leg motor target = home + ``action_scale`` * action. The other 18
-  motors hold their reference (the home pose).
+* Physics: the training variant of the robot's model (`toddlerbot.rl.model.training_model`: timestep
+  ``EnvConfig.sim_dt`` = 4 ms, 5 substeps per 20 ms control step, pruned contacts, solver settings), stepped by a
+  backend of `toddlerbot.rl.physics` (MJX, or classic MuJoCo on CPU threads), which applies the shared actuator
+  model (`toddlerbot.actuation.model.motor_torque`) every substep. Everything else here is one JAX definition for
+  both backends.
+* Actions: 12 numbers, clipped to [-1, 1]. Residual (default): leg motor target = the gait reference at the
+  command and phase (`toddlerbot.policies.rl_inference.GaitReference`, interpolated) + ``action_scale`` * action,
+  so a zero action walks the reference; otherwise home + ``action_scale`` * action. The other 18 motors hold the
+  home pose. With ``teacher_gains`` the leg P gains follow walk-zmp's stance/swing schedule.
 * Episodes: `PPOConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
   torso falls below ``min_torso_height`` or tilts more than ``max_tilt``.
 * Observations: ``{"state": actor, "privileged_state": critic}`` (see `toddlerbot.rl.observations`).
@@ -18,19 +21,30 @@ from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
-import mujoco
 import numpy as np
 from brax.envs.base import Env, State
-from mujoco import mjx
 
-from toddlerbot.actuation.model import ActuatorArrays, motor_torque
+from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.policies.rl_inference import GaitReference, leg_gain_scale
 from toddlerbot.rl import randomization, rewards
 from toddlerbot.rl.config import EnvConfig
 from toddlerbot.rl.model import training_model
 from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, critic_obs, push_frame
+from toddlerbot.rl.physics import BACKENDS, MODEL_FIELDS, Addresses, Frame
 from toddlerbot.rl.precision import use_full_precision
-from toddlerbot.rl.reference import ReferenceTable, leg_motor_indices, load_reference
+from toddlerbot.rl.reference import leg_motor_indices, load_reference
 from toddlerbot.robot.description import RobotDescription
+
+TRACKING_METRICS = ("lin_vel_error", "ang_vel_error")
+"""Per-step metrics besides the reward terms: |achieved - commanded| horizontal velocity (m/s, yaw frame) and
+yaw rate (rad/s), instantaneous (the tracking evaluation averages over a gait cycle)."""
+
+
+def resolve_backend(name: str) -> str:
+    """``auto`` -> ``mjx`` when JAX's default device is a GPU, else ``cpu``."""
+    if name != "auto":
+        return name
+    return "mjx" if jax.default_backend() == "gpu" else "cpu"
 
 
 def _yaw_quat(yaw: jax.Array) -> jax.Array:
@@ -51,9 +65,12 @@ class WalkEnv(Env):
     """One walking robot; vmap it (the training wrappers do) for many."""
 
     def __init__(self, cfg: EnvConfig | None = None, description: RobotDescription | None = None,
-                 reference: ReferenceTable | None = None) -> None:
+                 reference: GaitReference | None = None, gain_scales: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> None:
         """``description``: the robot (by default the packaged spec with ``cfg.motor_params`` applied; a given
-        one must carry the same params.json files). ``reference``: an imitation table (default: the ZMP walk)."""
+        one must carry the same params.json files). ``reference``: an imitation table (default: the ZMP walk).
+        ``gain_scales``: (stance (n_motors,), swing (2, n_motors)) factors on the spec's P gains (default, with
+        ``cfg.teacher_gains``: walk-zmp's)."""
         use_full_precision()
         cfg = cfg or EnvConfig()
         rewards.check_weights(cfg.reward)
@@ -64,50 +81,44 @@ class WalkEnv(Env):
                              f"config's {cfg.motor_params}")
         self.description = description
         if reference is None:
-            reference, self.reference_source = load_reference(description, cfg.command)
+            reference, self.reference_source = load_reference(description, cfg.command, cfg.ctrl_dt)
         else:
             self.reference_source = "given"
         self.reference = reference
         if cfg.obs.gait_period is None:
             cfg = replace(cfg, obs=replace(cfg.obs, gait_period=reference.period))
+        cfg = replace(cfg, backend=resolve_backend(cfg.backend))
         self.cfg = cfg
-        """The configuration with the gait period resolved (save this one)."""
+        """The configuration with the gait period and the backend resolved (save this one)."""
         model = training_model(description, cfg)
         self.mj_model = model
-        self.sys = mjx.put_model(model)
-        self._ref_leg = jnp.asarray(reference.leg_motor_pos, dtype=jnp.float32)
-        self._ref_contact = jnp.asarray(reference.contact, dtype=jnp.float32)
+        self.addresses = Addresses.of(model, description)
+        physics = BACKENDS[cfg.backend]
+        self.physics = physics(model, self.addresses, cfg.n_substeps, cfg.cpu_threads) if cfg.backend == "cpu" \
+            else physics(model, self.addresses, cfg.n_substeps)
+        self._nominal = {name: jnp.asarray(getattr(model, name)) for name in MODEL_FIELDS}
 
-        joints = model.actuator_trnid[:, 0]
-        self.motor_qadr = np.asarray(model.jnt_qposadr[joints])
-        self.motor_dadr = np.asarray(model.jnt_dofadr[joints])
         self.home_motor_pos = np.asarray(description.home_motor_pos, dtype=np.float32)
         self.leg_index = leg_motor_indices(description)
-        self.n_motors = len(self.motor_qadr)
+        self.n_motors = description.n_motors
         self.actuators = ActuatorArrays(*(jnp.asarray(a, dtype=jnp.float32) for a in description.actuator_arrays()))
+        if gain_scales is None:
+            if cfg.teacher_gains:
+                from toddlerbot.rl.imitation import teacher_gain_scales
 
-        handles = description.handles
-        self.floor_geom = model.geom("floor").id
-        self.foot_geoms = np.array([model.geom(name).id for name in handles.feet_geoms])
-        self.foot_sites = np.array([model.site(name).id for name in handles.feet_sites])
-        home = mujoco.MjData(model)
-        mujoco.mj_resetDataKeyframe(model, home, model.key("home").id)
-        mujoco.mj_forward(model, home)
-        self._home_data = mjx.put_data(model, home)
-        """The start state of every episode, computed once with classic MuJoCo (so reset compiles no physics)."""
-        up = home.site_xmat[self.foot_sites[0]].reshape(3, 3)[2]  # world-z components of the site's axes
-        self._foot_up_axis, self._foot_up_sign = int(np.argmax(np.abs(up))), float(np.sign(up[np.argmax(np.abs(up))]))
-        self.torso_body = model.body(handles.torso).id
-        self.imu_site = model.site(handles.imu_site).id
-        self._quat_adr = model.sensor_adr[model.sensor("imu_quat").id]
-        self._gyro_adr = model.sensor_adr[model.sensor("imu_gyro").id]
-        self._zero_command_index = jnp.asarray(reference.grid.snap(np.zeros(3)))
+                gain_scales = teacher_gain_scales(description)
+            else:
+                gain_scales = (np.ones(self.n_motors), np.zeros((2, self.n_motors)))
+        self.gain_scales = tuple(np.asarray(g, dtype=np.float32) for g in gain_scales)
+        a = self.addresses
+        self.floor_geom, self.torso_body, self.foot_sites = a.floor_geom, a.torso_body, a.foot_sites
+        self.motor_qadr, self.motor_dadr = a.motors.qpos, a.motors.dof
 
     # Brax Env interface -------------------------------------------------------------------------------------
     @property
     def observation_size(self) -> dict[str, tuple[int, ...]]:
         actor = self.cfg.obs.history * self.frame_size
-        state = self.reset(jax.random.PRNGKey(0))
+        state = jax.eval_shape(self.reset, jax.random.PRNGKey(0))
         return {"state": (actor,), "privileged_state": state.obs["privileged_state"].shape}
 
     @property
@@ -120,30 +131,30 @@ class WalkEnv(Env):
 
     @property
     def backend(self) -> str:
-        return "mjx"
+        return self.cfg.backend
 
     def reset(self, rng: jax.Array) -> State:
         cfg = self.cfg
         rng, k_dr, k_cmd, k_push, k_noise = jax.random.split(rng, 5)
-        m = self.sys
+        m = self.mj_model
         dr = (randomization.sample(k_dr, cfg.randomization, m.nv, m.nbody, self.n_motors) if cfg.randomize
               else randomization.nominal(m.nv, m.nbody, self.n_motors))
-        data = self._home_data
-        cmd_index = self._sample_command(k_cmd)
-        zeros12 = jnp.zeros(self.action_size)
+        frame = self.physics.home_frame
+        command = self._sample_command(k_cmd)
+        zeros = jnp.zeros(self.action_size)
         info = {
-            "rng": rng, "dr": dr, "time": jnp.zeros(()), "step": jnp.zeros((), jnp.int32),
-            "command": self.reference.grid.command(cmd_index, jnp), "command_index": cmd_index,
-            "ref_yaw": _yaw(data.qpos[3:7]), "last_action": zeros12, "last_last_action": zeros12,
-            "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": data.site_xpos[self.foot_sites],
+            "rng": rng, "dr": dr, "time": jnp.zeros(()), "step": jnp.zeros((), jnp.int32), "command": command,
+            "ref_yaw": _yaw(frame.qpos[3:7]), "last_action": zeros, "last_last_action": zeros,
+            "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": frame.feet_pos,
             "push_timer": self._push_interval(k_push), "push": jnp.zeros(2),
             "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
-        obs, info = self._observe(data, info, k_noise, contact=jnp.ones(2), ref_leg=self._ref_leg_pos(info))
+        ref_leg, _ = self.reference_at(command, info["time"])
+        obs, info = self._observe(frame, info, k_noise, contact=jnp.ones(2), ref_leg=ref_leg)
         info["history"] = jnp.tile(info["history"][:1], (cfg.obs.history, 1))
         obs["state"] = info["history"].reshape(-1)
-        metrics = {name: jnp.zeros(()) for name in rewards.TERMS}
-        return State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
+        metrics = {name: jnp.zeros(()) for name in (*rewards.TERMS, *TRACKING_METRICS)}
+        return State(self.physics.home_state, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
 
     def step(self, state: State, action: jax.Array) -> State:
         cfg, info = self.cfg, dict(state.info)
@@ -151,117 +162,92 @@ class WalkEnv(Env):
         k_noise, k_push, k_cmd, k_next = jax.random.split(info["rng"], 4)
         action = jnp.clip(action, -1.0, 1.0)  # the policy's Gaussian is unsquashed
         applied = jnp.where(dr.action_delay > 0, info["last_action"], action)
-        targets = jnp.asarray(self.home_motor_pos).at[self.leg_index].add(cfg.obs.action_scale * applied)
+        targets, kp_scale = self.motor_targets(applied, info["command"], info["time"])
+        actuators = randomization.apply_to_actuators(self.actuators, dr)
+        actuators = actuators._replace(kp=actuators.kp * kp_scale)
 
         data, info = self._push(state.pipeline_state, info, k_push)
-        data, taus = self.physics_step(data, targets, self._model(dr),
-                                       randomization.apply_to_actuators(self.actuators, dr))
+        data, frame = self.physics.step(data, targets, self.model_fields(dr), actuators)
         info["time"] = info["time"] + cfg.ctrl_dt
         info["step"] = info["step"] + 1
         info["ref_yaw"] = info["ref_yaw"] + info["command"][2] * cfg.ctrl_dt
 
-        contact, self_collision = self._contacts(data)
+        contact = frame.contact
         first_contact = contact * (1 - info["last_contact"])
         air_time = info["air_time"] + cfg.ctrl_dt
-        torso_quat = data.qpos[3:7]
-        gravity = -data.xmat[self.torso_body][2]  # world -z in torso frame
+        qpos, qvel = frame.qpos, frame.qvel
+        torso_quat = qpos[3:7]
+        gravity = -frame.torso_z  # world -z in torso frame
         tilt = jnp.arccos(jnp.clip(-gravity[2], -1.0, 1.0))
-        fallen = (data.qpos[2] < cfg.min_torso_height) | (tilt > cfg.max_tilt)
-        feet_pos = data.site_xpos[self.foot_sites]
+        fallen = (qpos[2] < cfg.min_torso_height) | (tilt > cfg.max_tilt) | ~jnp.isfinite(qpos[2])
         yaw = _yaw(torso_quat)
-        lateral = _rotate_z(feet_pos[0] - feet_pos[1], -yaw)[1]
-        ref_leg, ref_contact = self._ref_leg_pos(info), self._ref_contact_flags(info)
+        lateral = _rotate_z(frame.feet_pos[0] - frame.feet_pos[1], -yaw)[1]
+        ref_leg, ref_contact = self.reference_at(info["command"], info["time"])
         q = rewards.StepQuantities(
             torso_quat=torso_quat, ref_torso_quat=_yaw_quat(info["ref_yaw"]),
-            lin_vel=_rotate_z(data.qvel[0:3], -yaw), ang_vel=data.qvel[3:6], command=info["command"],
-            leg_pos=data.qpos[self.motor_qadr][self.leg_index], ref_leg_pos=ref_leg,
+            lin_vel=_rotate_z(qvel[0:3], -yaw), ang_vel=qvel[3:6], command=info["command"],
+            leg_pos=qpos[self.motor_qadr][self.leg_index], ref_leg_pos=ref_leg,
             home_leg_pos=jnp.asarray(self.home_motor_pos[self.leg_index]), contact=contact,
-            ref_contact=ref_contact, first_contact=first_contact, air_time=air_time, feet_height=feet_pos[:, 2],
-            feet_vel_xy=(feet_pos - info["feet_pos"])[:, :2] / cfg.ctrl_dt,
-            feet_up_z=self._foot_up_sign * data.site_xmat[self.foot_sites][:, 2, self._foot_up_axis],
-            feet_lateral_distance=lateral,
+            ref_contact=jnp.round(ref_contact), first_contact=first_contact, air_time=air_time,
+            feet_height=frame.feet_pos[:, 2], feet_vel_xy=(frame.feet_pos - info["feet_pos"])[:, :2] / cfg.ctrl_dt,
+            feet_up_z=frame.feet_up_z, feet_lateral_distance=lateral,
             roll=jnp.arctan2(gravity[1], -gravity[2]), pitch=jnp.arcsin(jnp.clip(-gravity[0], -1.0, 1.0)),
-            self_collision=self_collision, action=action, last_action=info["last_action"],
-            last_last_action=info["last_last_action"], motor_torque=taus[-1],
-            motor_vel=data.qvel[self.motor_dadr], alive=1.0 - fallen.astype(jnp.float32),
+            self_collision=frame.self_collision, action=action, last_action=info["last_action"],
+            last_last_action=info["last_last_action"], motor_torque=frame.torque,
+            motor_vel=qvel[self.motor_dadr], alive=1.0 - fallen.astype(jnp.float32),
         )
         reward, terms = rewards.total_reward(q, cfg.reward, cfg.ctrl_dt)
+        reward = jnp.where(jnp.isfinite(reward), reward, 0.0)
+        terms["lin_vel_error"] = jnp.linalg.norm(q.lin_vel[:2] - q.command[:2])
+        terms["ang_vel_error"] = jnp.abs(q.ang_vel[2] - q.command[2])
 
         info["air_time"] = air_time * (1 - contact)
         info["last_contact"] = contact
-        info["feet_pos"] = feet_pos
+        info["feet_pos"] = frame.feet_pos
         info["last_last_action"] = info["last_action"]
         info["last_action"] = action
         resample = info["step"] % round(cfg.command.resample_s / cfg.ctrl_dt) == 0
-        new_index = jnp.where(resample, self._sample_command(k_cmd), info["command_index"])
-        info["command_index"] = new_index
-        info["command"] = self.reference.grid.command(new_index, jnp)
+        info["command"] = jnp.where(resample, self._sample_command(k_cmd), info["command"])
         info["rng"] = k_next
-        obs, info = self._observe(data, info, k_noise, contact=contact, ref_leg=ref_leg)
+        obs, info = self._observe(frame, info, k_noise, contact=contact, ref_leg=ref_leg)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
                              metrics={**state.metrics, **terms}, info=info)
 
-    def physics_step(self, data: mjx.Data, targets: jax.Array, model: mjx.Model | None = None,
-                     actuators: ActuatorArrays | None = None) -> tuple[mjx.Data, jax.Array]:
-        """One control period of physics holding motor targets (rad, motor-id order): ``n_substeps`` MJX steps,
-        each with the actuator model's torques. Returns the data and the (n_substeps, n_motors) torques, N m.
-        ``model`` / ``actuators`` default to the nominal (un-randomised) robot."""
-        model = self.sys if model is None else model
-        act = self.actuators if actuators is None else actuators
+    # the policy's action space -------------------------------------------------------------------------------
+    def reference_at(self, command: jax.Array, t: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """(leg motor angles (12,) rad, stance flags (2,)) of the gait reference at a command and time."""
+        return self.reference.at(command, t, jnp)
 
-        def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
-            tau = motor_torque(targets, d.qpos[self.motor_qadr], d.qvel[self.motor_dadr], act, xp=jnp)
-            return mjx.step(model, d.replace(ctrl=tau)), tau
-
-        return jax.lax.scan(substep, data, None, length=self.cfg.n_substeps)
-
-    @property
-    def home_data(self) -> mjx.Data:
-        """The start state of every episode (home keyframe on the floor)."""
-        return self._home_data
+    def motor_targets(self, action: jax.Array, command: jax.Array, t: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """(motor targets (n_motors,) rad, factor on each motor's P gain) of an action in [-1, 1]^12 at a command
+        and time: the leg targets are the reference (``residual``) or home plus ``action_scale`` x action."""
+        ref_leg, ref_contact = self.reference_at(command, t)
+        legs = ref_leg if self.cfg.residual else jnp.asarray(self.home_motor_pos[self.leg_index])
+        targets = jnp.asarray(self.home_motor_pos).at[self.leg_index].set(legs + self.cfg.obs.action_scale * action)
+        return targets, leg_gain_scale(ref_contact, *self.gain_scales, xp=jnp)
 
     # helpers -------------------------------------------------------------------------------------------------
-    def _model(self, dr: randomization.DRParams) -> mjx.Model:
-        return randomization.apply_to_model(self.sys, dr, self.floor_geom, self.torso_body)
+    def model_fields(self, dr: randomization.DRParams) -> dict[str, jax.Array]:
+        """The env's randomised model parameters (both backends apply them)."""
+        return randomization.model_fields(self._nominal, dr, self.floor_geom, self.torso_body)
 
     def _sample_command(self, key: jax.Array) -> jax.Array:
-        """Grid indices of a random command: uniform over the grid, or stand still, or turn in place."""
+        """A random command: stand still, turn in place, walk along one axis, or anywhere in the box."""
         c = self.cfg.command
-        k_idx, k_kind = jax.random.split(key)
-        index = jax.random.randint(k_idx, (3,), 0, jnp.asarray(self.reference.grid.shape))
+        k_box, k_kind, k_axis = jax.random.split(key, 3)
+        lo, hi = jnp.array([c.vx[0], c.vy[0], c.yaw[0]]), jnp.array([c.vx[1], c.vy[1], c.yaw[1]])
+        box = jax.random.uniform(k_box, (3,), minval=lo, maxval=hi)
         u = jax.random.uniform(k_kind)
-        zero = self._zero_command_index
-        turn = zero.at[2].set(index[2])
-        index = jnp.where(u < c.stand_prob + c.turn_prob, turn, index)
-        return jnp.where(u < c.stand_prob, zero, index)
-
-    def _phase_index(self, t: jax.Array) -> jax.Array:
-        return self.reference.phase_index(t, jnp)
-
-    def _ref_leg_pos(self, info: dict) -> jax.Array:
-        i = info["command_index"]
-        return self._ref_leg[i[0], i[1], i[2], self._phase_index(info["time"])]
-
-    def _ref_contact_flags(self, info: dict) -> jax.Array:
-        i = info["command_index"]
-        return self._ref_contact[i[0], i[1], i[2], self._phase_index(info["time"])]
-
-    def _contacts(self, data: mjx.Data) -> tuple[jax.Array, jax.Array]:
-        """(left/right foot touching the floor as 0/1, number of penetrating robot-robot contacts)."""
-        c = data._impl.contact
-        g1, g2 = c.geom[:, 0], c.geom[:, 1]
-        touching = c.dist < 0.0
-        floor = self.floor_geom
-        feet = jnp.stack([jnp.any(touching & (((g1 == floor) & (g2 == f)) | ((g2 == floor) & (g1 == f))))
-                          for f in self.foot_geoms]).astype(jnp.float32)
-        self_collision = jnp.sum(touching & (g1 != floor) & (g2 != floor)).astype(jnp.float32)
-        return feet, self_collision
+        axis = jnp.where(jax.random.uniform(k_axis) < 0.5, jnp.array([1.0, 0, 0]), jnp.array([0, 1.0, 0]))
+        command = jnp.where(u < c.stand_prob + c.turn_prob + c.axis_prob, box * axis, box)
+        command = jnp.where(u < c.stand_prob + c.turn_prob, box * jnp.array([0, 0, 1.0]), command)
+        return jnp.where(u < c.stand_prob, jnp.zeros(3), command)
 
     def _push_interval(self, key: jax.Array) -> jax.Array:
         lo, hi = self.cfg.randomization.push_interval_s
         return jax.random.uniform(key, minval=lo, maxval=hi)
 
-    def _push(self, data: mjx.Data, info: dict, key: jax.Array) -> tuple[mjx.Data, dict]:
+    def _push(self, data, info: dict, key: jax.Array) -> tuple[object, dict]:
         """When the env's push timer runs out, kick the torso horizontally and draw the next interval."""
         k_dir, k_mag, k_next = jax.random.split(key, 3)
         due = (info["push_timer"] <= 0) & self.cfg.randomize
@@ -272,26 +258,24 @@ class WalkEnv(Env):
         info["push_timer"] = jnp.where(due, self._push_interval(k_next), info["push_timer"] - self.cfg.ctrl_dt)
         return data.replace(qvel=data.qvel.at[0:2].add(kick)), info
 
-    def _observe(self, data: mjx.Data, info: dict, key: jax.Array, contact: jax.Array,
+    def _observe(self, frame: Frame, info: dict, key: jax.Array, contact: jax.Array,
                  ref_leg: jax.Array) -> tuple[dict[str, jax.Array], dict]:
         cfg = self.cfg
-        sensors = Sensors(
-            motor_pos=data.qpos[self.motor_qadr], motor_vel=data.qvel[self.motor_dadr],
-            gyro=data.sensordata[self._gyro_adr:self._gyro_adr + 3],
-            imu_quat=data.sensordata[self._quat_adr:self._quat_adr + 4],
-        )
+        sensors = Sensors(motor_pos=frame.qpos[self.motor_qadr], motor_vel=frame.qvel[self.motor_dadr],
+                          gyro=frame.gyro, imu_quat=frame.imu_quat)
         noisy, gravity = add_noise(key, sensors, cfg.obs, info["dr"].obs_noise_level)
         home = jnp.asarray(self.home_motor_pos)
-        frame = actor_frame(info["time"], info["command"], noisy, gravity, home, info["last_action"], cfg.obs)
-        clean = actor_frame(info["time"], info["command"], sensors, -data.site_xmat[self.imu_site][2], home,
-                            info["last_action"], cfg.obs)
-        info["history"] = push_frame(info["history"], frame)
+        frame_obs = actor_frame(info["time"], info["command"], noisy, gravity, home, info["last_action"], cfg.obs)
+        clean = actor_frame(info["time"], info["command"], sensors, -frame.imu_z, home, info["last_action"],
+                            cfg.obs)
+        info["history"] = push_frame(info["history"], frame_obs)
+        info["sensors"] = sensors  # noise-free: what the DAgger teacher reads
         actor = info["history"].reshape(-1)
-        yaw = _yaw(data.qpos[3:7])
+        yaw = _yaw(frame.qpos[3:7])
         privileged = {
-            "lin_vel": _rotate_z(data.qvel[0:3], -yaw), "contact": contact,
+            "lin_vel": _rotate_z(frame.qvel[0:3], -yaw), "contact": contact,
             "leg_error": ref_leg - sensors.motor_pos[self.leg_index], "push": info["push"],
-            "air_time": info["air_time"], "torso_height": data.qpos[2:3],
+            "air_time": info["air_time"], "torso_height": frame.qpos[2:3],
             "floor_friction": info["dr"].floor_friction[None],
         }
         return {"state": actor, "privileged_state": critic_obs(actor, clean, privileged)}, info

@@ -37,10 +37,19 @@ def policy_arrays(policy_params: dict, normalizer_params, normalize: bool, obs_s
 
 
 def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, meta: dict,
-                 description: RobotDescription) -> Path:
-    """Write the export file (atomically) for a robot."""
+                 description: RobotDescription, action_space: dict[str, np.ndarray] | None = None) -> Path:
+    """Write the export file (atomically) for a robot. ``action_space``: the run's reference and gain-scale arrays
+    (`ACTION_SPACE`); the file keeps the reference when the env was residual and the gain schedule when it used
+    the teacher's gains. The trained command ranges go into the metadata."""
     if env_cfg.obs.gait_period is None:
         raise ValueError("the observation config to export has no gait period (resolve it with WalkEnv first)")
+    action_space = action_space or {}
+    if env_cfg.residual:
+        arrays = {**arrays, **{k: v for k, v in action_space.items() if k.startswith("ref_")}}
+    if env_cfg.teacher_gains:
+        arrays = {**arrays, **{k: v for k, v in action_space.items() if k.startswith("kp_")}}
+    c = env_cfg.command
+    meta = {**meta, "command_low": [c.vx[0], c.vy[0], c.yaw[0]], "command_high": [c.vx[1], c.vy[1], c.yaw[1]]}
     return atomic_savez(path, dict(
         **arrays, home_motor_pos=np.asarray(description.home_motor_pos),
         leg_motor_index=leg_motor_indices(description), motor_names=np.array(description.motor_names),
@@ -74,13 +83,30 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
     arrays = policy_arrays(state.params.policy, state.normalizer_params, ppo_cfg.normalize_observations, obs_size)
     last = history[-1] if history else {}
     record = run_dir / MOTOR_PARAMS_RECORD
+    warm = _imitation_record(run_dir)
     meta = {"ctrl_dt": env_cfg.ctrl_dt, "reference": run_reference_source(run_dir), "run": run_dir.name,
-            "checkpoint": paths[-1].name, "env_steps": int(state.env_steps),
+            "checkpoint": paths[-1].name, "ppo_env_steps": int(state.env_steps),
+            "imitation_env_steps": warm[-1]["env_steps"] if warm else 0,
+            "env_steps": int(state.env_steps) + (warm[-1]["env_steps"] if warm else 0),
             "walltime_s": last.get("walltime"), "episode_reward": last.get("episode_reward"),
+            "episode_length": last.get("episode_length"),
             "step_reward": last.get("step_reward"), "sps": last.get("sps"), "device": last.get("device"),
-            "policy_hidden": list(ppo_cfg.policy_hidden),
-            "motor_params": json.loads(record.read_text()) if record.is_file() else []}
-    return write_policy(out, arrays, env_cfg, meta, description)
+            "backend": env_cfg.backend, "residual": env_cfg.residual, "teacher_gains": env_cfg.teacher_gains,
+            "imitation_iterations": len(warm), "policy_hidden": list(ppo_cfg.policy_hidden),
+            "num_envs": ppo_cfg.num_envs, "motor_params": json.loads(record.read_text()) if record.is_file() else []}
+    space = run_dir / ACTION_SPACE
+    action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None
+    return write_policy(out, arrays, env_cfg, meta, description, action_space)
+
+
+ACTION_SPACE = "action_space.npz"
+"""File in a run directory: the gait reference the run's env used (`GaitReference.arrays`) and its P-gain factors
+(``kp_stance_scale``, ``kp_swing_scale``), written at the start so that the export carries exactly them."""
+
+
+def _imitation_record(run_dir: Path) -> list[dict]:
+    path = run_dir / "imitation.jsonl"
+    return [json.loads(line) for line in path.read_text().splitlines() if line] if path.is_file() else []
 
 
 MOTOR_PARAMS_RECORD = "motor_params.json"

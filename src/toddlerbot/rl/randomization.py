@@ -1,8 +1,9 @@
 """Per-episode domain randomisation (JAX): one independent draw per environment at every reset.
 
-The draw is a `DRParams` pytree kept in the environment state; `apply_to_model` turns it into that env's MJX
-model (floor friction, joint damping/armature/friction loss, link masses) and `apply_to_actuators` into its
-actuator parameters (kp/kd, torque and speed limits). Under ``jax.vmap`` every env thus simulates its own robot.
+The draw is a `DRParams` pytree kept in the environment state; `model_fields` turns it into that env's model
+parameters (floor friction, joint damping/armature/friction loss, link masses), which either physics backend
+applies, and `apply_to_actuators` into its actuator parameters (kp/kd, torque and speed limits). Under
+``jax.vmap`` every env thus simulates its own robot.
 """
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-from mujoco import mjx
 
 from toddlerbot.actuation.model import ActuatorArrays
 from toddlerbot.rl.config import RandomizationConfig
@@ -68,19 +68,21 @@ def sample(key: jax.Array, cfg: RandomizationConfig, nv: int, nbody: int, n_moto
     )
 
 
-def apply_to_model(model: mjx.Model, p: DRParams, floor_geom: int, torso_body: int) -> mjx.Model:
-    """The env's own MJX model: the nominal one with this draw's physical parameters."""
-    mass = model.body_mass * p.mass_scale
+def model_fields(nominal: dict[str, jax.Array], p: DRParams, floor_geom: int, torso_body: int) -> dict[str, jax.Array]:
+    """The env's own physical parameters (`toddlerbot.rl.physics.MODEL_FIELDS`): the nominal model's with this
+    draw's floor friction, joint damping/armature/friction loss and link masses/inertias. Both physics backends
+    take these arrays (MJX replaces them in its model, the CPU backend writes them into the env's MjModel)."""
+    mass = nominal["body_mass"] * p.mass_scale
     added = jnp.zeros_like(mass).at[torso_body].set(p.torso_added_mass)
-    scale = (mass + added) / jnp.maximum(model.body_mass, 1e-9)
-    return model.tree_replace({
-        "geom_friction": model.geom_friction.at[floor_geom, 0].set(p.floor_friction),
-        "dof_damping": model.dof_damping * p.damping_scale,
-        "dof_armature": model.dof_armature * p.armature_scale,
-        "dof_frictionloss": model.dof_frictionloss * p.frictionloss_scale,
+    scale = (mass + added) / jnp.maximum(nominal["body_mass"], 1e-9)
+    return {
+        "geom_friction": jnp.asarray(nominal["geom_friction"]).at[floor_geom, 0].set(p.floor_friction),
+        "dof_damping": nominal["dof_damping"] * p.damping_scale,
+        "dof_armature": nominal["dof_armature"] * p.armature_scale,
+        "dof_frictionloss": nominal["dof_frictionloss"] * p.frictionloss_scale,
         "body_mass": mass + added,
-        "body_inertia": model.body_inertia * scale[:, None],
-    })
+        "body_inertia": nominal["body_inertia"] * scale[:, None],
+    }
 
 
 def apply_to_actuators(a: ActuatorArrays, p: DRParams) -> ActuatorArrays:

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import functools
 import json
+import os
+import platform
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -36,17 +38,19 @@ from brax.training.agents.ppo import networks as ppo_networks
 from flax import serialization
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.files import atomic_write_bytes, atomic_write_text
+from toddlerbot.files import atomic_savez, atomic_write_bytes, atomic_write_text
 from toddlerbot.rl.config import (
     CommandConfig,
     EnvConfig,
+    ImitationConfig,
     ObsConfig,
     PPOConfig,
     RandomizationConfig,
     RewardConfig,
 )
-from toddlerbot.rl.env import WalkEnv
-from toddlerbot.rl.export import MOTOR_PARAMS_RECORD, motor_params_record
+from toddlerbot.rl.env import TRACKING_METRICS, WalkEnv
+from toddlerbot.rl.export import ACTION_SPACE, MOTOR_PARAMS_RECORD, motor_params_record
+from toddlerbot.rl.imitation import WarmStart
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.wrappers import wrap_for_training
 
@@ -214,9 +218,12 @@ class PPO:
         done = extras["episode_done"]
         n_done = jnp.sum(done)
         metrics = jax.tree.map(jnp.mean, metrics)
+        episodes = extras["episode_metrics"]
+        lengths = jnp.maximum(jnp.sum(episodes["length"] * done), 1)
         metrics.update(
-            episode_reward=jnp.sum(extras["episode_metrics"]["sum_reward"] * done) / jnp.maximum(n_done, 1),
-            episode_length=jnp.sum(extras["episode_metrics"]["length"] * done) / jnp.maximum(n_done, 1),
+            episode_reward=jnp.sum(episodes["sum_reward"] * done) / jnp.maximum(n_done, 1),
+            episode_length=jnp.sum(episodes["length"] * done) / jnp.maximum(n_done, 1),
+            **{name: jnp.sum(episodes[name] * done) / lengths for name in TRACKING_METRICS},
             episodes=n_done, step_reward=jnp.mean(data.reward),
             fall_rate=jnp.sum(done * (1 - extras["truncation"])) / done.size,
         )
@@ -233,8 +240,17 @@ class PPO:
 
 
 # configuration files -------------------------------------------------------------------------------------------
-def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig) -> None:
-    atomic_write_text(run_dir / "config.json", json.dumps({"env": asdict(env_cfg), "ppo": asdict(ppo_cfg)}, indent=1))
+def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig,
+                imitation_cfg: ImitationConfig | None = None) -> None:
+    atomic_write_text(run_dir / "config.json", json.dumps(
+        {"env": asdict(env_cfg), "ppo": asdict(ppo_cfg), "imitation": asdict(imitation_cfg or ImitationConfig())},
+        indent=1))
+
+
+def load_imitation_config(run_dir: Path) -> ImitationConfig:
+    """The run's warm-start configuration (none for runs that predate it)."""
+    raw = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
+    return ImitationConfig(**raw.get("imitation", {}))
 
 
 def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
@@ -298,23 +314,32 @@ def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState,
 # training --------------------------------------------------------------------------------------------------------
 def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | None = None, resume: bool = False,
           progress: Progress | None = None, env: WalkEnv | None = None, max_epochs: int | None = None,
-          time_limit_s: float | None = None) -> tuple[TrainingState, list[dict]]:
+          time_limit_s: float | None = None, imitation_cfg: ImitationConfig | None = None,
+          imitation_progress: Callable[[dict], None] | None = None) -> tuple[TrainingState, list[dict]]:
     """Train (or, with ``resume``, continue training) into ``run_dir``; returns the final state and the metric
-    history (one dict per epoch). ``max_epochs`` / ``time_limit_s`` stop this call early (after a checkpoint);
-    ``resume`` continues from there."""
+    history (one dict per epoch). A run with ``imitation_cfg.iterations`` starts with the DAgger warm start
+    (`toddlerbot.rl.imitation`, saved as ``warm_start.msgpack``; its records in ``imitation.jsonl``) and PPO
+    continues from its actor, critic and normaliser. ``max_epochs`` / ``time_limit_s`` stop this call early
+    (after a checkpoint; an epoch is not started when the previous one's duration says it would end past the
+    limit); ``resume`` continues from there. Records hold ``walltime``: seconds since the run started, every
+    phase included (summed over resumed calls)."""
     t_start = time.perf_counter()
     use_full_precision()
     run_dir = Path(run_dir)
     if resume:
         env_cfg, ppo_cfg = load_config(run_dir)
+        imitation_cfg = load_imitation_config(run_dir)
     else:
         env_cfg, ppo_cfg = env_cfg or EnvConfig(), ppo_cfg or PPOConfig()
+        imitation_cfg = imitation_cfg or ImitationConfig()
     cfg = ppo_cfg
     env = env or WalkEnv(env_cfg)
     if not resume:
         run_dir.mkdir(parents=True, exist_ok=True)
-        save_config(run_dir, env.cfg, ppo_cfg)
+        save_config(run_dir, env.cfg, ppo_cfg, imitation_cfg)
         atomic_write_text(run_dir / "reference.txt", env.reference_source + "\n")
+        atomic_savez(run_dir / ACTION_SPACE, {**env.reference.arrays(), "kp_stance_scale": env.gain_scales[0],
+                                              "kp_swing_scale": env.gain_scales[1]})
         if env.cfg.motor_params:
             record = motor_params_record(env.cfg.motor_params)
             atomic_write_text(run_dir / MOTOR_PARAMS_RECORD, json.dumps(record, indent=1))
@@ -324,31 +349,38 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     key, k_init = jax.random.split(key)
     ts = ppo.initial_state(k_init)
     history: list[dict] = []
-    if resume:
-        paths = checkpoint_paths(run_dir)
-        if not paths:
-            raise ToddlerbotError(f"{run_dir}: no checkpoint to resume from")
+    paths = checkpoint_paths(run_dir) if resume else []
+    prior_walltime = 0.0
+    if paths:
         ts, key, history = load_checkpoint(paths[-1], ts)
+        prior_walltime = history[-1]["walltime"] if history else 0.0
+    elif imitation_cfg.iterations > 0:
+        key, k_warm = jax.random.split(key)
+        warm, prior_walltime = _warm_start(run_dir, env, ppo, imitation_cfg, ts, k_warm, t_start, time_limit_s,
+                                           imitation_progress)
+        ts = _from_warm_start(ts, warm, ppo)
+    elif resume:
+        raise ToddlerbotError(f"{run_dir}: no checkpoint to resume from")
     evaluator = _evaluator(env, ppo.make_policy, cfg, key) if cfg.num_eval_envs > 0 else None
 
     key, k_env = jax.random.split(key)
     env_state = ppo.reset(k_env)
-    walltime = sum(h["epoch_seconds"] for h in history)
-    device = f"{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
-    epochs_run = 0
+    device = describe_device(env)
+    epochs_run, last_epoch = 0, 0.0
     while int(ts.env_steps) < ppo.total_steps:
+        elapsed = time.perf_counter() - t_start
         if (max_epochs is not None and epochs_run >= max_epochs) or (
-                time_limit_s is not None and time.perf_counter() - t_start > time_limit_s):
+                time_limit_s is not None and elapsed + last_epoch > time_limit_s):
             break
         epochs_run += 1
         key, k_epoch = jax.random.split(key)
         t0 = time.perf_counter()
         ts, env_state, metrics = ppo.epoch(ts, env_state, k_epoch)
-        seconds = time.perf_counter() - t0
-        walltime += seconds
+        last_epoch = time.perf_counter() - t0
         steps = int(ts.env_steps)
-        record = {"env_steps": steps, "epoch_seconds": seconds, "walltime": walltime, "device": device,
-                  "sps": ppo.updates_per_epoch * cfg.env_steps_per_update / seconds, **metrics}
+        record = {"env_steps": steps, "epoch_seconds": last_epoch,
+                  "walltime": prior_walltime + time.perf_counter() - t_start, "device": device,
+                  "sps": ppo.updates_per_epoch * cfg.env_steps_per_update / last_epoch, **metrics}
         if evaluator is not None:
             eval_metrics = evaluator.run_evaluation((ts.normalizer_params, ts.params.policy, ts.params.value), {})
             record.update({k: float(v) for k, v in eval_metrics.items() if np.ndim(v) == 0})
@@ -359,6 +391,60 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         if progress:
             progress(steps, ppo.total_steps, record)
     return ts, history
+
+
+WARM_START = "warm_start.msgpack"
+"""File in a run directory holding the DAgger warm start (actor, critic, normaliser, its records)."""
+
+
+def describe_device(env: WalkEnv) -> str:
+    """What trains: JAX's devices, and for the CPU physics backend the CPU and its threads."""
+    jax_devices = f"{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
+    if env.backend != "cpu":
+        return jax_devices
+    return f"CPU: {_cpu_name()}, {os.cpu_count()} cores; physics on {env.physics.threads} threads"
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts: TrainingState, key: jax.Array,
+                t_start: float, time_limit_s: float | None, progress) -> tuple[WarmStart, float]:
+    """The run's warm start: loaded from ``warm_start.msgpack`` or made now (DAgger) and saved. Returns it and the
+    run's wall time so far."""
+    from toddlerbot.rl.imitation import dagger
+
+    path = run_dir / WARM_START
+    template = {"policy": ts.params.policy, "value": ts.params.value, "normalizer": ts.normalizer_params,
+                "env_steps": np.zeros((), np.int64)}
+    if path.is_file():
+        payload = serialization.msgpack_restore(path.read_bytes())
+        arrays = serialization.from_state_dict(template, payload["warm"])
+        warm = WarmStart(arrays["policy"], arrays["value"], arrays["normalizer"], int(arrays["env_steps"]),
+                         json.loads(payload["history"]))
+        return warm, warm.history[-1]["walltime"] if warm.history else 0.0
+    deadline = None if time_limit_s is None else t_start + time_limit_s
+    warm = dagger(env, ppo.networks, cfg, ppo.cfg.episode_length, ppo.cfg.discounting, key, deadline, progress,
+                  t_start=t_start)
+    arrays = {"policy": warm.policy, "value": warm.value, "normalizer": warm.normalizer,
+              "env_steps": np.asarray(warm.env_steps, np.int64)}
+    state = serialization.to_state_dict(jax.device_get(arrays))
+    atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state, "history": json.dumps(warm.history)}))
+    atomic_write_text(run_dir / "imitation.jsonl", "".join(json.dumps(h) + "\n" for h in warm.history))
+    return warm, time.perf_counter() - t_start
+
+
+def _from_warm_start(ts: TrainingState, warm: WarmStart, ppo: PPO) -> TrainingState:
+    """PPO's first state: the warm start's networks and normaliser, a fresh optimiser."""
+    params = ppo_losses.PPONetworkParams(policy=warm.policy, value=warm.value)
+    return ts.replace(params=params, optimizer_state=ppo.optimizer.init(params), normalizer_params=warm.normalizer)
 
 
 def _strip_weak_types(tree):

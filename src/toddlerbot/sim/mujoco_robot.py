@@ -21,11 +21,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.model import motor_torque
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.builder import FREEJOINT
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.sim.actuated import MotorAddresses, step_actuated
 
 MAX_JOINT_SPEED = 200.0
 """rad/s; any faster and the simulation has blown up."""
@@ -70,10 +70,8 @@ class MuJoCoRobot(Robot):
                 f"control_dt {self.config.control_dt} s must be a multiple of the physics timestep {physics_dt} s"
             )
         m = self.model
-        joints = [m.joint(name) for name in self.motor_names]
-        self._qadr = np.array([j.qposadr[0] for j in joints])
-        self._dadr = np.array([j.dofadr[0] for j in joints])
-        self._act = np.array([m.actuator(name).id for name in self.motor_names])
+        self._motors = MotorAddresses.of(m, self.motor_names)
+        self._qadr, self._dadr = self._motors.qpos, self._motors.dof
         self._A = self.transmission.matrix
         self._imu = {name: slice(m.sensor(name).adr[0], m.sensor(name).adr[0] + m.sensor(name).dim[0])
                      for name in ("imu_quat", "imu_gyro", "imu_accel")}
@@ -122,12 +120,8 @@ class MuJoCoRobot(Robot):
         if kp is not None or kd is not None:
             self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
         self._targets = motor_targets
-        m, d, p = self.model, self.data, self._params
-        for _ in range(self.n_substeps):
-            tau = motor_torque(self._targets, d.qpos[self._qadr], d.qvel[self._dadr], p)
-            d.ctrl[self._act] = tau
-            mujoco.mj_step(m, d)
-        self._torque = tau
+        self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._params,
+                                     self.n_substeps)[0]
         self._check_stable()
         return self.observe()
 

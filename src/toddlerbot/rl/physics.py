@@ -1,0 +1,273 @@
+"""Physics backends of the walking environment: MJX (JAX: CPU or GPU) and classic MuJoCo on CPU threads.
+
+Both step the training model (`toddlerbot.rl.model.training_model`) one control period at a time, applying the
+actuator model every physics substep, with the env's own domain-randomised model fields and actuator arrays, and
+return the same `Frame`: the few physics quantities `toddlerbot.rl.env.WalkEnv` reads. Everything above the
+physics (observations, rewards, commands, randomisation draws, pushes, termination) is the environment's one JAX
+definition, whatever the backend.
+
+* `MJXPhysics`: ``mjx.step`` in a ``lax.scan``; the state is ``mjx.Data``.
+* `CPUPhysics`: `toddlerbot.sim.actuated.step_actuated` (the simulator's substep loop) over per-env ``MjModel`` /
+  ``MjData`` pairs, the batch split into chunks stepped on a thread pool (``mj_step`` releases the GIL), entered
+  from jitted code through ``jax.pure_callback`` (batched: one call for the whole batch). The state is a small
+  pytree of arrays (`CPUState`) that the host writes into scratch ``MjData`` before stepping, so the callback is a
+  pure function of its inputs. Positions and velocities are carried as float32 pairs (hi + lo, about 48 bits) so
+  that the float64 simulation continues where it stopped instead of being rounded to float32 every 20 ms.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import flax
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+
+from toddlerbot.actuation.model import ActuatorArrays, motor_torque
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+
+MODEL_FIELDS = ("geom_friction", "dof_damping", "dof_armature", "dof_frictionloss", "body_mass", "body_inertia")
+"""Model parameters domain randomisation changes per env (`toddlerbot.rl.randomization.model_fields`)."""
+
+
+class Frame(NamedTuple):
+    """What the environment reads from the physics after a control step (one env; batched under vmap). Site and
+    body quantities are MuJoCo's of the last substep (computed before its integration, as ``mj_step`` leaves
+    them)."""
+
+    qpos: jax.Array
+    qvel: jax.Array
+    torso_z: jax.Array
+    """(3,) the world z axis in the torso frame."""
+    imu_z: jax.Array
+    """(3,) the world z axis in the IMU frame."""
+    feet_pos: jax.Array
+    """(2, 3) left/right foot-centre sites, world frame, m."""
+    feet_up_z: jax.Array
+    """(2,) world-z component of each foot's up axis (1 = flat)."""
+    gyro: jax.Array
+    """(3,) IMU angular velocity, rad/s."""
+    imu_quat: jax.Array
+    """(4,) IMU orientation, w x y z."""
+    contact: jax.Array
+    """(2,) left/right foot sole touching the floor (penetrating contact), 0/1."""
+    self_collision: jax.Array
+    """Number of penetrating robot-robot contacts."""
+    torque: jax.Array
+    """(n_motors,) motor torques of the last substep, N*m."""
+
+
+@dataclass(frozen=True)
+class Addresses:
+    """Indices into the training model's arrays that `read_frame` needs."""
+
+    motors: MotorAddresses
+    torso_body: int
+    imu_site: int
+    foot_sites: np.ndarray
+    foot_geoms: np.ndarray
+    floor_geom: int
+    foot_up_axis: int
+    """Which axis of a foot site points up at home, and its sign."""
+    foot_up_sign: float
+    gyro: slice
+    quat: slice
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, description: RobotDescription) -> Addresses:
+        handles = description.handles
+        home = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, home, model.key("home").id)
+        mujoco.mj_forward(model, home)
+        foot_sites = np.array([model.site(name).id for name in handles.feet_sites])
+        up = home.site_xmat[foot_sites[0]].reshape(3, 3)[2]  # world-z components of the site's axes
+        axis = int(np.argmax(np.abs(up)))
+
+        def sensor(name: str) -> slice:
+            s = model.sensor(name)
+            return slice(int(s.adr[0]), int(s.adr[0] + s.dim[0]))
+
+        return cls(MotorAddresses.of(model, description.motor_names), model.body(handles.torso).id,
+                   model.site(handles.imu_site).id, foot_sites,
+                   np.array([model.geom(name).id for name in handles.feet_geoms]), model.geom("floor").id, axis,
+                   float(np.sign(up[axis])), sensor("imu_gyro"), sensor("imu_quat"))
+
+
+def contact_state(a: Addresses, contact_geom, contact_dist, xp=jnp) -> tuple[jax.Array, jax.Array]:
+    """(left/right foot sole touching the floor as 0/1, number of penetrating robot-robot contacts) of one env's
+    contacts: (ncon, 2) geom pairs and (ncon,) distances; ``xp`` numpy (classic MuJoCo) or jax.numpy (MJX)."""
+    g1, g2 = contact_geom[:, 0], contact_geom[:, 1]
+    touching = contact_dist < 0.0
+    floor = a.floor_geom
+    feet = xp.stack([xp.any(touching & (((g1 == floor) & (g2 == f)) | ((g2 == floor) & (g1 == f))))
+                     for f in a.foot_geoms.tolist()]).astype(xp.float32)
+    return feet, xp.sum(touching & (g1 != floor) & (g2 != floor)).astype(xp.float32)
+
+
+def read_frame(a: Addresses, qpos, qvel, xmat, site_xpos, site_xmat, sensordata, contact, self_collision,
+               torque) -> Frame:
+    """The `Frame` of MuJoCo data arrays with any leading batch shape (``xmat`` (..., nbody, 3, 3), ``site_xmat``
+    (..., nsite, 3, 3)), numpy or JAX."""
+    return Frame(
+        qpos=qpos, qvel=qvel, torso_z=xmat[..., a.torso_body, 2, :], imu_z=site_xmat[..., a.imu_site, 2, :],
+        feet_pos=site_xpos[..., a.foot_sites, :],
+        feet_up_z=a.foot_up_sign * site_xmat[..., a.foot_sites, 2, a.foot_up_axis],
+        gyro=sensordata[..., a.gyro], imu_quat=sensordata[..., a.quat], contact=contact,
+        self_collision=self_collision, torque=torque,
+    )
+
+
+def _home(model: mujoco.MjModel) -> mujoco.MjData:
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    mujoco.mj_forward(model, data)
+    return data
+
+
+def _frames_of(a: Addresses, datas: list[mujoco.MjData], torque: np.ndarray) -> Frame:
+    """The frames of classic MuJoCo data, stacked (batch first)."""
+    stack = lambda name: np.stack([getattr(d, name) for d in datas])  # noqa: E731
+    contacts = [contact_state(a, d.contact.geom[:d.ncon], d.contact.dist[:d.ncon], xp=np) for d in datas]
+    n = len(datas)
+    return read_frame(a, stack("qpos"), stack("qvel"), stack("xmat").reshape(n, -1, 3, 3), stack("site_xpos"),
+                      stack("site_xmat").reshape(n, -1, 3, 3), stack("sensordata"),
+                      np.stack([c[0] for c in contacts]), np.stack([c[1] for c in contacts]), torque)
+
+
+class MJXPhysics:
+    """MJX (JAX implementation) stepping, on whatever device JAX uses."""
+
+    name = "mjx"
+
+    def __init__(self, model: mujoco.MjModel, addresses: Addresses, n_substeps: int) -> None:
+        self.model, self.addresses, self.n_substeps = model, addresses, n_substeps
+        self.sys = mjx.put_model(model)
+        home = _home(model)
+        self.home_state = mjx.put_data(model, home)
+        """The start state of every episode (computed once with classic MuJoCo: reset compiles no physics)."""
+        self.home_frame = jax.tree.map(lambda x: jnp.asarray(x[0], jnp.float32),
+                                       _frames_of(addresses, [home], np.zeros((1, model.nu))))
+
+    def step(self, state: mjx.Data, targets: jax.Array, fields: dict[str, jax.Array] | None,
+             actuators: ActuatorArrays) -> tuple[mjx.Data, Frame]:
+        """One control period holding motor targets (rad, motor-id order) with the env's model ``fields`` (None:
+        the nominal model) and actuator arrays."""
+        model = self.sys if fields is None else self.sys.tree_replace(fields)
+        m = self.addresses.motors
+
+        def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
+            tau = motor_torque(targets, d.qpos[m.qpos], d.qvel[m.dof], actuators, xp=jnp)
+            return mjx.step(model, d.replace(ctrl=tau)), tau
+
+        data, taus = jax.lax.scan(substep, state, None, length=self.n_substeps)
+        c = data._impl.contact
+        contact, self_collision = contact_state(self.addresses, c.geom, c.dist, xp=jnp)
+        return data, read_frame(self.addresses, data.qpos, data.qvel, data.xmat, data.site_xpos, data.site_xmat,
+                                data.sensordata, contact, self_collision, taus[-1])
+
+
+@flax.struct.dataclass
+class CPUState:
+    """The float64 simulation state of one env as float32 pairs: qpos = ``qpos`` + ``qpos_lo`` (likewise qvel),
+    and the constraint solver's warm start. Writing ``qvel`` (a push) changes the velocity as expected."""
+
+    qpos: jax.Array
+    qpos_lo: jax.Array
+    qvel: jax.Array
+    qvel_lo: jax.Array
+    qacc_warmstart: jax.Array
+
+    @classmethod
+    def of_batch(cls, datas: list[mujoco.MjData]) -> CPUState:
+        """The states of classic MuJoCo data, stacked (batch first)."""
+        qpos, qpos_lo = _split(np.stack([d.qpos for d in datas]))
+        qvel, qvel_lo = _split(np.stack([d.qvel for d in datas]))
+        return cls(qpos, qpos_lo, qvel, qvel_lo, np.stack([d.qacc_warmstart for d in datas]).astype(np.float32))
+
+
+def _split(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    hi = x.astype(np.float32)
+    return hi, (x - hi).astype(np.float32)
+
+
+def _join(hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
+    return hi.astype(np.float64) + lo.astype(np.float64)
+
+
+class CPUPhysics:
+    """Classic MuJoCo (float64) on a thread pool, entered from JAX through ``jax.pure_callback``."""
+
+    name = "cpu"
+
+    def __init__(self, model: mujoco.MjModel, addresses: Addresses, n_substeps: int, threads: int = 0) -> None:
+        self.model, self.addresses, self.n_substeps = model, addresses, n_substeps
+        self.threads = threads or os.cpu_count() or 1
+        self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="mujoco") if self.threads > 1 else None
+        self._models: list[mujoco.MjModel] = []
+        self._datas: list[mujoco.MjData] = []
+        home = _home(model)
+        self.home_state = jax.tree.map(lambda x: jnp.asarray(x[0]), CPUState.of_batch([home]))
+        self.home_frame = jax.tree.map(lambda x: jnp.asarray(x[0], jnp.float32),
+                                       _frames_of(addresses, [home], np.zeros((1, model.nu))))
+        self._nominal = {name: np.asarray(getattr(model, name)) for name in MODEL_FIELDS}
+
+    def step(self, state: CPUState, targets: jax.Array, fields: dict[str, jax.Array] | None,
+             actuators: ActuatorArrays) -> tuple[CPUState, Frame]:
+        """As `MJXPhysics.step` (any leading batch shape; under ``vmap`` the whole batch is one host call)."""
+        fields = {k: jnp.asarray(v, jnp.float32) for k, v in (fields or self._nominal).items()}
+        out = (jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), self.home_state),
+               jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, jnp.float32), self.home_frame))
+        return jax.pure_callback(self._host_step, out, state, targets, fields, actuators,
+                                 vmap_method="broadcast_all")
+
+    # host side ---------------------------------------------------------------------------------------------------
+    def _host_step(self, state: CPUState, targets: np.ndarray, fields: dict, actuators: ActuatorArrays):
+        lead = np.shape(targets)[:-1]
+        n = int(np.prod(lead))
+        flat = lambda x: np.reshape(np.asarray(x), (n, *np.shape(x)[len(lead):]))  # noqa: E731
+        state = jax.tree.map(flat, state)
+        targets = flat(targets).astype(np.float64)
+        fields = {k: flat(v).astype(np.float64) for k, v in fields.items()}
+        actuators = ActuatorArrays(*(flat(x).astype(np.float64) for x in actuators))
+        self._ensure(n)
+        chunks = np.array_split(np.arange(n), min(self.threads, n))
+        run = lambda idx: self._step_chunk(idx, state, targets, fields, actuators)  # noqa: E731
+        results = list(self._pool.map(run, chunks)) if self._pool is not None and len(chunks) > 1 else \
+            [run(idx) for idx in chunks]
+        join = lambda *xs: np.reshape(np.concatenate(xs), (*lead, *np.shape(xs[0])[1:]))  # noqa: E731
+        return (jax.tree.map(join, *(r[0] for r in results)),
+                jax.tree.map(lambda *xs: join(*xs).astype(np.float32), *(r[1] for r in results)))
+
+    def _ensure(self, n: int) -> None:
+        while len(self._datas) < n:  # one scratch model/data pair per env, reused by every call
+            self._models.append(copy.copy(self.model))
+            self._datas.append(mujoco.MjData(self.model))
+
+    def _step_chunk(self, idx: np.ndarray, state: CPUState, targets: np.ndarray, fields: dict,
+                    actuators: ActuatorArrays) -> tuple[CPUState, Frame]:
+        models = [self._models[i] for i in idx]
+        datas = [self._datas[i] for i in idx]
+        for i, m, d in zip(idx, models, datas, strict=True):
+            for name, value in fields.items():
+                getattr(m, name)[:] = value[i]
+            d.qpos[:] = _join(state.qpos[i], state.qpos_lo[i])
+            d.qvel[:] = _join(state.qvel[i], state.qvel_lo[i])
+            d.qacc_warmstart[:] = state.qacc_warmstart[i]
+            d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
+        torque = step_actuated(models, datas, self.addresses.motors, targets[idx],
+                               ActuatorArrays(*(x[idx] for x in actuators)), self.n_substeps)
+        for d in datas:
+            if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo reset the diverged data: end it
+                d.qpos[:] = np.nan
+        return CPUState.of_batch(datas), _frames_of(self.addresses, datas, torque)
+
+
+BACKENDS = {"mjx": MJXPhysics, "cpu": CPUPhysics}

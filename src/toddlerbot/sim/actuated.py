@@ -1,0 +1,50 @@
+"""The actuated plant: MuJoCo physics with the actuator model in the loop, for one robot or a batch of robots.
+
+Every physics substep the actuator model (`toddlerbot.actuation.model.motor_torque`, numpy) turns each robot's
+motor targets into motor torques, vectorised over the batch, and ``mujoco.mj_step`` advances each robot (it
+releases the GIL, so callers may step disjoint batches on several threads). `MuJoCoRobot` steps a batch of one;
+the RL environment's CPU backend (`toddlerbot.rl.physics`) steps chunks of its batch on a thread pool.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from toddlerbot.actuation.model import ActuatorArrays, motor_torque
+
+
+@dataclass(frozen=True)
+class MotorAddresses:
+    """Where each motor (motor-id order) lives in a MuJoCo model: its joint's qpos and dof address and its torque
+    actuator's index."""
+
+    qpos: np.ndarray
+    dof: np.ndarray
+    actuator: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, motor_names: Sequence[str]) -> MotorAddresses:
+        """Addresses of the named motors (each motor's joint and actuator share its name)."""
+        joints = [model.joint(name) for name in motor_names]
+        return cls(np.array([j.qposadr[0] for j in joints]), np.array([j.dofadr[0] for j in joints]),
+                   np.array([model.actuator(name).id for name in motor_names]))
+
+
+def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjData], motors: MotorAddresses,
+                  targets: np.ndarray, params: ActuatorArrays, n_substeps: int) -> np.ndarray:
+    """Advance each robot ``n_substeps`` physics steps holding its motor targets (``targets`` (batch, n_motors),
+    rad); ``params`` holds (n_motors,) arrays shared by the batch or (batch, n_motors) arrays, one row per robot.
+    Returns the motor torques of the last substep, (batch, n_motors) N*m."""
+    tau = np.zeros_like(targets)
+    for _ in range(n_substeps):
+        q = np.stack([d.qpos[motors.qpos] for d in datas])
+        q_dot = np.stack([d.qvel[motors.dof] for d in datas])
+        tau = motor_torque(targets, q, q_dot, params)
+        for m, d, row in zip(models, datas, tau, strict=True):
+            d.ctrl[motors.actuator] = row
+            mujoco.mj_step(m, d)
+    return tau
