@@ -30,7 +30,6 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
-
 NORMALIZER_STD_MIN = 0.01
 """Smallest standard deviation of the warm start's observation normaliser (normalised units per input unit)."""
 
