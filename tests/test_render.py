@@ -137,3 +137,60 @@ def test_video_holds_every_captured_frame(standing_robot, tmp_path):
     # H.264 is lossy: each decoded frame is close to the frame captured at that index
     error = np.abs(decoded.astype(float) - np.array(recorder.frames, dtype=float)).mean(axis=(1, 2, 3))
     assert np.all(error < 4.0), error
+
+
+def _orange(frame: np.ndarray) -> np.ndarray:
+    """Pixels in the collision primitives' orange (any shade)."""
+    r, g, b = (frame[..., i].astype(int) for i in range(3))
+    return (r > 60) & (r > 1.3 * g) & (g > 1.3 * b)
+
+
+@needs_osmesa
+def test_scene_renders_draw_white_links_and_black_motors_instead_of_orange_primitives(standing_robot):
+    from toddlerbot.sim.render import Recorder
+
+    robot = standing_robot
+    empty_model = copy.deepcopy(robot.model)
+    empty_model.geom_rgba[empty_model.geom_bodyid > 0, 3] = 0.0  # only the floor and the sky
+    frames = {}
+    for name, model, visuals in (("drawn", robot.model, True), ("primitives", robot.model, False),
+                                 ("background", empty_model, True)):
+        recorder = Recorder(model, robot.data, "front", width=160, height=120, visuals=visuals)
+        frames[name] = recorder.capture().astype(int)
+        recorder.close()
+    robot_pixels = np.abs(frames["drawn"] - frames["background"]).max(axis=2) > 30
+    brightness = frames["drawn"].sum(axis=2) / 3
+    # measured: no orange pixel with visuals, 7.5 % of the frame without; of the robot's pixels 50 % are white
+    # (printed links) and 22 % black (motors)
+    assert _orange(frames["drawn"]).sum() == 0 and _orange(frames["primitives"]).mean() > 0.05
+    assert (brightness[robot_pixels] > 180).mean() > 0.3 and (brightness[robot_pixels] < 40).mean() > 0.1
+
+
+@needs_osmesa
+def test_head_camera_image_is_pixel_identical_to_the_model_without_visuals():
+    """The diffusion policies were trained on head images of the collision primitives: the visual geometry must
+    not change one pixel of them (pick scene, after the task's reset and 0.5 s of holding its ready pose)."""
+    pytest.importorskip("PIL")
+    from unittest import mock
+
+    from toddlerbot.manipulation.tasks import PickTask
+    from toddlerbot.robot import builder
+
+    def head_images(task: PickTask) -> tuple[np.ndarray, np.ndarray]:
+        task.reset(3)
+        images = [task.head_image()]
+        for _ in range(25):
+            task.step(task.ready_pose)
+        images.append(task.head_image())
+        task.camera.close()
+        return np.array(images), task.robot.data.qpos.copy()
+
+    with_visuals, qpos = head_images(PickTask())
+    # the model as it was built before visual geometry existed: no visual geoms, primitives in group 0
+    with mock.patch.object(builder, "_add_visuals", lambda *args: None), \
+            mock.patch.object(builder, "COLLISION_GROUP", 0):
+        before, qpos_before = head_images(PickTask())
+    assert np.array_equal(qpos, qpos_before)
+    assert np.array_equal(with_visuals, before)
+    red = (before[..., 0] > 150) & (before[..., 1] < 80) & (before[..., 2] < 80)
+    assert red[0].sum() > 20  # the images show the cube (not an empty frame)

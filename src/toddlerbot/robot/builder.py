@@ -89,10 +89,11 @@ def build_mjspec(
 
 
 def build_model(
-    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None
+    spec: RobotSpec, base: Base = "floating", scene: bool = False, catalogue: Catalogue | None = None,
+    visuals: bool = True,
 ) -> mujoco.MjModel:
     """Compile the robot's model; consumers that have a `RobotDescription` use its cached `model()` instead."""
-    return compile_robot(spec, base, scene, catalogue)[1]
+    return compile_robot(spec, base, scene, catalogue, visuals=visuals)[1]
 
 
 def compile_robot(
