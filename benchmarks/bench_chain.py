@@ -1,7 +1,10 @@
-"""Success over seeds and timings of the wagon skill chain in simulation (`toddlerbot chain run wagon`): per seed
-the outcome, the wagon's displacement, the grasp -> next switch time and the wall time of one run (no video).
+"""Success rate over seeds and timings of the wagon skill chain in simulation (`toddlerbot chain run wagon`): per
+seed the outcome, the wagon's displacement, the grasp -> next switch time, each hand's grip through the push (the
+weaker finger pad's least normal force, how far the handle slid along the fingers, how near the grasp point came to
+the handle's end) and the wall time of one run (no video); then the success rate. `--pose-offset` and
+`--wagon-shift` perturb the start to show the margin.
 
-Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 10]
+Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 20] [--pose-offset 0.01] [--wagon-shift 0.01,0]
 """
 
 from __future__ import annotations
@@ -11,27 +14,47 @@ import platform
 
 import numpy as np
 
-from toddlerbot.manipulation.chaining.sim_run import run_in_sim
+from toddlerbot.manipulation.chaining.sim_run import SimChainResult, StartPerturbation, run_in_sim
 from toddlerbot.manipulation.chaining.spec import load_chain
 from toddlerbot.robot.description import RobotDescription
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--pose-offset", type=float, default=0.0, help="rad, each motor's start off home, at most")
+    parser.add_argument("--wagon-shift", default="0,0", help="x,y m, added to the seed's wagon shift")
     args = parser.parse_args()
+    shift = tuple(float(v) for v in args.wagon_shift.split(","))
+    perturbation = StartPerturbation(args.pose_offset, (shift[0], shift[1]))
     description = RobotDescription.load(variant="gripper")
     chain = load_chain("wagon", tuple(description.groups))
-    results = [run_in_sim(chain, seed, description=description) for seed in range(args.seeds)]
-    for r in results:
-        print(f"seed {r.seed}: {'success' if r.success else 'FAILED ' + str(r.failure or r.checks)}, wagon moved "
-              f"{r.displacement_m['wagon']:.3f} m, switch at {r.switch_time_s:.2f} s, {r.sim_seconds:.1f} s "
-              f"simulated in {r.wall_seconds:.1f} s")
+    print(f"wagon chain, {perturbation}")
+    print("seed  outcome                  moved m  switch s  grip N (L/R)   slide mm (L/R)  to end mm (L/R)  wall s")
+    results = []
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        results.append(run_in_sim(chain, seed, description=description, perturbation=perturbation))
+        print(_row(results[-1]), flush=True)
     moved = np.array([r.displacement_m["wagon"] for r in results])
+    forces = np.array([g.min_force_n for r in results for g in r.grip.values()])
+    slides = np.array([g.slide_m for r in results for g in r.grip.values()])
+    to_end = np.array([g.to_end_m for r in results for g in r.grip.values()])
     wall = np.array([r.wall_seconds for r in results])
     print(f"{platform.machine()}, {platform.python_version()}: success {sum(r.success for r in results)}/"
-          f"{len(results)}; displacement {moved.min():.3f}-{moved.max():.3f} m (mean {moved.mean():.3f}); "
+          f"{len(results)}; displacement {moved.min():.3f}-{moved.max():.3f} m (mean {moved.mean():.3f}); weakest "
+          f"pad force {forces.min():.1f} N (median {np.median(forces):.1f}); handle slide at most "
+          f"{1e3 * slides.max():.1f} mm; grasp point at least {1e3 * to_end.min():.0f} mm from the handle's end; "
           f"wall {wall.min():.1f}-{wall.max():.1f} s per run (mean {wall.mean():.1f})")
+
+
+def _row(r: SimChainResult) -> str:
+    outcome = "success" if r.success else "FAILED " + (r.failure or ",".join(k for k, v in r.checks.items() if not v))
+    grip = r.grip.values()
+    return (f"{r.seed:4d}  {outcome[:23]:23s}  {r.displacement_m['wagon']:7.3f}  {r.switch_time_s or np.nan:8.2f}  "
+            f"{'/'.join(f'{g.min_force_n:.1f}' for g in grip):13s}  "
+            f"{'/'.join(f'{1e3 * g.slide_m:.1f}' for g in grip):14s}  "
+            f"{'/'.join(f'{1e3 * g.to_end_m:.0f}' for g in grip):15s}  {r.wall_seconds:6.1f}")
 
 
 if __name__ == "__main__":

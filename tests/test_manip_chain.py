@@ -24,20 +24,44 @@ def _chain_file(tmp_path, body: str):
     return path
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_wagon_chain_grasps_the_handle_then_pushes_the_wagon(seed):
+WAGON_SEEDS = (0, 1, 2, 3)
+"""A rate over a few seeds keeps CI at ~20 s; benchmarks/bench_chain.py measures 20 (docs/manipulation.md)."""
+
+
+@pytest.fixture(scope="module")
+def wagon_runs():
     from toddlerbot.manipulation.chaining.sim_run import run_in_sim
 
-    result = run_in_sim(load_chain("wagon", GROUPS), seed, description=DESCRIPTION)
-    out = result.as_json()
-    assert out["success"] is True and result.failure is None
-    assert out["wagon_displacement_m"] >= 0.5
-    assert out["checks"] == {"moved": True, "grasped": True}  # both grippers still pinch the handle at the end
-    assert out["grasp_by"] == "scripted (no checkpoint for task wagon)"
-    # grasp ends once the closing command is complete (approach 1.5 + reach 1.5 + close 0.8 s) and the pads pinch
-    assert 3.8 <= out["switch_time_s"] <= 4.2
-    assert [(s["from"], s["to"]) for s in out["switches"]] == [("grasp", "settle"), ("settle", "push")]
-    assert out["switches"][1]["time_s"] == pytest.approx(out["switch_time_s"] + 0.4, abs=0.021)
+    chain = load_chain("wagon", GROUPS)
+    return [run_in_sim(chain, seed, description=DESCRIPTION).as_json() for seed in WAGON_SEEDS]
+
+
+def test_wagon_chain_grasps_the_handle_then_pushes_the_wagon_on_most_seeds(wagon_runs):
+    succeeded = [out for out in wagon_runs if out["success"]]
+    assert len(succeeded) >= len(WAGON_SEEDS) - 1  # walking is chaotic: a rate, with one seed of slack
+    for out in succeeded:
+        assert out["failure"] is None and out["wagon_displacement_m"] >= 0.5
+        assert out["checks"] == {"moved": True, "grasped": True, "upright": True}  # still pinching, not fallen
+    for out in wagon_runs:
+        assert out["grasp_by"] == "scripted (no checkpoint for task wagon)"
+        # grasp ends once the closing command is complete (approach 1.5 + reach 1.5 + close 0.8 s) and the pads pinch
+        # (the fingers reach the bar after the command: 4.02-4.06 s measured)
+        assert 3.8 <= out["switch_time_s"] <= 4.2
+        assert [(s["from"], s["to"]) for s in out["switches"]] == [("grasp", "settle"), ("settle", "push")]
+        assert out["switches"][1]["time_s"] == pytest.approx(out["switch_time_s"] + 0.4, abs=0.021)
+
+
+def test_the_wagon_grip_holds_the_handle_with_margin_through_the_push(wagon_runs):
+    # Over 20 seeds (docs/manipulation.md): the weaker pad at 12.9 N or more, the handle slides at most 4.7 mm along
+    # the fingers, each grasp point 38 mm or more from the handle's end. Before the handle's rigid contact: pads at
+    # 0-1.5 N and slides of 7-25 mm (the pads reach 11.5 mm past the grasp point; the bar starts 8-10 mm short).
+    held = [out["grip"] for out in wagon_runs if out["success"]]
+    assert len(held) >= len(WAGON_SEEDS) - 1
+    for grip in held:
+        assert set(grip) == {"left", "right"}
+        for g in grip.values():
+            assert g["min_force_n"] >= 10.0 and g["slide_mm"] <= 8.0
+            assert g["to_end_mm"] >= 20.0  # both pads (1.8 cm either side of the grasp point) wholly on the bar
 
 
 @pytest.mark.parametrize("body,message", [
@@ -93,6 +117,25 @@ def test_grasped_on_hardware_is_a_gripper_stalled_short_of_its_closed_target():
     pos = obs.motor_pos.copy()
     pos[[left, right]] = closed - 0.4, closed
     assert holds("grasped", either, Context(robot, _with_pos(obs, pos), targets, probe=None))
+
+
+def test_upright_is_the_imu_tilted_less_than_max_tilt_in_sim_and_on_hardware():
+    from dataclasses import replace
+
+    from toddlerbot.manipulation.chaining.predicates import UprightParams
+
+    robot = MuJoCoRobot(DESCRIPTION)
+    obs = robot.reset()
+    params = UprightParams(max_tilt=0.5)
+
+    def upright(angle: float, axis: np.ndarray) -> bool:
+        quat = np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
+        return holds("upright", params, Context(robot, replace(obs, imu_quat=quat), obs.motor_pos, probe=None))
+
+    pitch, roll, yaw = np.eye(3)[1], np.eye(3)[0], np.eye(3)[2]
+    assert upright(0.0, pitch) and upright(0.45, pitch) and upright(-0.45, roll)
+    assert not upright(0.55, pitch) and not upright(-0.55, roll) and not upright(1.6, pitch)  # fallen
+    assert upright(2.0, yaw)  # heading is not tilt
 
 
 def _with_pos(obs, pos):

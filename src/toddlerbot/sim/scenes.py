@@ -33,6 +33,8 @@ SIDES = ("left", "right")
 PAD_HALF_SIZE = (0.018, 0.0115, 0.0015)
 """Finger pad box half extents in the grasp-site frame (across the finger, along it, thickness), m: as wide as
 the finger (the spec's finger box), so an off-centre cube is not squeezed out sideways."""
+PAD_FRICTION = (2.0, 0.02, 0.001)
+"""Finger pads' (rubber) sliding, torsional and rolling friction."""
 
 
 def grasp_site(side: str) -> str:
@@ -71,11 +73,19 @@ class WagonLayout:
     with the fingers far from around it: at 0.175 m and 0.24 m the grasp point misses by 4 cm (DLS IK)."""
     handle_height: float = 0.26
     """Height of the handle bar above the floor (just below the hands' home height, elbows bent)."""
-    handle_half_width: float = 0.14
+    handle_half_width: float = 0.18
+    """Half length of the handle bar's straight part: with the chain's seeded ±3 cm wagon shift each hand's grasp
+    point stays 3.8 cm from its end (the pads reach 1.8 cm either side of it); at 0.14 m one was 2 mm past it."""
     body_half_size: tuple[float, float, float] = (0.12, 0.1, 0.04)
     wheel_radius: float = 0.03
     mass: float = 0.4
     """kg, chassis."""
+    handle_solref: tuple[float, float] = (0.005, 1.0)
+    """Time constant (s) and damping ratio of the handle's contacts, which take priority over the finger pads': a
+    rigid bar. MuJoCo scales contact stiffness with the bodies' mass, so at the default 0.02 s the few-gram fingers
+    let the bar sink 3 mm into each pad at a 2 N pinch and the grip creeps (2 mm/s) while the robot walks."""
+    handle_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
+    """MuJoCo impedance (dmin, dmax, width m, midpoint, power) of the handle's contacts."""
 
 
 def scene_model(description: RobotDescription, scene: str) -> mujoco.MjModel:
@@ -151,8 +161,10 @@ def _add_wagon(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarra
                        size=(0.005, 0, 0), mass=0.01, rgba=(0.7, 0.7, 0.7, 1), contype=0, conaffinity=0)
     wagon.add_geom(name=WAGON_HANDLE_GEOM, type=mujoco.mjtGeom.mjGEOM_CAPSULE,
                    fromto=(post_x, -layout.handle_half_width, post_top, post_x, layout.handle_half_width, post_top),
-                   size=(0.008, 0, 0), mass=0.02, rgba=(0.9, 0.9, 0.9, 1), friction=(1.2, 0.01, 0.001),
-                   contype=1, conaffinity=1, condim=4)
+                   size=(0.008, 0, 0), mass=0.02, rgba=(0.9, 0.9, 0.9, 1), contype=1, conaffinity=1, condim=4,
+                   # its priority gives the grip its contact parameters; the friction stays the pads'
+                   priority=1, solref=layout.handle_solref, solimp=layout.handle_solimp,
+                   friction=PAD_FRICTION)
     for i, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
         wheel = wagon.add_body(name=f"wagon_wheel_{i}", pos=(sx * (bx - r), sy * (by + 0.01), r - chassis_z))
         wheel.add_joint(name=f"wagon_wheel_{i}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=(0, 1, 0), damping=1e-4)
@@ -192,7 +204,7 @@ def _add_grasp_sites_and_pads(mj: mujoco.MjSpec, description: RobotDescription) 
             mj.body(model.body(finger).name).add_geom(
                 name=pad, type=mujoco.mjtGeom.mjGEOM_BOX, size=PAD_HALF_SIZE,
                 pos=(finger_rot.T @ (pad_world - data.xpos[finger])).tolist(), quat=quat.tolist(),
-                rgba=(0.15, 0.15, 0.15, 1.0), friction=(2.0, 0.02, 0.001), condim=4, contype=1, conaffinity=0,
+                rgba=(0.15, 0.15, 0.15, 1.0), friction=PAD_FRICTION, condim=4, contype=1, conaffinity=0,
                 mass=0.0,
             )
 

@@ -52,6 +52,13 @@ class MovedParams:
 
 
 @dataclass(frozen=True)
+class UprightParams:
+    max_tilt: float = 0.5
+    """Largest angle between the torso's (IMU's) z axis and the vertical, rad: a robot that fell holding the handle
+    has not pushed the wagon."""
+
+
+@dataclass(frozen=True)
 class Predicate:
     params: type
     sim: Callable[[object, Context], bool]
@@ -90,9 +97,15 @@ def _moved_sim(p: MovedParams, ctx: Context) -> bool:
     return ctx.probe.displacement(p.body) >= p.at_least  # type: ignore[union-attr]
 
 
+def _upright(p: UprightParams, ctx: Context) -> bool:
+    _, x, y, _ = ctx.obs.imu_quat
+    return 1.0 - 2.0 * (x * x + y * y) >= np.cos(p.max_tilt)  # the IMU z axis' vertical component
+
+
 PREDICATES: dict[str, Predicate] = {
     "grasped": Predicate(GraspedParams, _grasped_sim, _grasped_hardware),
     "moved": Predicate(MovedParams, _moved_sim, None),
+    "upright": Predicate(UprightParams, _upright, _upright),
 }
 
 

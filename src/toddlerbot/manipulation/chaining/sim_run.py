@@ -1,5 +1,6 @@
 """`toddlerbot chain run` in simulation: the chain's scene, perturbed by the seed, run to its end; the outcome
-is the chain's own success predicates plus what each skill was driven by, the switch times and displacements."""
+is the chain's own success predicates plus what each skill was driven by, the switch times, displacements and how
+firmly each hand held its bar through the last skill (the margin of a `grasped` success)."""
 
 from __future__ import annotations
 
@@ -11,13 +12,13 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 
-from toddlerbot.manipulation.chaining.predicates import MovedParams
+from toddlerbot.manipulation.chaining.predicates import GraspedParams, MovedParams
 from toddlerbot.manipulation.chaining.probe import SceneProbe
 from toddlerbot.manipulation.chaining.runner import ChainRunner
 from toddlerbot.manipulation.chaining.spec import ChainSpec
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-from toddlerbot.sim.scenes import scene_model, shift_wagon
+from toddlerbot.sim.scenes import SIDES, scene_model, shift_wagon
 
 WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
 """Seeded shift of the wagon from its layout position: (x range, y range), m."""
@@ -25,6 +26,38 @@ UNBOUNDED_SKILL_S = 60.0
 """Simulated time allowed to a skill with neither `after` nor `timeout` (a button it will never see in sim)."""
 VIDEO_CAMERA = "perspective"
 VIDEO_FPS = 25
+
+
+@dataclass(frozen=True)
+class StartPerturbation:
+    """Beyond the seed's wagon shift: how far the start state is off the layout, to measure a chain's margin."""
+
+    pose_offset: float = 0.0
+    """Each motor starts up to this far off the home pose (uniform, drawn from the seed), rad."""
+    wagon_shift: tuple[float, float] = (0.0, 0.0)
+    """Added to the seed's wagon shift (x, y), m."""
+
+
+@dataclass
+class GripMargin:
+    """How firmly one hand held a bar through the chain's last skill."""
+
+    min_force_n: float = float("inf")
+    """The weaker finger pad's normal force, its minimum over the skill, N (0: a pad let go)."""
+    slide_m: float = 0.0
+    """Farthest the bar's axis moved along the fingers from `start_m`, m."""
+    to_end_m: float = float("inf")
+    """Least distance from the grasp point to the nearer end of the bar's straight part, m (the pads reach
+    `scenes.PAD_HALF_SIZE[0]` either side of it)."""
+    start_m: float | None = None
+    """Where the bar's axis was along the fingers (grasp-site y) when the skill began, m; None until measured."""
+
+    def update(self, probe: SceneProbe, side: str, bar: str) -> None:
+        self.min_force_n = min(self.min_force_n, float(probe.pad_forces(side, bar).min()))
+        in_hand = probe.bar_in_hand(side, bar)
+        self.start_m = in_hand.offset[1] if self.start_m is None else self.start_m
+        self.slide_m = max(self.slide_m, abs(in_hand.offset[1] - self.start_m))
+        self.to_end_m = min(self.to_end_m, in_hand.to_end)
 
 
 @dataclass
@@ -44,6 +77,8 @@ class SimChainResult:
     failure: str | None
     sim_seconds: float
     wall_seconds: float
+    grip: dict[str, GripMargin] = field(default_factory=dict)
+    """Side -> its grip on the bar of each `grasped` success predicate, over the last skill."""
     extra: dict = field(default_factory=dict)
 
     def as_json(self) -> dict:
@@ -54,21 +89,33 @@ class SimChainResult:
         out[f"{first}_by"] = self.driven_by[first]
         out.update(checks=self.checks, driven_by=self.driven_by, failure=self.failure,
                    switches=[{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in self.switches],
-                   sim_seconds=round(self.sim_seconds, 3), wall_seconds=round(self.wall_seconds, 2))
+                   sim_seconds=round(self.sim_seconds, 3), wall_seconds=round(self.wall_seconds, 2),
+                   grip={side: {"min_force_n": round(g.min_force_n, 2), "slide_mm": round(1e3 * g.slide_m, 1),
+                                "to_end_mm": round(1e3 * g.to_end_m, 1)}
+                         for side, g in self.grip.items() if g.start_m is not None})
         return out
 
 
 def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
-               description: RobotDescription | None = None) -> SimChainResult:
+               description: RobotDescription | None = None,
+               perturbation: StartPerturbation = StartPerturbation()) -> SimChainResult:
     description = description or RobotDescription.load(variant="gripper")
     model = scene_model(description, chain.scene)
     robot = MuJoCoRobot(description, model=model)
-    obs = robot.reset()
+    robot.reset()
+    rng = np.random.default_rng(seed)
     if chain.scene == "wagon":
-        rng = np.random.default_rng(seed)
-        shift_wagon(model, robot.data, np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])]))
-        mujoco.mj_forward(model, robot.data)
+        shift = np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
+        shift_wagon(model, robot.data, shift + perturbation.wagon_shift)
+    pose_offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
+    for name, angle in zip(description.motor_names, pose_offset):
+        robot.data.qpos[model.joint(name).qposadr[0]] += angle
+    mujoco.mj_forward(model, robot.data)
+    obs = robot.observe()
     probe = SceneProbe(model, robot.data)
+    bars = [(side, p.target) for name, p in chain.success if isinstance(p, GraspedParams)
+            for side in (SIDES if p.hands in ("both", "either") else (p.hands,))]
+    grip = {side: GripMargin() for side, _ in bars}
     camera = _head_camera(robot)
     runner = ChainRunner(chain, robot, model, probe, camera.image)
     recorder = None
@@ -81,13 +128,16 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     limit = sum(s.until.after or s.timeout or UNBOUNDED_SKILL_S for s in chain.skills) + 1.0
     started = time.perf_counter()
     try:
-        runner.start(obs, description.home_motor_pos)
+        runner.start(obs, description.home_motor_pos + pose_offset)
         k = 0
         while obs.time < limit:
             command = runner.step(obs)
             if command is None:
                 break
             obs = robot.step(*command)
+            if runner.status.skill == chain.skills[-1].name:
+                for side, bar in bars:
+                    grip[side].update(probe, side, bar)
             if recorder is not None and k % every == 0:
                 recorder.add(camera.image())
             k += 1
@@ -110,7 +160,7 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
         {s.name: skill.by for s, skill in zip(chain.skills, runner.skills)},
         status.switches[0][2] if status.switches else None, status.switches,
         {body: probe.displacement(body) for body in moved}, status.failure, float(obs.time),
-        time.perf_counter() - started,
+        time.perf_counter() - started, grip,
     )
 
 
