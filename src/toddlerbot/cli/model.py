@@ -14,6 +14,8 @@ from toddlerbot.cli.output import console
 from toddlerbot.files import atomic_write_text, json_text
 from toddlerbot.robot.builder import VARIANTS
 
+SHAPES = ("visual", "collision")
+
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
 
 SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
@@ -78,3 +80,35 @@ def info(
         table.add_row(str(m.id), m.motor, m.model, m.joint, m.group, str(m.kp), str(m.kd),
                       f"[{m.range[0]:+.3f}, {m.range[1]:+.3f}]", f"{m.tau_max:.2f}")
     console.print(table)
+
+
+@app.command()
+def render(
+    output: Annotated[Path, typer.Option("-o", "--output", help="PNG file to write.")],
+    variant: VariantOption = "floating",
+    camera: Annotated[list[str] | None, typer.Option(
+        "--camera", help="Scene camera (repeatable; side by side): perspective, side, front, top.")] = None,
+    shapes: Annotated[str, typer.Option(
+        "--shapes", help="visual (motor housings, printed shells: what a person sees) or collision (the "
+        "primitives the physics and the head camera see).")] = "visual",
+    width: Annotated[int, typer.Option("--width", min=16, max=1280, help="Pixels per camera view.")] = 480,
+    height: Annotated[int, typer.Option("--height", min=16, max=720, help="Pixels.")] = 480,
+    spec_path: SpecOption = None,
+) -> None:
+    """Render the robot standing at its home pose to a PNG (needs OSMesa or EGL, as `sim run --video`)."""
+    import mujoco
+
+    from toddlerbot.robot.description import load_variant
+    from toddlerbot.sim.render import render_views, write_png
+
+    if shapes not in SHAPES:
+        raise typer.BadParameter(f"{shapes!r} is not one of {', '.join(SHAPES)}", param_hint="--shapes")
+    output_file(output, "--output")
+    description, base = load_variant(_check_variant(variant), spec_path, [])
+    model = description.model(base, scene=True)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    mujoco.mj_forward(model, data)
+    image = render_views(model, data, camera or ["perspective", "front"], width, height, shapes == "visual")
+    write_png(output, image)
+    console.print(f"wrote {output} ({variant}, {shapes} shapes, {image.shape[1]}x{image.shape[0]})")

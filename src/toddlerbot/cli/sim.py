@@ -60,7 +60,7 @@ def run(
     from toddlerbot.runtime.runner import run_policy
     from toddlerbot.runtime.summary import summarize
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-    from toddlerbot.sim.render import Recorder, RenderError, has_display
+    from toddlerbot.sim.render import Recorder, RenderError, has_display, show_visuals
 
     if policy not in RUN_POLICIES:
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
@@ -101,6 +101,7 @@ def run(
         import mujoco.viewer
 
         handle = mujoco.viewer.launch_passive(robot.model, robot.data)
+        show_visuals(handle.opt)  # the robot as it looks; the viewer's group toggles (2, 3) switch to collision
         realtime = True
     steps = {"n": 0}
 

@@ -176,7 +176,10 @@ def _run(session, robot, source, seconds: float, viewer: bool) -> None:
     if viewer:
         import mujoco.viewer
 
+        from toddlerbot.sim.render import show_visuals
+
         handle = mujoco.viewer.launch_passive(robot.model, robot.data)
+        show_visuals(handle.opt)  # the robot as it looks; the viewer's group toggles (2, 3) switch to collision
     session.reset()
     dt = robot.control_dt
     start = next_tick = time.monotonic()

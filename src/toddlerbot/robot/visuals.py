@@ -8,18 +8,21 @@ images the diffusion policies were trained on, keeps rendering the collision sha
 What is drawn, and what is approximate:
 
 * **Motor housings**: one black box per Dynamixel at its catalogue ``dimensions_mm`` (W x H x D), in the heavier of
-  the two bodies its joint connects (that body's inertial carries the motor's mass), with its horn at the joint.
-  A single-axis housing turns about the joint axis along D, behind the horn (away from the driven link's centre of
-  mass), its shaft W/2 from one end of H, and H points towards the holding body's centre of mass: the side the
-  motor sits on and its roll about the shaft are estimates. A dual-axis unit (2XL430, 2XC430: two motor entries
-  held by the same body) is one box whose horns sit on two perpendicular faces at the two joints, its long side
-  across both shafts; that reproduces the reference model's bounding spheres of the arm units to 2 mm.
-* **Printed links**: shells `Appearance.shell_margin` outside each collision box, capsule and cylinder. Collision
-  spheres are the reference's bounding spheres of the arm motor units, whose housings are drawn instead. A link
-  without a collision primitive gets a bar to each child link (upper arm, forearm, calf, neck, brackets);
-  linkage rods are thin bars as long as twice their centre of mass is from their pin (uniform rods). Links
-  alternate white and light grey along each limb (by the parity of the output joints from the torso), as on the
-  printed robot; which part is which colour on the real robot is not in the spec.
+  the two bodies its joint connects (that body's inertial carries the motor's mass), its horn at the joint. A
+  single-axis housing turns about the joint axis along D with its shaft W/2 from one end of H; which side of the horn
+  it sits on and its roll about the shaft are estimates: of 16 placements (2 sides x 8 rolls) the one reaching least
+  outside the link's collision primitives (the reference's bounding shapes of link and motors) wins, at most 6 mm
+  outside. A dual-axis unit (2XL430, 2XC430: two motor entries held by the same body) is one box whose horns sit on
+  two perpendicular faces at the two joints, its long side across both shafts; that puts the arm units where the
+  reference model's bounding spheres are (centres 2.5 mm apart).
+* **Printed links**: shells `Appearance.shell_margin` outside each collision box, capsule and cylinder; a box mostly
+  filled with motors (`Appearance.bracket_fill`: thighs, ankle links) is a servo bracket instead, two side plates
+  across its heaviest motor's shaft with the black motors showing between them. Collision spheres are the
+  reference's bounding spheres of the arm motor units, whose housings are drawn instead. A link without a collision
+  primitive gets a bar to each child link (upper arm, forearm, calf, neck, hip and shoulder brackets); linkage rods
+  are thin bars as long as twice their centre of mass is from their pin (uniform rods). Links alternate white and
+  light grey along each limb (by the parity of the output joints from the torso), as on the printed robot; which
+  part is which colour on the real robot is not in the spec.
 * **Camera**: a lens (black barrel, dark glass) at each spec camera's pose, looking where the camera looks.
 * **Gripper jaws** (gripper variant): per rack-and-pinion finger, a printed jaw plate whose inner face is the
   rack's travel from the closing axis' centre when open (so the jaws meet when closed), the size of the finger's
@@ -91,8 +94,8 @@ class Appearance:
     """Half the width of the printed bar drawn for a link without a collision primitive."""
     rod_radius: float = 0.0018
     """Linkage rods."""
-    horn_radius: float = 0.4
-    """Horn radius as a fraction of the housing's width W."""
+    horn_radius: float = 0.35
+    """Horn radius as a fraction of the housing's smallest side."""
     horn_half_thickness: float = 0.0012
     lens_radius: float = 0.007
     lens_half_length: float = 0.004
@@ -261,7 +264,7 @@ def motor_housings(spec: RobotSpec, catalogue: Catalogue, appearance: Appearance
         for shaft, behind in zip(h.shafts, h.behind):
             geoms.append(VisualGeom(
                 f"{shaft.motor.joint}_horn", h.holder, "cylinder",
-                _tuple((appearance.horn_radius * h.dims[0], appearance.horn_half_thickness, 0.0)),
+                _tuple((appearance.horn_radius * min(h.dims), appearance.horn_half_thickness, 0.0)),
                 _tuple(shaft.point - behind * appearance.horn_half_thickness), _quat(_frame_with_z(behind)),
                 appearance.horn, "motor",
             ))

@@ -104,6 +104,30 @@ def configure_gl() -> str:
     return backend
 
 
+def render_views(model, data, cameras: list[str], width: int, height: int, visuals: bool = True) -> np.ndarray:
+    """The current state seen from each of `cameras`, side by side: one (height, width * len(cameras), 3) uint8
+    image. Raises as `Recorder` does (an unknown camera, no OpenGL backend)."""
+    recorder = Recorder(model, data, cameras[0], width, height, visuals)
+    try:
+        frames = []
+        for camera in cameras:
+            if camera not in {model.camera(i).name for i in range(model.ncam)}:
+                raise ToddlerbotError(f"camera {camera!r} is not in the model; expected one of "
+                                      f"{', '.join(model.camera(i).name for i in range(model.ncam))}")
+            recorder.camera = camera
+            frames.append(recorder.capture())
+    finally:
+        recorder.close()
+    return np.concatenate(frames, axis=1)
+
+
+def write_png(path: str | Path, image: np.ndarray) -> Path:
+    """Write an (H, W, 3) uint8 image as a PNG (atomically)."""
+    import imageio.v2 as imageio
+
+    return atomic_write(path, lambda tmp: imageio.imwrite(tmp, image, format="png"))
+
+
 def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
@@ -178,9 +202,7 @@ class Recorder:
 
     def write_png(self, path: str | Path, frame: np.ndarray | None = None) -> Path:
         """Write ``frame`` (default: the last captured one) as a PNG."""
-        import imageio.v2 as imageio
-
-        return atomic_write(path, lambda tmp: imageio.imwrite(tmp, self.frames[-1] if frame is None else frame))
+        return write_png(path, self.frames[-1] if frame is None else frame)
 
     def close(self) -> None:
         self.renderer.close()
