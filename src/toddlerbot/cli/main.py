@@ -8,7 +8,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from toddlerbot.cli import actuator, chain, design, dp, hw, manip, model, rl, sim, sysid, teleop
+from toddlerbot.cli import actuator, chain, design, dp, hw, manip, model, motion, rl, sim, sysid, teleop
 from toddlerbot.cli import eval as eval_cli
 from toddlerbot.errors import ToddlerbotError
 
@@ -34,6 +34,7 @@ app.add_typer(dp.app, name="dp")
 app.add_typer(manip.app, name="manip")
 app.add_typer(teleop.app, name="teleop")
 app.add_typer(chain.app, name="chain")
+app.add_typer(motion.app, name="motion")
 
 
 def main() -> None:

@@ -1,0 +1,80 @@
+"""`toddlerbot motion edit`: the keyframe motion editor in the browser (extra `[viz]`)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from toddlerbot.cli.options import output_file
+from toddlerbot.cli.output import console
+from toddlerbot.errors import ToddlerbotError
+
+app = typer.Typer(help="Keyframe motions: edit them in the browser.", no_args_is_help=True)
+
+
+@app.command()
+def edit(
+    motion: Annotated[str | None, typer.Argument(
+        help="Motion to open: a built-in (squat, wave, look_around) or a motion YAML file; none: a new motion.")]
+        = None,
+    port: Annotated[int, typer.Option("--port", min=0, max=65535,
+                                      help="Port to serve the page on (0: any free port; a busy port: the next).")]
+        = 8080,
+    host: Annotated[str, typer.Option("--host", help="Address to listen on; the default serves this computer "
+                                      "only (use SSH port forwarding from another one).")] = "127.0.0.1",
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="File Save writes (default: the opened file; "
+                                             "a built-in motion needs a name, in the page or here).")] = None,
+    motor_params: Annotated[list[Path] | None, typer.Option(
+        "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): play with fitted motors.")]
+        = None,
+) -> None:
+    """Serve the motion editor: the robot in 3D, joint sliders per limb, keyframes (add, delete, reorder,
+    duration, mirror), play in MuJoCo with the actuator model (upright? CoM and support polygon), save as
+    motion YAML. Runs until Ctrl-C. Over SSH: `ssh -L 8080:localhost:8080 ROBOT`, then open
+    http://localhost:8080 on your computer."""
+    try:
+        import viser  # noqa: F401
+    except ImportError:
+        raise ToddlerbotError("the motion editor needs viser: pip install -e '.[viz]'") from None
+    from toddlerbot.motion_editor.app import check_save_path, open_editor
+    from toddlerbot.motion_editor.keyframes import Keyframes
+    from toddlerbot.policies.motions import (
+        MAX_MOTION_BYTES,
+        MotionError,
+        builtin_motions,
+        motion_path,
+        parse_motion,
+    )
+    from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.yaml_input import read_yaml
+
+    description = RobotDescription.load(motor_params=motor_params or [])
+    save_to = out
+    if motion is None:
+        keyframes = Keyframes.new(description, name=out.stem if out else "motion")
+    else:
+        path = motion_path(motion)
+        raw = read_yaml(path, "motion file", MotionError, MAX_MOTION_BYTES)
+        parsed = parse_motion(raw, description, str(path))
+        keyframes = Keyframes.from_motion(parsed, description, text=str(raw.get("description", "")))
+        if save_to is None and motion not in builtin_motions():
+            save_to = path
+    if out is not None:
+        check_save_path(str(out))
+        output_file(out, "--out")
+    editor = open_editor(description, keyframes, save_to, host, port)
+    actual = editor.server.get_port()
+    moved = f" (port {port} was busy)" if port not in (0, actual) else ""
+    console.print(f"motion editor: http://{'localhost' if host in ('127.0.0.1', 'localhost') else host}:{actual}"
+                  f"{moved}\nfrom another computer: ssh -L {actual}:localhost:{actual} THIS_HOST, then open "
+                  f"http://localhost:{actual}\nCtrl-C stops it", highlight=False, soft_wrap=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        console.print("motion editor stopped")
+    finally:
+        editor.server.stop()

@@ -1,0 +1,74 @@
+"""Play a motion in the MuJoCo simulator exactly as `toddlerbot sim run --policy replay` does (same robot, policy,
+runner and fall detector; the actuator model every 1 ms), keeping every control step's state for the page."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from toddlerbot.motion_editor.balance import Balance, PoseModel
+from toddlerbot.policies.motions import Motion
+from toddlerbot.policies.replay import ReplayPolicy
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.runtime.runner import run_policy
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimulationError
+
+
+@dataclass(frozen=True)
+class Playback:
+    times: np.ndarray
+    """(n,) simulated time of each frame, s (one frame per control step, 20 ms)."""
+    qpos: np.ndarray
+    """(n, nq) MuJoCo configuration of each frame."""
+    balance: tuple[Balance, ...]
+    """CoM and contact support polygon of each frame."""
+    fall_time: float | None
+    """s, when the fall detector fired (the run stops there), or None."""
+    error: str | None
+    """Why the simulation stopped early (it diverged), or None."""
+    max_tilt_deg: float
+    """Largest torso tilt from upright, deg."""
+    min_height_m: float
+    """Lowest torso height, m."""
+    compute_s: float
+    """Wall-clock time the simulation took, s."""
+
+    @property
+    def upright(self) -> bool:
+        return self.fall_time is None and self.error is None
+
+    def describe(self) -> str:
+        duration = self.times[-1] if len(self.times) else 0.0
+        head = (f"FELL at {self.fall_time:.2f} s" if self.fall_time is not None else
+                f"stopped: {self.error}" if self.error else "stayed upright")
+        return (f"{head}: {duration:.2f} s simulated in {self.compute_s:.1f} s; max tilt {self.max_tilt_deg:.1f} deg, "
+                f"lowest torso {self.min_height_m * 1000:.0f} mm")
+
+
+def simulate(description: RobotDescription, motion: Motion) -> Playback:
+    """Run `motion` from the home pose on the floating robot until it ends or the robot falls."""
+    started = time.perf_counter()
+    robot = MuJoCoRobot(description)
+    policy = ReplayPolicy(robot, motion)
+    poses = PoseModel(description)
+    torso = robot.model.body(description.handles.torso).id
+    times, qpos, balance, tilt, height = [], [], [], [], []
+
+    def on_step(obs) -> None:
+        d = robot.data
+        times.append(float(d.time))
+        qpos.append(d.qpos.copy())
+        balance.append(poses.contact_balance(d))
+        tilt.append(float(np.degrees(np.arccos(np.clip(d.xmat[torso, 8], -1.0, 1.0)))))
+        height.append(float(d.xpos[torso, 2]))
+
+    fall_time, error = None, None
+    try:
+        result = run_policy(robot, policy, lambda t: np.zeros(3), motion.duration + 1.0, on_step=on_step)
+        fall_time = result.fall_time
+    except SimulationError as exc:
+        error = str(exc)
+    return Playback(np.array(times), np.array(qpos).reshape(len(qpos), -1), tuple(balance), fall_time, error,
+                    max(tilt, default=0.0), min(height, default=0.0), time.perf_counter() - started)

@@ -1,0 +1,148 @@
+"""The motion editor's parts without a browser: keyframe edits and their YAML, the mirror map from the joint axes,
+balance (CoM, support polygon), playback in the simulator, save-path rules and the command's one-line errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from toddlerbot.motion_editor.balance import PoseModel, convex_hull, signed_margin
+from toddlerbot.motion_editor.keyframes import Keyframes
+from toddlerbot.motion_editor.mirror import MirrorMap
+from toddlerbot.motion_editor.playback import simulate
+from toddlerbot.policies.motions import MOTIONS_DIR, MotionError, load_motion, parse_motion
+
+DEG = np.pi / 180
+
+
+@pytest.fixture(scope="module")
+def mirror(description):
+    return MirrorMap.of(description)
+
+
+def test_keyframe_edits_keep_a_valid_motion_and_its_timing(description):
+    doc = Keyframes.from_motion(load_motion("wave", description), description)
+    assert len(doc) == 9 and doc.times[-1] == pytest.approx(5.0)
+    assert doc.insert_after(1) == 2  # a copy of keyframe 1, as long as keyframe 1's transition (1 s)
+    np.testing.assert_array_equal(doc.poses[2], doc.poses[1])
+    assert doc.times[-1] == pytest.approx(6.0)
+    doc.set_duration(2, 0.25)
+    assert doc.times[2] == pytest.approx(1.25)
+    first, second = doc.poses[0].copy(), doc.poses[1].copy()
+    assert doc.move(0, +1) == 1 and doc.move(0, -1) == 0  # poses swap, durations stay in place
+    np.testing.assert_array_equal(doc.poses[0], second)
+    np.testing.assert_array_equal(doc.poses[1], first)
+    np.testing.assert_allclose(doc.times[:3], [0, 1, 1.25])
+    assert doc.delete(2) == 2 and len(doc) == 9
+    with pytest.raises(MotionError, match="first keyframe"):
+        doc.set_duration(0, 1.0)
+    with pytest.raises(MotionError, match=r"duration 0 s: expected 0\.05-60 s"):
+        doc.set_duration(1, 0.0)
+    # a joint is clamped to its range (right_shoulder_roll: -90..20 deg)
+    assert doc.set_joint(1, "right_shoulder_roll", 50 * DEG) == pytest.approx(20 * DEG)
+    two = Keyframes.new(description)
+    with pytest.raises(MotionError, match="at least two keyframes"):
+        two.delete(0)
+
+
+def test_saved_yaml_lists_moved_joints_and_reads_back_as_the_same_motion(description):
+    doc = Keyframes.new(description, name="lean")
+    doc.set_joint(1, "left_knee", -45.004 * DEG)
+    doc.set_joint(1, "neck_yaw", 150 * DEG)  # clamped to the spec's 2.61799 rad = 149.9998 deg
+    text = doc.to_yaml()  # rounded to 0.01 deg, inward at the range's end
+    assert "joints: [neck_yaw, left_knee]" in text and "{t: 1.0, neck_yaw: 149.99, left_knee: -45.0}" in text
+    import yaml
+
+    motion = parse_motion(yaml.safe_load(text), description, "lean.yaml")
+    assert motion.joints == ("neck_yaw", "left_knee") and motion.duration == 1.0
+    np.testing.assert_allclose(np.rad2deg(motion.poses[1]), [149.99, -45.0])
+    home = np.rad2deg(description.home_joint_pos[description.joint_names.index("left_knee")])
+    assert motion.poses[0][1] == pytest.approx(np.deg2rad(round(home, 2)))
+
+
+def test_mirror_signs_come_from_the_joint_axes_and_the_home_pose_is_symmetric(description, mirror):
+    home = np.array(description.home_joint_pos)
+    np.testing.assert_allclose(mirror.swapped(home), home, atol=1e-12)
+    sign = dict(zip(description.joint_names, mirror.sign))
+    assert sign["left_hip_pitch"] == -1 and sign["left_shoulder_roll"] == 1 and sign["neck_pitch"] == 1
+    assert sign["neck_yaw"] == -1 and sign["waist_roll"] == -1
+    pose = home.copy()
+    names = list(description.joint_names)
+    pose[names.index("left_shoulder_pitch")] = 40 * DEG
+    pose[names.index("neck_yaw")] = 30 * DEG
+    copied = mirror.copied(pose, "left")
+    assert np.rad2deg(copied[names.index("right_shoulder_pitch")]) == pytest.approx(-40)
+    assert np.rad2deg(copied[names.index("neck_yaw")]) == pytest.approx(30)  # the centre stays
+    swapped = mirror.swapped(pose)
+    assert np.rad2deg(swapped[names.index("neck_yaw")]) == pytest.approx(-30)
+    assert np.rad2deg(swapped[names.index("left_shoulder_pitch")]) == pytest.approx(10)  # right home -10, mirrored
+    assert mirror.follow(pose, "left_shoulder_pitch") == ("right_shoulder_pitch", pytest.approx(-40 * DEG))
+    assert mirror.follow(pose, "neck_yaw") is None
+
+
+def test_support_polygon_and_com_of_the_home_pose(description):
+    poses = PoseModel(description)
+    data = poses.pose(np.array(description.home_joint_pos))
+    balance = poses.static_balance()
+    assert len(balance.polygon) == 4  # both soles flat: the hull of their outer corners
+    span = balance.polygon.max(axis=0) - balance.polygon.min(axis=0)
+    assert span[0] == pytest.approx(0.12, abs=0.01) and span[1] == pytest.approx(0.116, abs=0.01)
+    assert balance.supported and 0.04 < balance.margin < 0.06
+    assert 0.28 < balance.com[2] < 0.32
+    assert min(data.geom_xpos[:, 2][1:]) > -0.05  # standing on the floor, not in it
+    # one foot lifted 5 cm: the polygon shrinks to the other sole
+    names = list(description.joint_names)
+    pose = np.array(description.home_joint_pos)
+    pose[names.index("left_hip_pitch")] += 40 * DEG
+    pose[names.index("left_knee")] -= 80 * DEG
+    poses.pose(pose)
+    single = poses.static_balance()
+    assert len(single.polygon) == 4 and np.ptp(single.polygon[:, 1]) < 0.05
+
+
+def test_hull_and_margin_are_exact_on_a_square():
+    square = convex_hull(np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5], [1, 0.5]]))
+    assert len(square) == 4
+    assert signed_margin(np.array([0.5, 0.25]), square) == pytest.approx(0.25)
+    assert signed_margin(np.array([2.0, 0.5]), square) == pytest.approx(-1.0)
+    assert signed_margin(np.array([0.5, 0.5]), convex_hull(np.array([[0, 0], [1, 1]]))) == -np.inf
+
+
+def test_play_reports_upright_for_wave_and_a_fall_for_a_deep_lean(description):
+    wave = simulate(description, load_motion("wave", description))
+    assert wave.upright and wave.max_tilt_deg < 6 and len(wave.times) == 251
+    assert all(b.supported for b in wave.balance[::25])
+    doc = Keyframes.new(description, name="lean")
+    for joint in ("left_hip_pitch", "right_hip_pitch"):
+        k = description.joint_names.index(joint)
+        doc.set_joint(1, joint, description.home_joint_pos[k] + (80 if joint.startswith("left") else -80) * DEG)
+    doc.set_duration(1, 0.5)
+    lean = simulate(description, doc.to_motion("lean"))
+    assert not lean.upright and lean.fall_time < 1.5 and lean.describe().startswith("FELL at")
+
+
+def test_save_path_rules(tmp_path):
+    from toddlerbot.motion_editor.app import check_save_path
+
+    with pytest.raises(MotionError, match="name a file"):
+        check_save_path("  ")
+    with pytest.raises(MotionError, match="inside the installed toddlerbot package"):
+        check_save_path(str(MOTIONS_DIR / "wave.yaml"))
+    with pytest.raises(MotionError, match=r"ending in \.yaml"):
+        check_save_path(str(tmp_path / "wave.txt"))
+    assert check_save_path(str(tmp_path / "w.yaml")) == tmp_path / "w.yaml"
+
+
+def test_bad_motion_file_is_one_line_exit_2(tmp_path, capsys):
+    from toddlerbot.cli.main import main
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("joints: [left_knee]\nkeyframes:\n  - {t: 0, left_knee: -30}\n  - {t: 1, left_knee: 500}\n")
+    with pytest.raises(SystemExit) as exit_info:
+        import sys
+
+        sys.argv = ["toddlerbot", "motion", "edit", str(bad)]
+        main()
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "bad.yaml: keyframe 1: left_knee = 500 deg is out of range" in err
