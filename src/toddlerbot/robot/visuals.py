@@ -124,9 +124,10 @@ class VisualGeom:
 
 def visual_geoms(spec: RobotSpec, catalogue: Catalogue, appearance: Appearance = Appearance()) -> list[VisualGeom]:
     """Every visual geom of the robot, in a deterministic order."""
+    housings = place_housings(spec, catalogue)
     return [
-        *motor_housings(spec, catalogue, appearance),
-        *printed_links(spec, catalogue, appearance),
+        *motor_housings(housings, appearance),
+        *printed_links(spec, housings, appearance),
         *camera_lenses(spec, appearance),
         *gripper_jaws(spec, appearance),
     ]
@@ -145,6 +146,11 @@ def _quat(rot: np.ndarray) -> tuple[float, float, float, float]:
     return _tuple(quat)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    # np.cross costs ~50x more for single 3-vectors, and placing the housings takes hundreds
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def _tuple(values) -> tuple:
     return tuple(round(float(v), 9) for v in values)  # 9 digits: byte-identical MJCF across platforms
 
@@ -158,7 +164,7 @@ def _frame_with_z(z: np.ndarray, hint: np.ndarray | None = None) -> np.ndarray:
         x = candidate - (candidate @ z) * z
         if np.linalg.norm(x) > 1e-6:
             x /= np.linalg.norm(x)
-            return np.column_stack([x, np.cross(z, x), z])
+            return np.column_stack([x, _cross(z, x), z])
     raise AssertionError("unreachable: x and y cannot both be parallel to z")
 
 
@@ -193,9 +199,10 @@ _AXIAL_TOLERANCE = 1e-3
 def motor_shafts(spec: RobotSpec) -> list[Shaft]:
     """Each motor's shaft in the heavier of the two bodies its joint connects, in motor-id order."""
     bodies = {b.name: b for b in spec.bodies}
+    body_of_joint = spec.body_of_joint  # a dict built on each access
     shafts = []
     for motor in spec.motors_by_id:
-        child = bodies[spec.body_of_joint[motor.joint]]
+        child = bodies[body_of_joint[motor.joint]]
         parent = bodies[child.parent]
         joint, rot = child.joint, _rot(child.quat)
         if parent.mass >= child.mass:  # the housing is fixed to the parent; the child turns with the horn
@@ -246,7 +253,7 @@ def place_housings(spec: RobotSpec, catalogue: Catalogue) -> list[Housing]:
     for unit in units:
         model = catalogue[unit[0].motor.model]
         dims = np.array(model.dimensions_mm) / 1000.0
-        if len(unit) == 2 and np.linalg.norm(np.cross(unit[0].axis, unit[1].axis)) > 0.5:
+        if len(unit) == 2 and np.linalg.norm(_cross(unit[0].axis, unit[1].axis)) > 0.5:
             centre, rot, behind = _dual_housing(unit[0], unit[1], dims)
         else:
             centre, rot, inward = _single_housing(unit[0], bodies[unit[0].holder], dims)
@@ -255,10 +262,10 @@ def place_housings(spec: RobotSpec, catalogue: Catalogue) -> list[Housing]:
     return housings
 
 
-def motor_housings(spec: RobotSpec, catalogue: Catalogue, appearance: Appearance = Appearance()) -> list[VisualGeom]:
-    """The housings as black boxes, a horn on each shaft."""
+def motor_housings(housings: list[Housing], appearance: Appearance = Appearance()) -> list[VisualGeom]:
+    """The housings (`place_housings`) as black boxes, a horn on each shaft."""
     geoms = []
-    for h in place_housings(spec, catalogue):
+    for h in housings:
         geoms.append(VisualGeom(f"{h.shafts[0].motor.joint}_motor", h.holder, "box", _tuple(h.dims / 2),
                                 _tuple(h.centre), _quat(h.rot), appearance.motor, "motor"))
         for shaft, behind in zip(h.shafts, h.behind):
@@ -283,28 +290,25 @@ def _single_housing(shaft: Shaft, holder: BodySpec, dims: np.ndarray) -> tuple[n
     and its motors) wins; ties keep the first: behind the horn, H towards the holder's centre of mass."""
     width, height, depth = dims
     towards_mass = _frame_with_z(shaft.behind, np.array(holder.com) - shaft.point)[:, 0]
-    best, least = None, np.inf
+    placements = []
     for behind in (shaft.behind, -shaft.behind):
         for step in range(_ROLL_STEPS):
             angle = 2 * np.pi * step / _ROLL_STEPS
-            along_h = np.cos(angle) * towards_mass + np.sin(angle) * np.cross(shaft.behind, towards_mass)
+            along_h = np.cos(angle) * towards_mass + np.sin(angle) * _cross(shaft.behind, towards_mass)
             centre = shaft.point + behind * depth / 2 + along_h * (height - width) / 2
-            rot = np.column_stack([np.cross(along_h, behind), along_h, behind])
-            outside = _outside(centre + (_BOX_SAMPLES * (dims / 2)) @ rot.T, holder.collision)
-            if outside < least - 1e-9:
-                best, least = (centre, rot, behind), outside
-    return best
+            placements.append((centre, np.column_stack([_cross(along_h, behind), along_h, behind]), behind))
+    points = np.concatenate([centre + (_BOX_SAMPLES * (dims / 2)) @ rot.T for centre, rot, _ in placements])
+    outside = _outside(points, holder.collision).reshape(len(placements), -1).sum(axis=1)
+    return placements[int(np.argmin(np.round(outside, 9)))]  # the first of equals
 
 
 _BOX_SAMPLES = np.array([(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1)], dtype=float)
 """Corners, edge and face centres and the centre of a unit box (scaled by half sizes)."""
 
 
-def _outside(points: np.ndarray, geoms) -> float:
-    """Sum over `points` (body frame) of each point's distance outside the nearest of `geoms`, m (0: no geoms)."""
-    if not geoms:
-        return 0.0
-    distances = []
+def _outside(points: np.ndarray, geoms) -> np.ndarray:
+    """Each of `points`' (body frame) distance outside the nearest of `geoms`, m (zeros without geoms)."""
+    distances = [np.zeros(len(points))]
     for g in geoms:
         local = (points - np.array(g.pos)) @ _rot(g.quat)
         size = np.array(g.size)
@@ -317,7 +321,7 @@ def _outside(points: np.ndarray, geoms) -> float:
             beyond = np.maximum(np.abs(local[:, 2]) - size[1], 0.0)
             distances.append(np.maximum(np.hypot(radial, beyond) - size[0], 0.0) if g.type == "capsule"
                              else np.hypot(np.maximum(radial - size[0], 0.0), beyond))
-    return float(np.min(distances, axis=0).sum())
+    return np.min(distances[1:], axis=0) if geoms else distances[0]
 
 
 def _dual_housing(a: Shaft, b: Shaft, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
@@ -327,7 +331,7 @@ def _dual_housing(a: Shaft, b: Shaft, dims: np.ndarray) -> tuple[np.ndarray, np.
     axis_a = a.axis
     axis_b = b.axis - (b.axis @ axis_a) * axis_a
     axis_b /= np.linalg.norm(axis_b)
-    long_side = np.cross(axis_a, axis_b)
+    long_side = _cross(axis_a, axis_b)
     behind_a = axis_a * (1.0 if (b.point - a.point) @ axis_a >= 0 else -1.0)
     behind_b = axis_b * (1.0 if (a.point - b.point) @ axis_b >= 0 else -1.0)
     centre = (long_side * ((a.point + b.point) @ long_side / 2)
@@ -348,7 +352,8 @@ def transmission_parts(spec: RobotSpec) -> set[str]:
             joints.update(j for pair in t.rods for j in (pair.rod, pair.bearing))
         elif isinstance(t, BevelDifferential):
             joints.update(t.drives)
-    return {spec.body_of_joint[j] for j in joints}
+    body_of_joint = spec.body_of_joint
+    return {body_of_joint[j] for j in joints}
 
 
 def link_colour_index(spec: RobotSpec) -> dict[str, int]:
@@ -365,11 +370,12 @@ def _rack_fingers(spec: RobotSpec) -> set[str]:
     return {spec.body_of_joint[j] for t in spec.transmissions if isinstance(t, RackAndPinion) for j in t.driven}
 
 
-def printed_links(spec: RobotSpec, catalogue: Catalogue, appearance: Appearance = Appearance()) -> list[VisualGeom]:
-    """Shells (or brackets) around the collision primitives, bars for links without one, linkage rods."""
+def printed_links(spec: RobotSpec, placed: list[Housing], appearance: Appearance = Appearance()) -> list[VisualGeom]:
+    """Shells (or brackets, around the `placed` housings) over the collision primitives, bars for links without
+    one, linkage rods."""
     parts, fingers = transmission_parts(spec), _rack_fingers(spec)
     housings: dict[str, list[Housing]] = defaultdict(list)
-    for h in place_housings(spec, catalogue):
+    for h in placed:
         housings[h.holder].append(h)
     colour = link_colour_index(spec)
     rods = {spec.body_of_joint[p.rod] for t in spec.transmissions if isinstance(t, ParallelLinkage) for p in t.rods}
@@ -385,7 +391,7 @@ def printed_links(spec: RobotSpec, catalogue: Catalogue, appearance: Appearance 
         for g in body.collision:
             if g.type == "sphere":
                 continue  # a motor unit's bounding sphere: the housing is drawn
-            inside = [h for h in housings[body.name] if _outside(h.centre[None, :], [g]) == 0.0]
+            inside = [h for h in housings[body.name] if _outside(h.centre[None, :], [g])[0] == 0.0]
             if g.type == "box" and sum(np.prod(h.dims) for h in inside) >= appearance.bracket_fill * np.prod(
                     2 * np.array(g.size)):
                 geoms.extend(_bracket(g, body.name, max(inside, key=lambda h: h.mass), rgba, margin))
