@@ -146,3 +146,65 @@ def info(
         f"mean {ep['mean']:.1f} s); state {summary['state_dim']}-d, action {summary['action_dim']}-d, "
         f"video {summary['image_shape']}; tasks: {', '.join(summary['tasks'])}"
     )
+
+
+@dataset_app.command()
+def view(
+    root: Annotated[Path, typer.Argument(help="Dataset directory.")],
+    episode: Annotated[int | None, typer.Option("--episode", help="Show only this episode (default: all, back "
+                                                "to back).")] = None,
+    save: Annotated[Path | None, typer.Option("--save", help="Write a Rerun recording (.rrd) instead of showing it; "
+                                              "open it later with `rerun FILE.rrd`.")] = None,
+    web: Annotated[bool, typer.Option("--web", help="Serve Rerun's web viewer even where a display exists.")]
+        = False,
+    port: Annotated[int, typer.Option("--port", min=1, max=65535, help="Web viewer port (its data stream uses "
+                                      "--port + 1); forward both over SSH.")] = 9090,
+) -> None:
+    """Show a dataset in Rerun (extra `viz`): head-camera video, follower state and leader action per joint over
+    time, episode boundaries and success. A native viewer opens where a display exists; elsewhere (over SSH) the
+    web viewer is served until Ctrl-C."""
+    import time
+    from urllib.parse import quote
+
+    try:
+        import rerun as rr
+    except ImportError:
+        raise ToddlerbotError("the dataset viewer needs rerun-sdk: pip install -e '.[viz]'") from None
+    from toddlerbot.manipulation.dataset_view import choose_episodes, log_dataset, recording_for
+    from toddlerbot.manipulation.lerobot_reader import load_dataset
+    from toddlerbot.sim.render import has_display
+
+    if save is not None:
+        if save.suffix != ".rrd":
+            raise ToddlerbotError(f"--save {save}: expected a file name ending in .rrd")
+        output_file(save, "--save")
+    dataset = load_dataset(root)
+    episodes = choose_episodes(dataset, episode)
+    recording = recording_for(dataset)
+    if save is not None:
+        recording.save(save)
+    elif web or not has_display():
+        uri = recording.serve_grpc(grpc_port=port + 1)
+        rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=uri)
+    else:
+        recording.spawn()
+    sent = log_dataset(dataset, episodes, recording)
+    said = ", ".join(f"{e}: {'-' if s is None else 'yes' if s else 'no'}" for e, s in sent["success"].items())
+    summary = (f"{root}: {len(episodes)} episode(s), {sent['frames']} frames ({sent['seconds']:.1f} s); "
+               f"success {said}")
+    if save is not None:
+        recording.flush()
+        recording.disconnect()
+        console.print(f"{summary}\nwrote {save} ({save.stat().st_size / 1e6:.2f} MB)", highlight=False)
+        return
+    if web or not has_display():
+        console.print(f"{summary}\nRerun web viewer: http://localhost:{port}/?url={quote(uri, safe='')}\n"
+                      f"over SSH: ssh -L {port}:localhost:{port} -L {port + 1}:localhost:{port + 1} ROBOT; "
+                      "Ctrl-C stops it", highlight=False, soft_wrap=True)
+        try:
+            while True:
+                time.sleep(1.0)
+        except KeyboardInterrupt:
+            console.print("viewer stopped")
+    else:
+        console.print(summary, highlight=False)

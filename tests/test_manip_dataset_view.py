@@ -1,0 +1,110 @@
+"""`toddlerbot manip dataset view`: a small dataset written, shown as a Rerun recording, and the recording read back:
+camera frames, follower state and leader action per joint, episode boundaries and success."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+pa = pytest.importorskip("pyarrow")
+pytest.importorskip("av")
+pytest.importorskip("rerun")
+
+from rerun.chunk import RrdReader  # noqa: E402
+
+from toddlerbot.manipulation.episode import RawEpisode, resample  # noqa: E402
+from toddlerbot.manipulation.lerobot_writer import write_dataset  # noqa: E402
+
+NAMES = ("left_shoulder_pitch", "left_gripper")
+
+
+def _raw(seconds: float, offset: float, success: bool) -> RawEpisode:
+    """50 Hz ramps (state = t + offset, action = 2 t), images whose red channel encodes their index."""
+    t = np.arange(round(seconds * 50) + 1) / 50
+    images = np.zeros((len(t), 96, 96, 3), np.uint8)
+    images[..., 0] = (np.arange(len(t)) * 4 % 256)[:, None, None]
+    return RawEpisode("pick up the cube", NAMES, t, np.stack([t + offset, -t], 1), np.stack([2 * t, t], 1), t,
+                      images, success=success)
+
+
+@pytest.fixture
+def dataset_root(tmp_path):
+    raws = [_raw(1.0, 0.0, True), _raw(0.5, 1.0, False)]
+    return write_dataset(tmp_path / "ds", [resample(r, 10) for r in raws], NAMES, 10, raw_episodes=raws)
+
+
+def _run(args, capsys):
+    from toddlerbot.cli.main import main
+
+    sys.argv = ["toddlerbot", *args]
+    with pytest.raises(SystemExit) as exit_info:
+        main()
+    out = capsys.readouterr()
+    return exit_info.value.code, out.out, out.err
+
+
+def _columns(path):
+    """{entity: {column: [values per row, in time order]}} of the recording's temporal chunks."""
+    out: dict[str, dict[str, list]] = {}
+    for chunk in RrdReader(path).stream().collect().stream():
+        if chunk.is_static:
+            continue
+        record = chunk.to_record_batch()
+        batch = {name: (col.cast(pa.int64()) if pa.types.is_temporal(col.type) else col).to_pylist()
+                 for name, col in zip(record.schema.names, record.columns)}  # times as int ns
+        order = np.argsort(batch["time"], kind="stable")
+        entity = out.setdefault(chunk.entity_path, {})
+        for name, values in batch.items():
+            entity.setdefault(name, []).extend(values[i] for i in order)
+    return out
+
+
+def test_recording_holds_camera_joints_boundaries_and_success(dataset_root, tmp_path, capsys):
+    rrd = tmp_path / "view.rrd"
+    code, out, _ = _run(["manip", "dataset", "view", str(dataset_root), "--save", str(rrd)], capsys)
+    assert code == 0 and "2 episode(s), 17 frames (1.7 s); success 0: yes, 1: no" in out
+    rec = _columns(rrd)
+
+    # time runs 0..1.6 s over both episodes; frame is the dataset row
+    state = rec["/joints/left_shoulder_pitch/state"]
+    assert len(state["time"]) == 17
+    np.testing.assert_allclose(np.array(state["time"]) / 1e9, np.arange(17) / 10)  # stored in ns
+    np.testing.assert_allclose(np.concatenate(state["Scalars:scalars"]),
+                               np.r_[np.arange(11) / 10, 1 + np.arange(6) / 10], atol=1e-6)
+    action = rec["/joints/left_gripper/action"]
+    np.testing.assert_allclose(np.concatenate(action["Scalars:scalars"]), np.r_[np.arange(11), np.arange(6)] / 10,
+                               atol=1e-6)
+
+    # the head camera: one 96x96 image per row; the red channel's index code survives the video
+    images = rec["/camera/head"]["Image:buffer"]
+    assert len(images) == 17
+    red = [np.asarray(b[0], np.uint8).reshape(96, 96, 3)[40:56, 40:56, 0].mean() for b in images]
+    expected = np.r_[np.arange(0, 51, 5), np.arange(0, 26, 5)] * 4  # 10 Hz rows of 50 Hz images
+    assert np.max(np.abs(np.array(red) - expected)) < 3
+
+    # boundaries: the episode index steps at row 11; success 1 then 0; one log line per episode at its start
+    np.testing.assert_array_equal(np.concatenate(rec["/episode/index"]["Scalars:scalars"]), [0] * 11 + [1] * 6)
+    np.testing.assert_array_equal(np.concatenate(rec["/episode/success"]["Scalars:scalars"]), [1] * 11 + [0] * 6)
+    log = rec["/episodes"]
+    assert np.array(log["time"]).tolist() == [0, int(1.1e9)]
+    assert log["TextLog:text"][0][0].startswith("episode 0: 11 frames (1.1 s), task 'pick up the cube', success: yes")
+    assert log["TextLog:text"][1][0].endswith("success: NO")
+
+
+def test_one_episode_and_bad_input(dataset_root, tmp_path, capsys):
+    rrd = tmp_path / "one.rrd"
+    code, out, _ = _run(["manip", "dataset", "view", str(dataset_root), "--episode", "1", "--save", str(rrd)], capsys)
+    assert code == 0 and "1 episode(s), 6 frames (0.6 s); success 1: no" in out
+    rec = _columns(rrd)
+    np.testing.assert_array_equal(rec["/joints/left_shoulder_pitch/state"]["frame"], np.arange(11, 17))
+    np.testing.assert_allclose(np.concatenate(rec["/joints/left_shoulder_pitch/state"]["Scalars:scalars"]),
+                               1 + np.arange(6) / 10, atol=1e-6)
+    size_kb = rrd.stat().st_size / 1e3
+    assert size_kb < 200, size_kb
+
+    code, _, err = _run(["manip", "dataset", "view", str(dataset_root), "--episode", "2", "--save", str(rrd)], capsys)
+    assert code == 2 and "--episode 2: the dataset has episodes 0-1" in err and len(err.strip().splitlines()) == 1
+    code, _, err = _run(["manip", "dataset", "view", str(dataset_root), "--save", str(tmp_path / "x.mp4")], capsys)
+    assert code == 2 and "expected a file name ending in .rrd" in err
