@@ -290,16 +290,16 @@ def _single_housing(shaft: Shaft, holder: BodySpec, dims: np.ndarray) -> tuple[n
     and its motors) wins; ties keep the first: behind the horn, H towards the holder's centre of mass."""
     width, height, depth = dims
     towards_mass = _frame_with_z(shaft.behind, np.array(holder.com) - shaft.point)[:, 0]
-    placements = []
-    for behind in (shaft.behind, -shaft.behind):
-        for step in range(_ROLL_STEPS):
-            angle = 2 * np.pi * step / _ROLL_STEPS
-            along_h = np.cos(angle) * towards_mass + np.sin(angle) * _cross(shaft.behind, towards_mass)
-            centre = shaft.point + behind * depth / 2 + along_h * (height - width) / 2
-            placements.append((centre, np.column_stack([_cross(along_h, behind), along_h, behind]), behind))
-    points = np.concatenate([centre + (_BOX_SAMPLES * (dims / 2)) @ rot.T for centre, rot, _ in placements])
-    outside = _outside(points, holder.collision).reshape(len(placements), -1).sum(axis=1)
-    return placements[int(np.argmin(np.round(outside, 9)))]  # the first of equals
+    angles = 2 * np.pi * np.arange(_ROLL_STEPS) / _ROLL_STEPS
+    along_h = np.outer(np.cos(angles), towards_mass) + np.outer(np.sin(angles), _cross(shaft.behind, towards_mass))
+    behind = np.repeat([shaft.behind, -shaft.behind], _ROLL_STEPS, axis=0)  # placements: side-major order
+    along_h = np.tile(along_h, (2, 1))
+    centres = shaft.point + behind * depth / 2 + along_h * (height - width) / 2
+    rots = np.stack([np.cross(along_h, behind), along_h, behind], axis=-1)  # (placement, xyz, WHD)
+    points = centres[:, None, :] + np.einsum("pij,sj->psi", rots, _BOX_SAMPLES * dims / 2)
+    outside = _outside(points.reshape(-1, 3), holder.collision).reshape(len(centres), -1).sum(axis=1)
+    best = int(np.argmin(np.round(outside, 9)))  # the first of equals
+    return centres[best], rots[best], behind[best]
 
 
 _BOX_SAMPLES = np.array([(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1)], dtype=float)
