@@ -152,7 +152,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _tuple(values) -> tuple:
-    return tuple(round(float(v), 9) for v in values)  # 9 digits: byte-identical MJCF across platforms
+    return tuple(np.round(np.asarray(values, dtype=float), 9).tolist())  # 9 digits: the same MJCF everywhere
 
 
 def _frame_with_z(z: np.ndarray, hint: np.ndarray | None = None) -> np.ndarray:
