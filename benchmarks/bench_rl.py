@@ -2,7 +2,8 @@
 and env steps per second on this machine.
 
     PYTHONPATH=src python benchmarks/bench_rl.py            # inference only (seconds)
-    PYTHONPATH=src python benchmarks/bench_rl.py --env      # + MJX env compile and throughput (minutes on CPU)
+    PYTHONPATH=src python benchmarks/bench_rl.py --env      # + env compile and throughput, MJX vs the CPU
+                                                            #   backend in the same run (minutes)
     PYTHONPATH=src python benchmarks/bench_rl.py --solver-cpu   # + each model setting in CPU MuJoCo (float64)
     PYTHONPATH=src python benchmarks/bench_rl.py --settings # + 10 s stand, constraint residual, steps/s per
                                                             #   training-model setting (a GPU run: add
@@ -23,17 +24,24 @@ import numpy as np
 
 
 def bench_inference(repeats: int = 2000) -> None:
-    from toddlerbot.policies.rl_inference import ObsConfig, RLController, RLPolicyFile
-    from toddlerbot.rl.config import FULL, EnvConfig
+    from toddlerbot.rl.config import CPU, FULL
+
+    for hidden in (FULL.policy_hidden, CPU.policy_hidden):
+        _bench_inference(hidden, repeats)
+
+
+def _bench_inference(hidden: tuple[int, ...], repeats: int) -> None:
+    from toddlerbot.policies.rl_inference import GaitReference, ObsConfig, RLController, RLPolicyFile
+    from toddlerbot.rl.config import EnvConfig
     from toddlerbot.rl.export import write_policy
     from toddlerbot.robot.description import RobotDescription
 
     description = RobotDescription.load()
     legs = len(description.groups["leg"])
-    obs = ObsConfig(gait_period=0.72)
+    obs = ObsConfig(gait_period=0.6)
     n_in = obs.history * obs.frame_size(description.n_motors, legs)
     rng = np.random.default_rng(0)
-    sizes = [n_in, *FULL.policy_hidden, legs]
+    sizes = [n_in, *hidden, legs]
     arrays = {}
     for i, (a, b) in enumerate(itertools.pairwise(sizes)):
         arrays[f"layer{i}_kernel"] = (rng.normal(size=(a, b)) / np.sqrt(a)).astype(np.float32)
@@ -41,7 +49,11 @@ def bench_inference(repeats: int = 2000) -> None:
     arrays["obs_mean"], arrays["obs_std"] = np.zeros(n_in, np.float32), np.ones(n_in, np.float32)
     arrays["distribution"], arrays["action_std"] = np.array("normal"), np.full(legs, 0.5, np.float32)
     with tempfile.TemporaryDirectory() as tmp:
-        path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {}, description)
+        # a residual policy: the reference (the default grid's shape) is interpolated every step
+        reference = GaitReference(np.linspace(-0.1, 0.15, 6), np.linspace(-0.08, 0.08, 5), np.linspace(-0.4, 0.4, 5),
+                                  0.6, rng.normal(size=(6, 5, 5, 30, legs)), np.ones((6, 5, 5, 30, 2)))
+        space = {**reference.arrays(), "kp_stance_scale": np.ones(30), "kp_swing_scale": np.zeros((2, 30))}
+        path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {}, description, space)
         ctrl = RLController(RLPolicyFile(path))
     home = ctrl.policy.home_motor_pos
     quat = np.array([1.0, 0, 0, 0])
@@ -53,37 +65,53 @@ def bench_inference(repeats: int = 2000) -> None:
         ctrl.step(i * 0.02, np.array([0.1, 0, 0]), home, np.zeros(30), np.zeros(3), quat)
         times[i] = time.perf_counter() - t0
     print(f"numpy inference, policy {sizes} ({n_in} inputs = {obs.history} frames): "
-          f"median {np.median(times) * 1e3:.3f} ms, p99 {np.percentile(times, 99) * 1e3:.3f} ms per 50 Hz step")
+          f"median {np.median(times) * 1e3:.3f} ms, p99 {np.percentile(times, 99) * 1e3:.3f} ms per 50 Hz step "
+          "(reference interpolation included)")
 
 
-def bench_env(batches: tuple[int, ...], steps: int) -> None:
+def bench_env(mjx_batches: tuple[int, ...], cpu_batches: tuple[int, ...], steps: int) -> None:
+    """Env steps/s of the jitted, vmapped environment step (compilation excluded) for each physics backend, in one
+    run so the ratio is measured under the same load: MJX (JAX on this machine's CPU) and classic MuJoCo on
+    threads. Default env (residual walking reference, domain randomisation, pushes), zero actions."""
+    from dataclasses import replace
+
     import jax
     import jax.numpy as jnp
 
     from toddlerbot.rl.config import EnvConfig
     from toddlerbot.rl.env import WalkEnv
+    from toddlerbot.rl.reference import load_reference
+    from toddlerbot.robot.description import RobotDescription
 
+    description = RobotDescription.load()
     t0 = time.perf_counter()
-    env = WalkEnv(EnvConfig())
-    print(f"env construction (incl. ZMP reference table, {env.reference_source}): {time.perf_counter() - t0:.1f} s")
-    for batch in batches:
-        reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
-        t0 = time.perf_counter()
-        state = reset(jax.random.split(jax.random.PRNGKey(0), batch))
-        jax.block_until_ready(state.obs)
-        t_reset = time.perf_counter() - t0
-        action = jnp.zeros((batch, env.action_size))
-        t0 = time.perf_counter()
-        state = step(state, action)
-        jax.block_until_ready(state.obs)
-        t_step = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        for _ in range(steps):
+    reference, _ = load_reference(description, EnvConfig().command, EnvConfig().ctrl_dt)
+    print(f"ZMP reference table: {time.perf_counter() - t0:.1f} s", flush=True)
+    rates = {}
+    for backend, batches in (("mjx", mjx_batches), ("cpu", cpu_batches)):
+        env = WalkEnv(replace(EnvConfig(), backend=backend), description, reference=reference)
+        for batch in batches:
+            reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+            t0 = time.perf_counter()
+            state = reset(jax.random.split(jax.random.PRNGKey(0), batch))
+            jax.block_until_ready(state.obs)
+            t_reset = time.perf_counter() - t0
+            action = jnp.zeros((batch, env.action_size))
+            t0 = time.perf_counter()
             state = step(state, action)
-        jax.block_until_ready(state.obs)
-        rate = batch * steps / (time.perf_counter() - t0)
-        print(f"batch {batch:4d}: compile reset {t_reset:.1f} s, step {t_step:.1f} s; {rate:.0f} env steps/s "
-              f"({rate * env.cfg.n_substeps:.0f} physics steps/s, {rate * env.cfg.ctrl_dt:.2f}x real time)")
+            jax.block_until_ready(state.obs)
+            t_step = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                state = step(state, action)
+            jax.block_until_ready(state.obs)
+            rate = batch * steps / (time.perf_counter() - t0)
+            rates[backend] = max(rates.get(backend, 0.0), rate)
+            print(f"{backend} batch {batch:4d}: compile reset {t_reset:.1f} s, step {t_step:.1f} s; {rate:.0f} env "
+                  f"steps/s ({rate * env.cfg.n_substeps:.0f} physics steps/s, {rate * env.cfg.ctrl_dt:.2f}x real "
+                  f"time); load average {os.getloadavg()[0]:.1f}", flush=True)
+    if "mjx" in rates and "cpu" in rates:
+        print(f"CPU backend / MJX (best batch of each, this run): {rates['cpu'] / rates['mjx']:.2f}x")
 
 
 SETTINGS = (  # (contacts, Newton iterations, line-search iterations, Jacobian, linkage weld loops)
@@ -104,7 +132,7 @@ def _config(setting: tuple):
 
     contacts, iterations, ls_iterations, jacobian, loops = setting
     return replace(EnvConfig(), randomize=False, contacts=contacts, solver_iterations=iterations,
-                   solver_ls_iterations=ls_iterations, jacobian=jacobian, linkage_loops=loops)
+                   solver_ls_iterations=ls_iterations, jacobian=jacobian, linkage_loops=loops, backend="mjx")
 
 
 def _label(setting: tuple) -> str:
@@ -144,11 +172,12 @@ def bench_settings(n_envs: int, seconds: float, settings: tuple = SETTINGS) -> N
     from toddlerbot.robot.description import RobotDescription
 
     description = RobotDescription.load()
-    reference = standing_table(description, smoke_env_config().command, period=0.72)
+    reference = standing_table(description, smoke_env_config().command, period=0.6)
+    gains = (np.ones(description.n_motors), np.zeros((2, description.n_motors)))
     print(f"MJX stand {seconds:.0f} s with zero actions, {n_envs} envs, no randomisation, "
           f"matmul precision {_precision()}:")
     for setting in settings:
-        env = WalkEnv(_config(setting), description, reference=reference)
+        env = WalkEnv(_config(setting), description, reference=reference, gain_scales=gains)
         r = stand(env, n_envs, seconds)
         z = r.torso_height
         residual, worst = equality_residual(env.mj_model, r.qpos)
@@ -165,8 +194,10 @@ def _precision() -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--env", action="store_true", help="also benchmark the MJX environment (slow on CPU)")
-    parser.add_argument("--batches", type=int, nargs="+", default=[1, 32])
+    parser.add_argument("--env", action="store_true",
+                        help="also benchmark the environment on both physics backends (minutes on a CPU)")
+    parser.add_argument("--mjx-batches", type=int, nargs="+", default=[32, 128])
+    parser.add_argument("--cpu-batches", type=int, nargs="+", default=[64, 256])
     parser.add_argument("--steps", type=int, default=20)
     parser.add_argument("--solver-cpu", action="store_true",
                         help="each setting's model in CPU MuJoCo (float64): stable?, residual (seconds, no JAX)")
@@ -182,7 +213,7 @@ def main() -> None:
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}")
     bench_inference()
     if args.env:
-        bench_env(tuple(args.batches), args.steps)
+        bench_env(tuple(args.mjx_batches), tuple(args.cpu_batches), args.steps)
     if args.solver_cpu:
         bench_solver_cpu(args.stand_seconds)
     if args.settings:

@@ -15,6 +15,7 @@ import toddlerbot.rl.model as rl_model
 import toddlerbot.robot.builder as builder
 import toddlerbot.robot.description as description_module
 from toddlerbot.cli.main import app
+from toddlerbot.rl import randomization
 from toddlerbot.rl.config import EnvConfig, smoke_env_config
 from toddlerbot.rl.env import WalkEnv
 from toddlerbot.rl.export import motor_params_record
@@ -25,7 +26,11 @@ KNEE_MODEL = "XM430-W210"
 
 
 def _reference(description):
-    return standing_table(description, smoke_env_config().command, period=0.72)
+    return standing_table(description, smoke_env_config().command, period=0.6)
+
+
+_GAINS = (np.ones(30), np.zeros((2, 30)))
+"""P-gain factors given like the reference (walk-zmp's would build its generator and compile its models)."""
 
 
 def test_building_the_env_builds_each_derived_object_once(monkeypatch):
@@ -48,7 +53,7 @@ def test_building_the_env_builds_each_derived_object_once(monkeypatch):
     monkeypatch.setattr(builder, "build_model", lambda *a, **k: compiles.append(1) or original_build_model(*a, **k))
 
     description = RobotDescription.load()
-    env = WalkEnv(EnvConfig(), description, reference=_reference(description))
+    env = WalkEnv(EnvConfig(), description, reference=_reference(description), gain_scales=_GAINS)
     assert env.description is description
     assert counts == {"load_spec": 1, "build_transmission_map": 1, "build_mjspec": 1}
     assert compiles == []  # the training variant is the only compiled model (not the simulator's as well)
@@ -64,9 +69,10 @@ def _params_file(tmp_path, **actuator):
 def test_motor_params_change_what_the_env_simulates(tmp_path):
     path = _params_file(tmp_path, damping=0.02, armature=0.005, tau_max=2.5, q_dot_max=9.0)
     nominal_description = RobotDescription.load()
-    nominal = WalkEnv(EnvConfig(), nominal_description, reference=_reference(nominal_description))
-    cfg = EnvConfig(motor_params=(str(path),))
-    fitted = WalkEnv(cfg, reference=_reference(nominal_description))
+    nominal = WalkEnv(EnvConfig(backend="cpu"), nominal_description, reference=_reference(nominal_description),
+                      gain_scales=_GAINS)
+    cfg = EnvConfig(motor_params=(str(path),), backend="cpu")
+    fitted = WalkEnv(cfg, reference=_reference(nominal_description), gain_scales=_GAINS)
     assert fitted.description.motor_params_files == (str(path),)
     knees = np.array([i for i, m in enumerate(fitted.description.motors) if m.model == KNEE_MODEL])
     others = np.setdiff1d(np.arange(fitted.n_motors), knees)
@@ -77,11 +83,14 @@ def test_motor_params_change_what_the_env_simulates(tmp_path):
     np.testing.assert_array_equal(np.asarray(fitted.actuators.tau_max)[others],
                                   np.asarray(nominal.actuators.tau_max)[others])
     assert not np.allclose(np.asarray(nominal.actuators.tau_max)[knees], 2.5)
-    # ... and the joint damping / armature of the MJX model (what domain randomisation then scales)
+    # ... and the joint damping / armature of the training model both backends step (the CPU backend's nominal
+    # fields, what domain randomisation then scales)
     dofs = fitted.motor_dadr[knees]
-    np.testing.assert_allclose(np.asarray(fitted.sys.dof_damping)[dofs], 0.02)
-    np.testing.assert_allclose(np.asarray(fitted.sys.dof_armature)[dofs], 0.005)
-    assert not np.allclose(np.asarray(nominal.sys.dof_damping)[dofs], 0.02)
+    for fields in (fitted.physics._nominal, {k: np.asarray(v) for k, v in fitted.model_fields(
+            randomization.nominal(fitted.mj_model.nv, fitted.mj_model.nbody, fitted.n_motors)).items()}):
+        np.testing.assert_allclose(fields["dof_damping"][dofs], 0.02, rtol=1e-6)
+        np.testing.assert_allclose(fields["dof_armature"][dofs], 0.005, rtol=1e-6)
+    assert not np.allclose(nominal.mj_model.dof_damping[dofs], 0.02)
     # the record a run and its export keep
     record = motor_params_record(cfg.motor_params)
     assert record[0]["file"] == str(path) and len(record[0]["sha256"]) == 64
@@ -92,7 +101,8 @@ def test_description_must_match_the_configs_motor_params(tmp_path):
     path = _params_file(tmp_path, damping=0.02)
     description = RobotDescription.load()
     with pytest.raises(ValueError, match="motor params"):
-        WalkEnv(EnvConfig(motor_params=(str(path),)), description, reference=_reference(description))
+        WalkEnv(EnvConfig(motor_params=(str(path),)), description, reference=_reference(description),
+                gain_scales=_GAINS)
 
 
 def test_cli_rejects_a_bad_params_file_in_one_line_before_compiling(tmp_path):

@@ -89,7 +89,8 @@ def test_controller_keeps_history_and_maps_actions_to_leg_targets(tmp_path):
     obs1 = ctrl.observation(0.0, [0.1, 0, 0], home, np.zeros(30), np.zeros(3), np.array([1.0, 0, 0, 0]))
     frame = ctrl.cfg.frame_size(30, 12)
     np.testing.assert_array_equal(obs1[:frame], obs1[frame:])  # history starts as copies of the first frame
-    targets = ctrl.step(0.02, [0.1, 0, 0], home, np.zeros(30), np.zeros(3), np.array([1.0, 0, 0, 0]))
+    targets, kp_scale = ctrl.step(0.02, [0.1, 0, 0], home, np.zeros(30), np.zeros(3), np.array([1.0, 0, 0, 0]))
+    assert kp_scale is None  # exported without a gain schedule: the spec's gains
     legs = ctrl.policy.leg_motor_index
     others = np.setdiff1d(np.arange(30), legs)
     np.testing.assert_array_equal(targets[others], home[others])
@@ -102,3 +103,59 @@ def test_missing_or_foreign_file_is_a_clear_error(tmp_path):
     np.savez(tmp_path / "other.npz", x=np.zeros(3), meta=np.array(json.dumps({})))
     with pytest.raises(ToddlerbotError, match="not an exported RL policy"):
         RLPolicyFile(tmp_path / "other.npz")
+
+
+def test_residual_policy_targets_the_reference_like_the_environment(tmp_path):
+    """A zero action walks the gait reference, interpolated at the command and phase the same way on the robot
+    (numpy) as in training (JAX), with walk-zmp's gain schedule from the reference's stance flags."""
+    jnp = pytest.importorskip("jax.numpy")
+    from toddlerbot.policies.rl_inference import GaitReference
+    from toddlerbot.policies.walk_rl import WalkRLPolicy
+    from toddlerbot.rl.config import EnvConfig, smoke_env_config
+    from toddlerbot.rl.env import WalkEnv
+    from toddlerbot.rl.export import write_policy
+    from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+    rng = np.random.default_rng(2)
+    description = RobotDescription.load()
+    home = description.home_motor_pos[description.groups["leg"]]
+    reference = GaitReference(np.array([-0.1, 0.0, 0.15]), np.array([-0.08, 0.08]), np.array([-0.4, 0.4]), 0.6,
+                              home + 0.2 * rng.normal(size=(3, 2, 2, 30, 12)),
+                              np.tile((np.arange(30)[:, None] + [0, 15]) % 30 < 20, (3, 2, 2, 1, 1)).astype(float))
+    gains = (np.full(30, 2.0), np.stack([np.where(np.arange(30) < 15, 3.0, 0.0), np.where(np.arange(30) >= 15, 3.0,
+                                                                                           0.0)]))
+    env = WalkEnv(replace_backend(smoke_env_config()), description, reference=reference, gain_scales=gains)
+    path, *_ = _random_export(tmp_path, history=env.cfg.obs.history)
+    arrays = {k: v for k, v in np.load(path).items()
+              if k.startswith(("layer", "obs_mean", "obs_std", "distribution", "action_std"))}
+    space = {**reference.arrays(), "kp_stance_scale": gains[0], "kp_swing_scale": gains[1]}
+    path = write_policy(tmp_path / "residual.npz", arrays, EnvConfig(obs=env.cfg.obs), {"ctrl_dt": 0.02}, description,
+                        space)
+    ctrl = RLController(RLPolicyFile(path))
+    legs = ctrl.policy.leg_motor_index
+    for command, t in (([0.05, 0.0, 0.1], 0.0), ([0.12, -0.03, -0.25], 0.37), ([0.2, 0.1, 0.0], 7.31)):
+        targets, kp_scale = ctrl.motor_targets(np.zeros(12), np.array(command), t)
+        ref_leg, _ = reference.at(np.array(command), t)
+        np.testing.assert_allclose(targets[legs], ref_leg, atol=1e-12)  # zero action = the reference
+        env_targets, env_kp = env.motor_targets(jnp.zeros(12), jnp.asarray(command), jnp.asarray(t))
+        np.testing.assert_allclose(np.asarray(env_targets), targets, atol=2e-5)
+        np.testing.assert_allclose(np.asarray(env_kp), kp_scale, atol=1e-6)
+        action = rng.uniform(-1, 1, 12)
+        moved, _ = ctrl.motor_targets(action, np.array(command), t)
+        np.testing.assert_allclose(moved[legs] - ref_leg, ctrl.cfg.action_scale * action, atol=1e-12)
+    assert set(np.unique(kp_scale)) <= {2.0, 3.0}
+    # the runtime policy sends the scheduled gains and follows the trained command ranges
+    robot = MuJoCoRobot(description)
+    policy = WalkRLPolicy(robot, path)
+    obs = robot.reset()
+    policy.reset(obs)
+    action = policy.act(obs, np.array([0.05, 0.0, 0.0]))
+    np.testing.assert_allclose(action.kp[legs], robot.default_kp[legs] * 2.0)  # t = 0: both feet down
+    assert policy.command_reach.high == tuple(env.cfg.command.vx[1:] + env.cfg.command.vy[1:] + env.cfg.command.yaw[1:])
+
+
+def replace_backend(cfg):
+    from dataclasses import replace
+
+    return replace(cfg, backend="cpu")

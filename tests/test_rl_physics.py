@@ -40,8 +40,9 @@ def description():
 
 @pytest.fixture(scope="module")
 def env(description):
-    cfg = EnvConfig(randomize=False)
-    return WalkEnv(cfg, description, reference=standing_table(description, smoke_env_config().command, 0.72))
+    cfg = EnvConfig(randomize=False, backend="mjx")
+    return WalkEnv(cfg, description, reference=standing_table(description, smoke_env_config().command, 0.6),
+                   gain_scales=(np.ones(30), np.zeros((2, 30))))
 
 
 def test_zero_actions_hold_the_home_pose_for_10_s(env):

@@ -2,8 +2,8 @@
 tests and by ``benchmarks/bench_rl.py``).
 
 * `stand`: zero actions (leg targets = home) in a batch of environments; torso heights over time.
-* `replay_motor_targets`: the nominal MJX robot driven by a motor-target sequence (an open-loop motion), to
-  compare with `toddlerbot.sim.mujoco_robot.MuJoCoRobot` driven by the same sequence.
+* `replay_motor_targets`: the nominal robot of the env's physics backend driven by a motor-target sequence (an
+  open-loop motion), to compare with `toddlerbot.sim.mujoco_robot.MuJoCoRobot` driven by the same sequence.
 * `stand_cpu`: the same training model stepped by CPU MuJoCo in float64 (cheap; separates solver settings that
   cannot work from float32 effects).
 * `equality_residual`: how far the transmission constraints (joint couplings, linkage welds) are violated.
@@ -19,9 +19,9 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.model import motor_torque
 from toddlerbot.rl.env import WalkEnv
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.actuated import MotorAddresses, step_actuated
 
 
 @dataclass(frozen=True)
@@ -63,17 +63,19 @@ def stand(env: WalkEnv, n_envs: int, seconds: float, seed: int = 0, sample_every
 
 
 def replay_motor_targets(env: WalkEnv, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Drive the nominal MJX robot from the home state with (control steps, n_motors) motor targets, rad, one
+    """Drive the env's nominal robot from the home state with (control steps, n_motors) motor targets, rad, one
     row per control period. Returns the torso height (steps,) m and the motor angles (steps, n_motors) rad
     after each period."""
 
+    physics = env.physics
+
     @jax.jit
     def run(targets):
-        def body(data, target):
-            data, _ = env.physics_step(data, target)
-            return data, (data.qpos[2], data.qpos[env.motor_qadr])
+        def body(state, target):
+            state, frame = physics.step(state, target, None, env.actuators)
+            return state, (frame.qpos[2], frame.qpos[env.motor_qadr])
 
-        return jax.lax.scan(body, env.home_data, targets)[1]
+        return jax.lax.scan(body, physics.home_state, targets)[1]
 
     height, motor_pos = jax.device_get(run(jnp.asarray(targets, dtype=jnp.float32)))
     return np.asarray(height), np.asarray(motor_pos)
@@ -85,13 +87,11 @@ def stand_cpu(model: mujoco.MjModel, description: RobotDescription, seconds: flo
     Returns (time of divergence in s or None, torso heights per physics step (m), sampled qpos)."""
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
-    joints = model.actuator_trnid[:, 0]
-    qadr, dadr = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
-    home, act = np.asarray(description.home_motor_pos), description.actuator_arrays()
+    motors = MotorAddresses.of(model, description.motor_names)
+    home, act = np.asarray(description.home_motor_pos)[None], description.actuator_arrays()
     heights, samples = [], []
     for k in range(round(seconds / model.opt.timestep)):
-        data.ctrl[:] = motor_torque(home, data.qpos[qadr], data.qvel[dadr], act)
-        mujoco.mj_step(model, data)
+        step_actuated([model], [data], motors, home, act, 1)
         if not np.all(np.isfinite(data.qpos)) or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
             return k * model.opt.timestep, np.array(heights), np.array(samples)
         heights.append(data.qpos[2])

@@ -176,30 +176,40 @@ class MJXPhysics:
 
 @flax.struct.dataclass
 class CPUState:
-    """The float64 simulation state of one env as float32 pairs: qpos = ``qpos`` + ``qpos_lo`` (likewise qvel),
-    and the constraint solver's warm start. Writing ``qvel`` (a push) changes the velocity as expected."""
+    """The float64 simulation state of one env, carried exactly in float32 arrays: qpos = ``qpos`` +
+    ``qpos_lo[0]`` + ``qpos_lo[1]`` (likewise qvel and the constraint solver's warm start). The env reads and
+    pushes ``qpos`` / ``qvel``."""
 
     qpos: jax.Array
     qpos_lo: jax.Array
     qvel: jax.Array
     qvel_lo: jax.Array
     qacc_warmstart: jax.Array
+    qacc_warmstart_lo: jax.Array
 
     @classmethod
     def of_batch(cls, datas: list[mujoco.MjData]) -> CPUState:
         """The states of classic MuJoCo data, stacked (batch first)."""
-        qpos, qpos_lo = _split(np.stack([d.qpos for d in datas]))
-        qvel, qvel_lo = _split(np.stack([d.qvel for d in datas]))
-        return cls(qpos, qpos_lo, qvel, qvel_lo, np.stack([d.qacc_warmstart for d in datas]).astype(np.float32))
+        parts = [_split(np.stack([getattr(d, name) for d in datas])) for name in ("qpos", "qvel", "qacc_warmstart")]
+        return cls(*(x for part in parts for x in part))
+
+    def float64(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(qpos, qvel, qacc_warmstart) of env i of a host-side (numpy) batch."""
+        return (_join(self.qpos[i], self.qpos_lo[i]), _join(self.qvel[i], self.qvel_lo[i]),
+                _join(self.qacc_warmstart[i], self.qacc_warmstart_lo[i]))
 
 
 def _split(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """float64 (..., n) -> float32 (..., n) and (..., 2, n) parts whose float64 sum is x (24 + 24 + 24 bits hold
+    the 53 of a double)."""
     hi = x.astype(np.float32)
-    return hi, (x - hi).astype(np.float32)
+    rest = x - hi
+    mid = rest.astype(np.float32)
+    return hi, np.stack([mid, (rest - mid).astype(np.float32)], axis=-2)
 
 
 def _join(hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
-    return hi.astype(np.float64) + lo.astype(np.float64)
+    return hi.astype(np.float64) + lo[..., 0, :].astype(np.float64) + lo[..., 1, :].astype(np.float64)
 
 
 class CPUPhysics:
@@ -217,12 +227,13 @@ class CPUPhysics:
         self.home_state = jax.tree.map(lambda x: jnp.asarray(x[0]), CPUState.of_batch([home]))
         self.home_frame = jax.tree.map(lambda x: jnp.asarray(x[0], jnp.float32),
                                        _frames_of(addresses, [home], np.zeros((1, model.nu))))
-        self._nominal = {name: np.asarray(getattr(model, name)) for name in MODEL_FIELDS}
+        self._nominal = {name: np.array(getattr(model, name)) for name in MODEL_FIELDS}
 
     def step(self, state: CPUState, targets: jax.Array, fields: dict[str, jax.Array] | None,
              actuators: ActuatorArrays) -> tuple[CPUState, Frame]:
-        """As `MJXPhysics.step` (any leading batch shape; under ``vmap`` the whole batch is one host call)."""
-        fields = {k: jnp.asarray(v, jnp.float32) for k, v in (fields or self._nominal).items()}
+        """As `MJXPhysics.step` (any leading batch shape; under ``vmap`` the whole batch is one host call).
+        ``fields`` None keeps the nominal model's float64 values."""
+        fields = {} if fields is None else {k: jnp.asarray(v, jnp.float32) for k, v in fields.items()}
         out = (jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), self.home_state),
                jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, jnp.float32), self.home_frame))
         return jax.pure_callback(self._host_step, out, state, targets, fields, actuators,
@@ -256,11 +267,9 @@ class CPUPhysics:
         models = [self._models[i] for i in idx]
         datas = [self._datas[i] for i in idx]
         for i, m, d in zip(idx, models, datas, strict=True):
-            for name, value in fields.items():
-                getattr(m, name)[:] = value[i]
-            d.qpos[:] = _join(state.qpos[i], state.qpos_lo[i])
-            d.qvel[:] = _join(state.qvel[i], state.qvel_lo[i])
-            d.qacc_warmstart[:] = state.qacc_warmstart[i]
+            for name in MODEL_FIELDS:
+                getattr(m, name)[:] = fields[name][i] if fields else self._nominal[name]
+            d.qpos[:], d.qvel[:], d.qacc_warmstart[:] = state.float64(i)
             d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
         torque = step_actuated(models, datas, self.addresses.motors, targets[idx],
                                ActuatorArrays(*(x[idx] for x in actuators)), self.n_substeps)
