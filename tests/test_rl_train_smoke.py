@@ -1,6 +1,7 @@
 """SMOKE TRAINING RUN (slow: a few minutes on a 2-core CPU, mostly XLA compilation).
 
-`toddlerbot rl train --smoke` runs one epoch and stops, `--resume` continues from its checkpoint (optimiser state
+`toddlerbot rl train --smoke` (on the CPU backend, this machine having no GPU) makes a tiny DAgger warm start,
+runs one PPO epoch and stops, `--resume` continues from its checkpoint (optimiser state
 included) for the second epoch, and the export of the result acts exactly like the JAX policy. Each CLI call is
 its own process (the smoke run sets its XLA flags before JAX starts); a persistent compilation cache lets the
 resumed run reuse the first run's compiled program.
@@ -48,6 +49,16 @@ def smoke_run(tmp_path_factory):
     final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], *train.load_config(run),
                                                description)
     return run, first, ckpt1, final, history
+
+
+def test_smoke_run_starts_from_the_dagger_warm_start(smoke_run):
+    run = smoke_run[0]
+    records = [json.loads(line) for line in (run / "imitation.jsonl").read_text().splitlines()]
+    assert len(records) == config.SMOKE_IMITATION.iterations and records[0]["teacher_drives"]
+    assert records[0]["samples"] == config.SMOKE_IMITATION.num_envs * config.SMOKE_IMITATION.steps
+    assert np.isfinite(records[0]["bc_loss"])
+    assert (run / train.WARM_START).stat().st_size > 1000
+    assert json.loads((run / "config.json").read_text())["env"]["backend"] == "cpu"  # no GPU: the CPU backend
 
 
 def test_smoke_run_trains_two_epochs_with_sane_metrics(smoke_run):
@@ -101,5 +112,8 @@ def test_export_of_the_smoke_run_matches_jax_policy(smoke_run, tmp_path):
     expected, _ = act({"state": obs, "privileged_state": np.zeros((8, critic), np.float32)}, jax.random.PRNGKey(0))
     np.testing.assert_allclose(np.stack([policy.action(o) for o in obs]), np.clip(np.asarray(expected), -1, 1),
                                atol=1e-5)
-    assert policy.meta["env_steps"] == int(final.env_steps)
+    warm = config.SMOKE_IMITATION.num_envs * config.SMOKE_IMITATION.steps
+    assert policy.meta["env_steps"] == int(final.env_steps) + warm and policy.meta["imitation_env_steps"] == warm
+    assert policy.meta["device"].startswith("CPU") and policy.meta["walltime_s"] > 0
     assert policy.obs_config == env_cfg.obs
+    assert policy.reference is not None and policy.gain_scales is not None  # residual, walk-zmp's gains

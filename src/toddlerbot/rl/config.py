@@ -236,8 +236,9 @@ CPU = PPOConfig(
 """The CPU recipe's PPO (docs/rl.md, "Training on a CPU"): 256 environments, one 20-step rollout of each per
 update (5,120 env steps), 4 minibatches, networks a quarter of Table 5's cost, and a narrower exploration noise
 around the warm-started policy; ~10 updates per epoch (stop it with ``--minutes``)."""
-CPU_IMITATION = ImitationConfig(iterations=6, num_envs=64, steps=250, bc_steps=2000)
-"""The CPU recipe's warm start: 6 DAgger iterations of 64 envs x 5 s (the first driven by walk-zmp)."""
+CPU_IMITATION = ImitationConfig(iterations=4, num_envs=48, steps=250, bc_steps=1500)
+"""The CPU recipe's warm start: 4 DAgger iterations of 48 envs x 5 s (the first driven by walk-zmp): 48,000
+labels, walk-zmp costing about 5 ms of one core per label."""
 SMOKE = PPOConfig(
     num_timesteps=2 * 4 * 2 * 5, num_envs=4, episode_length=40, unroll_length=5, batch_size=4, num_minibatches=2,
     num_updates_per_batch=1, policy_hidden=(32, 32), value_hidden=(32, 32), num_evals=2, num_eval_envs=0,

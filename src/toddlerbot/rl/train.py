@@ -431,13 +431,21 @@ def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts:
                          json.loads(payload["history"]))
         return warm, warm.history[-1]["walltime"] if warm.history else 0.0
     deadline = None if time_limit_s is None else t_start + time_limit_s
-    warm = dagger(env, ppo.networks, cfg, ppo.cfg.episode_length, ppo.cfg.discounting, key, deadline, progress,
+    log = run_dir / "imitation.jsonl"
+    log.unlink(missing_ok=True)  # an interrupted warm start starts over
+
+    def record(m: dict) -> None:
+        with log.open("a") as f:
+            f.write(json.dumps(m) + "\n")
+        if progress:
+            progress(m)
+
+    warm = dagger(env, ppo.networks, cfg, ppo.cfg.episode_length, ppo.cfg.discounting, key, deadline, record,
                   t_start=t_start)
     arrays = {"policy": warm.policy, "value": warm.value, "normalizer": warm.normalizer,
               "env_steps": np.asarray(warm.env_steps, np.int64)}
     state = serialization.to_state_dict(jax.device_get(arrays))
     atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state, "history": json.dumps(warm.history)}))
-    atomic_write_text(run_dir / "imitation.jsonl", "".join(json.dumps(h) + "\n" for h in warm.history))
     return warm, time.perf_counter() - t_start
 
 
