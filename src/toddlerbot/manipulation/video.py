@@ -44,7 +44,7 @@ class SideBySideVideo:
     def add(self, head_image: np.ndarray) -> np.ndarray:
         """Render the scene camera now, put the head image (scaled up) beside it, encode; returns the frame."""
         renderer = self._recorder.renderer
-        renderer.update_scene(self._recorder.data, self._recorder.camera)
+        renderer.update_scene(self._recorder.data, self._recorder.camera, self._recorder.option)
         fast_scene(renderer.scene)
         scene = renderer.render().copy()
         height = scene.shape[0]
