@@ -139,7 +139,7 @@ def train(
                                     imitation_cfg=imitation_cfg, imitation_progress=imitation_progress)
     if not history:
         raise ToddlerbotError(f"{run_dir}: no epoch ran (limits too tight?)")
-    png = plot.training_curve(history, run_dir / "training_curve.png")
+    png = plot.training_curve(history, run_dir / "training_curve.png", warm=plot.run_records(run_dir)[0])
     last = history[-1]
     console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s "
                   f"({last['sps']:.0f} steps/s), reward/step {last['step_reward']:.3f}; curve {png}")
@@ -149,11 +149,13 @@ def train(
 def export(
     run: Annotated[Path, typer.Argument(help="Training run directory.")],
     out: Annotated[Path, typer.Option(help="Exported .npz.")] = DEFAULT_WEIGHTS,
+    checkpoint: Annotated[str | None, typer.Option(help="A checkpoint file name of the run (default: the latest; "
+                                                        "'warm_start': the DAgger warm start).")] = None,
 ) -> None:
     """Write the run's latest checkpoint as a numpy-only policy file for the `walk-rl` runtime policy."""
     output_file(out, "--out")
     _require_jax()
     from toddlerbot.rl.export import export_run
 
-    path = export_run(run, out)
+    path = export_run(run, out, checkpoint=checkpoint)
     console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")

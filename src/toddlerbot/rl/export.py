@@ -68,26 +68,36 @@ def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
     return record
 
 
-def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None) -> Path:
-    """Export the latest checkpoint of a training run (for the run's robot: packaged spec + its params.json)."""
+def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None,
+               checkpoint: str | None = None) -> Path:
+    """Export a checkpoint of a training run (for the run's robot: packaged spec + its params.json): the latest,
+    the named file of ``checkpoints/``, or ``warm_start`` (the DAgger warm start, before PPO)."""
     from toddlerbot.rl import train  # jax-heavy; keep `write_policy` importable alone
 
     run_dir = Path(run_dir)
     env_cfg, ppo_cfg = train.load_config(run_dir)
     paths = train.checkpoint_paths(run_dir)
-    if not paths:
-        raise ToddlerbotError(f"{run_dir}: no checkpoint to export")
+    if checkpoint not in (None, "warm_start"):
+        paths = [p for p in paths if p.name == checkpoint]
     description = description or RobotDescription.load(motor_params=env_cfg.motor_params)
-    state, history = restore_checkpoint(paths[-1], env_cfg, ppo_cfg, description)
     obs_size = _actor_width(env_cfg, description)
-    arrays = policy_arrays(state.params.policy, state.normalizer_params, ppo_cfg.normalize_observations, obs_size)
+    warm = _imitation_record(run_dir)
+    if checkpoint == "warm_start":
+        params, normalizer, steps, history = _warm_start_params(run_dir, env_cfg, ppo_cfg, description)
+        name, warm = train.WARM_START, []
+    else:
+        if not paths:
+            raise ToddlerbotError(f"{run_dir}: no checkpoint {checkpoint or ''} to export")
+        state, history = restore_checkpoint(paths[-1], env_cfg, ppo_cfg, description)
+        params, normalizer, steps, name = state.params.policy, state.normalizer_params, int(state.env_steps), \
+            paths[-1].name
+    arrays = policy_arrays(params, normalizer, ppo_cfg.normalize_observations, obs_size)
     last = history[-1] if history else {}
     record = run_dir / MOTOR_PARAMS_RECORD
-    warm = _imitation_record(run_dir)
     meta = {"ctrl_dt": env_cfg.ctrl_dt, "reference": run_reference_source(run_dir), "run": run_dir.name,
-            "checkpoint": paths[-1].name, "ppo_env_steps": int(state.env_steps),
+            "checkpoint": name, "ppo_env_steps": steps,
             "imitation_env_steps": warm[-1]["env_steps"] if warm else 0,
-            "env_steps": int(state.env_steps) + (warm[-1]["env_steps"] if warm else 0),
+            "env_steps": steps + (warm[-1]["env_steps"] if warm else 0),
             "walltime_s": last.get("walltime"), "episode_reward": last.get("episode_reward"),
             "episode_length": last.get("episode_length"),
             "step_reward": last.get("step_reward"), "sps": last.get("sps"), "device": last.get("device"),
@@ -102,6 +112,24 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
 ACTION_SPACE = "action_space.npz"
 """File in a run directory: the gait reference the run's env used (`GaitReference.arrays`) and its P-gain factors
 (``kp_stance_scale``, ``kp_swing_scale``), written at the start so that the export carries exactly them."""
+
+
+def _warm_start_params(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription):
+    """(actor parameters, normaliser, env steps, records) of the run's DAgger warm start."""
+    from flax import serialization
+
+    from toddlerbot.rl import train
+
+    path = run_dir / train.WARM_START
+    if not path.is_file():
+        raise ToddlerbotError(f"{run_dir}: no warm start to export")
+    state, _ = _template(env_cfg, ppo_cfg, description, _critic_width_warm(path))
+    payload = serialization.msgpack_restore(path.read_bytes())
+    template = {"policy": state.params.policy, "value": state.params.value, "normalizer": state.normalizer_params,
+                "env_steps": np.zeros((), np.int64)}
+    arrays = serialization.from_state_dict(template, payload["warm"])
+    records = json.loads(payload["history"])
+    return arrays["policy"], arrays["normalizer"], int(arrays["env_steps"]), records
 
 
 def _imitation_record(run_dir: Path) -> list[dict]:
@@ -125,16 +153,23 @@ def _actor_width(env_cfg: EnvConfig, description: RobotDescription) -> int:
 
 def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription):
     """(TrainingState, metric history) of a checkpoint written with this configuration."""
-    import jax
 
     from toddlerbot.rl import train
 
     # the critic's input width is read back from the checkpoint
-    obs_size = {"state": (_actor_width(env_cfg, description),), "privileged_state": (_critic_width(path),)}
-    networks = train.make_networks(obs_size, len(leg_motor_indices(description)), ppo_cfg)
-    template = train._initial_state(networks, train.make_optimizer(ppo_cfg), obs_size, jax.random.PRNGKey(0))
+    template, _ = _template(env_cfg, ppo_cfg, description, _critic_width(path))
     state, _, history = train.load_checkpoint(path, template)
     return state, history
+
+
+def _template(env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription, critic_width: int):
+    import jax
+
+    from toddlerbot.rl import train
+
+    obs_size = {"state": (_actor_width(env_cfg, description),), "privileged_state": (critic_width,)}
+    networks = train.make_networks(obs_size, len(leg_motor_indices(description)), ppo_cfg)
+    return train._initial_state(networks, train.make_optimizer(ppo_cfg), obs_size, jax.random.PRNGKey(0)), networks
 
 
 def _critic_width(path: Path) -> int:
@@ -142,3 +177,10 @@ def _critic_width(path: Path) -> int:
 
     payload = serialization.msgpack_restore(path.read_bytes())
     return int(np.shape(payload["state"]["normalizer_params"]["mean"]["privileged_state"])[0])
+
+
+def _critic_width_warm(path: Path) -> int:
+    from flax import serialization
+
+    payload = serialization.msgpack_restore(path.read_bytes())
+    return int(np.shape(payload["warm"]["normalizer"]["mean"]["privileged_state"])[0])

@@ -1,7 +1,8 @@
-"""Training-curve plot (matplotlib, Agg backend)."""
+"""Learning curves of training runs (matplotlib, Agg backend)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import matplotlib
@@ -11,22 +12,41 @@ import matplotlib.pyplot as plt
 
 from toddlerbot.files import save_figure
 
+CURVES = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
+          ("lin_vel_error", "|v_xy - command| (m/s)"), ("ang_vel_error", "|yaw rate - command| (rad/s)"))
+"""PPO metrics plotted (episode means of the training episodes that ended in the epoch)."""
 
-def training_curve(history: list[dict], path: Path) -> Path:
-    """Reward per step, episode reward and fall rate against environment steps."""
-    steps = [h["env_steps"] for h in history]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
-    for ax, key, label in (
-        (axes[0], "step_reward", "reward per step"),
-        (axes[1], "episode_reward", "episode reward (finished episodes)"),
-        (axes[2], "fall_rate", "falls per env step"),
-    ):
-        ax.plot(steps, [h.get(key, float("nan")) for h in history], marker="o", ms=3)
-        ax.set_xlabel("environment steps")
-        ax.set_title(label)
-        ax.grid(alpha=0.3)
-    if any("eval/episode_reward" in h for h in history):
-        axes[1].plot(steps, [h.get("eval/episode_reward", float("nan")) for h in history], marker="s", ms=3,
-                     label="evaluation")
-        axes[1].legend()
+
+def run_records(run_dir: Path) -> tuple[list[dict], list[dict]]:
+    """(warm-start records, PPO epoch records) of a run directory."""
+    def read(name: str) -> list[dict]:
+        path = Path(run_dir) / name
+        return [json.loads(line) for line in path.read_text().splitlines() if line] if path.is_file() else []
+
+    return read("imitation.jsonl"), read("metrics.jsonl")
+
+
+def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path) -> Path:
+    """Each run's PPO metrics (`CURVES`) against environment steps (warm start included) and against wall time;
+    a dotted line marks where a run's warm start ended."""
+    fig, axes = plt.subplots(2, len(CURVES), figsize=(4.2 * len(CURVES), 7), squeeze=False)
+    for i, (label, (warm, history)) in enumerate(runs.items()):
+        offset = warm[-1]["env_steps"] if warm else 0
+        for col, (key, title) in enumerate(CURVES):
+            values = [h.get(key, float("nan")) for h in history]
+            steps, minutes = [h["env_steps"] + offset for h in history], [h["walltime"] / 60 for h in history]
+            for row, x in enumerate((steps, minutes)):
+                ax = axes[row, col]
+                ax.plot(x, values, marker="o", ms=2, color=f"C{i}", label=label)
+                if warm:
+                    ax.axvline(offset if row == 0 else warm[-1]["walltime"] / 60, color=f"C{i}", ls=":", lw=1)
+                ax.set_xlabel("environment steps" if row == 0 else "wall time (min)")
+                ax.set_title(title)
+                ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
     return save_figure(fig, path, dpi=110)
+
+
+def training_curve(history: list[dict], path: Path, warm: list[dict] | None = None) -> Path:
+    """One run's learning curves (`learning_curves`)."""
+    return learning_curves({"this run": (warm or [], history)}, path)
