@@ -4,6 +4,8 @@ and env steps per second on this machine.
     PYTHONPATH=src python benchmarks/bench_rl.py            # inference only (seconds)
     PYTHONPATH=src python benchmarks/bench_rl.py --env      # + env compile and throughput, MJX vs the CPU
                                                             #   backend in the same run (minutes)
+    PYTHONPATH=src python benchmarks/bench_rl.py --tracking walk-rl walk-zmp [--weights F.npz]  # Table 7 errors
+                                                            #   on the default and held-out schedules (only)
     PYTHONPATH=src python benchmarks/bench_rl.py --solver-cpu   # + each model setting in CPU MuJoCo (float64)
     PYTHONPATH=src python benchmarks/bench_rl.py --settings # + 10 s stand, constraint residual, steps/s per
                                                             #   training-model setting (a GPU run: add
@@ -114,6 +116,40 @@ def bench_env(mjx_batches: tuple[int, ...], cpu_batches: tuple[int, ...], steps:
         print(f"CPU backend / MJX (best batch of each, this run): {rates['cpu'] / rates['mjx']:.2f}x")
 
 
+HELD_OUT_SCHEDULES = {
+    "fwd-back": "0:0.12,0,0; 4:0.15,0,0; 9:0,0,0; 11:-0.08,0,0; 16:0,0,0",
+    "side-turn": "0:0,0,0; 1:0,0.06,0; 5:0,-0.06,0; 9:0,0,0.35; 13:0,0,-0.35; 17:0.08,0.03,0.2; 21:0,0,0",
+}
+"""Schedules no training run saw (commands are drawn at random in training): 0.15 m/s forward, -0.08 m/s backward,
++-0.06 m/s sideways, +-0.35 rad/s turns and a curve."""
+TABLE7_SIM = (0.082, 0.016, 0.056)
+"""Appendix Table 7, simulation: position m, linear velocity m/s, angular velocity rad/s."""
+
+
+def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | None) -> None:
+    """Table 7 errors of each policy (``walk-rl`` with ``weights``) on the default and the held-out schedules in the
+    CPU simulator (1 ms physics, actuator model), against 1.5 x the appendix's simulation errors."""
+    from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, evaluate_policy, plot_velocity_tracking
+
+    description = RobotDescription.load()
+    bars = tuple(1.5 * x for x in TABLE7_SIM)
+    print(f"tracking errors (position m, lin vel m/s, ang vel rad/s); bars 1.5 x Table 7: {bars}")
+    for name in policies:
+        for label, schedule in {"default": DEFAULT_COMMANDS, **HELD_OUT_SCHEDULES}.items():
+            seconds = float(schedule.split(";")[-1].split(":")[0]) + 2.0 if label != "default" else 26.0
+            t0 = time.perf_counter()
+            r = evaluate_policy(description, name, schedule, seconds, weights=weights if name == "walk-rl" else None)
+            ok = r.falls == 0 and all(e <= b for e, b in zip((r.position_m, r.lin_vel_mps, r.ang_vel_radps), bars,
+                                                              strict=True))
+            wall = time.perf_counter() - t0
+            print(f"  {name:8s} {label:9s}: {r.position_m:.3f} m, {r.lin_vel_mps:.3f} m/s, "
+                  f"{r.ang_vel_radps:.3f} rad/s, falls {r.falls} ({r.duration_s:.0f} s simulated, {wall:.0f} s wall) "
+                  f"{'meets' if ok else 'MISSES'} the bars", flush=True)
+            if plot_dir:
+                plot_velocity_tracking(r, f"{name}, {label}", Path(plot_dir) / f"tracking_{name}_{label}.png")
+
+
 SETTINGS = (  # (contacts, Newton iterations, line-search iterations, Jacobian, linkage weld loops)
     ("all", 4, 8, "dense", True),  # round 1's model
     ("all", 4, 8, "dense", False),
@@ -203,6 +239,10 @@ def main() -> None:
                         help="each setting's model in CPU MuJoCo (float64): stable?, residual (seconds, no JAX)")
     parser.add_argument("--settings", action="store_true",
                         help="stand check, constraint residuals and env steps/s for each training-model setting")
+    parser.add_argument("--tracking", nargs="*", default=None, metavar="POLICY",
+                        help="Table 7 errors on the default and held-out schedules (default policies: walk-rl)")
+    parser.add_argument("--weights", default=None, help="walk-rl's exported .npz (default: the shipped one)")
+    parser.add_argument("--plots", default=None, help="folder for the tracking plots")
     parser.add_argument("--stand-envs", type=int, default=8)
     parser.add_argument("--stand-seconds", type=float, default=10.0)
     args = parser.parse_args()
@@ -211,6 +251,9 @@ def main() -> None:
 
         use_full_precision()  # as training does, before anything compiles
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}")
+    if args.tracking is not None:
+        bench_tracking(args.tracking or ["walk-rl"], args.weights, args.plots)
+        return
     bench_inference()
     if args.env:
         bench_env(tuple(args.mjx_batches), tuple(args.cpu_batches), args.steps)
