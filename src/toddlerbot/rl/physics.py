@@ -101,15 +101,19 @@ class Addresses:
                    float(np.sign(up[axis])), sensor("imu_gyro"), sensor("imu_quat"))
 
 
-def contact_state(a: Addresses, contact_geom, contact_dist, xp=jnp) -> tuple[jax.Array, jax.Array]:
-    """(left/right foot sole touching the floor as 0/1, number of penetrating robot-robot contacts) of one env's
-    contacts: (ncon, 2) geom pairs and (ncon,) distances; ``xp`` numpy (classic MuJoCo) or jax.numpy (MJX)."""
+def contact_state(a: Addresses, contact_geom, contact_dist, xp=jnp, env=None, n_envs: int = 1):
+    """(left/right foot sole touching the floor as 0/1, number of penetrating robot-robot contacts) from contacts
+    as (ncon, 2) geom pairs and (ncon,) distances, for one env, or with ``env`` (ncon,) naming each contact's env,
+    for ``n_envs`` envs at once (numpy: classic MuJoCo's contacts of a batch, concatenated)."""
     g1, g2 = contact_geom[:, 0], contact_geom[:, 1]
     touching = contact_dist < 0.0
     floor = a.floor_geom
-    feet = xp.stack([xp.any(touching & (((g1 == floor) & (g2 == f)) | ((g2 == floor) & (g1 == f))))
-                     for f in a.foot_geoms.tolist()]).astype(xp.float32)
-    return feet, xp.sum(touching & (g1 != floor) & (g2 != floor)).astype(xp.float32)
+    feet = [touching & (((g1 == floor) & (g2 == f)) | ((g2 == floor) & (g1 == f))) for f in a.foot_geoms.tolist()]
+    robot = touching & (g1 != floor) & (g2 != floor)
+    if env is None:
+        return xp.stack([xp.any(f) for f in feet]).astype(xp.float32), xp.sum(robot).astype(xp.float32)
+    count = lambda mask: np.bincount(env[mask], minlength=n_envs)  # noqa: E731
+    return np.stack([count(f) > 0 for f in feet], axis=-1).astype(np.float32), count(robot).astype(np.float32)
 
 
 def read_frame(a: Addresses, qpos, qvel, xmat, site_xpos, site_xmat, sensordata, contact, self_collision,
@@ -135,11 +139,14 @@ def _home(model: mujoco.MjModel) -> mujoco.MjData:
 def _frames_of(a: Addresses, datas: list[mujoco.MjData], torque: np.ndarray) -> Frame:
     """The frames of classic MuJoCo data, stacked (batch first)."""
     stack = lambda name: np.stack([getattr(d, name) for d in datas])  # noqa: E731
-    contacts = [contact_state(a, d.contact.geom[:d.ncon], d.contact.dist[:d.ncon], xp=np) for d in datas]
     n = len(datas)
+    ncon = [d.ncon for d in datas]
+    contact, self_collision = contact_state(
+        a, np.concatenate([d.contact.geom[:k] for d, k in zip(datas, ncon, strict=True)]),
+        np.concatenate([d.contact.dist[:k] for d, k in zip(datas, ncon, strict=True)]), xp=np,
+        env=np.repeat(np.arange(n), ncon), n_envs=n)
     return read_frame(a, stack("qpos"), stack("qvel"), stack("xmat").reshape(n, -1, 3, 3), stack("site_xpos"),
-                      stack("site_xmat").reshape(n, -1, 3, 3), stack("sensordata"),
-                      np.stack([c[0] for c in contacts]), np.stack([c[1] for c in contacts]), torque)
+                      stack("site_xmat").reshape(n, -1, 3, 3), stack("sensordata"), contact, self_collision, torque)
 
 
 class MJXPhysics:
