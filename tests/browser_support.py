@@ -36,6 +36,7 @@ def browser_page(width: int = 1400, height: int = 900):
         browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         try:
             page = browser.new_page(viewport={"width": width, "height": height})
+            page.set_default_timeout(120_000)  # a shared 2-core machine renders WebGL in software, slowly
             page.external = []
             page.on("request", lambda r: page.external.append(r.url) if _external(r.url) else None)
             yield page

@@ -100,6 +100,22 @@ def test_support_polygon_and_com_of_the_home_pose(description):
     assert len(single.polygon) == 4 and np.ptp(single.polygon[:, 1]) < 0.05
 
 
+def test_top_view_marks_the_com_green_inside_and_red_outside(description):
+    from toddlerbot.motion_editor.balance import Balance
+    from toddlerbot.motion_editor.topview import SIZE_PX, top_view
+
+    poses = PoseModel(description)
+    data = poses.pose(np.array(description.home_joint_pos))
+    balance = poses.static_balance()
+    image = top_view(balance, poses.soles(data))
+    assert image.shape == (SIZE_PX, SIZE_PX, 3)
+    green = np.all(image == (40, 170, 70), axis=-1)
+    rows, _ = np.nonzero(green[60:160, 60:160])  # the CoM dot sits mid-picture, the polygon around it
+    assert green.sum() > 300 and abs(np.median(rows) + 60 - SIZE_PX / 2) < 30
+    outside = Balance(balance.com + np.array([0.1, 0, 0]), balance.polygon, -0.04)
+    assert np.all(top_view(outside, poses.soles(data)) == (220, 50, 40), axis=-1).sum() > 300
+
+
 def test_hull_and_margin_are_exact_on_a_square():
     square = convex_hull(np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5], [1, 0.5]]))
     assert len(square) == 4

@@ -28,6 +28,7 @@ from toddlerbot.motion_editor.keyframes import MAX_DURATION_S, MIN_DURATION_S, K
 from toddlerbot.motion_editor.mirror import MirrorMap
 from toddlerbot.motion_editor.playback import Playback, simulate
 from toddlerbot.motion_editor.scene import RobotScene
+from toddlerbot.motion_editor.topview import top_view
 from toddlerbot.policies.motions import INTERPOLATIONS, MotionError, load_motion
 from toddlerbot.robot.description import RobotDescription
 
@@ -81,7 +82,7 @@ class MotionEditor:
         self._quiet = False
         self._playing = threading.Event()
         server.scene.set_up_direction("+z")
-        server.initial_camera.position = (0.5, -0.55, 0.5)
+        server.initial_camera.position = (0.6, -0.37, 0.4)
         server.initial_camera.look_at = (0.0, 0.0, 0.2)
         self.scene = RobotScene(server, self.poses.model)
         self._build_gui(save_path)
@@ -100,6 +101,8 @@ class MotionEditor:
             self.save_button = gui.add_button("Save", icon=viser.Icon.DEVICE_FLOPPY)
         with gui.add_folder("Keyframes"):
             self.table = gui.add_markdown("")
+            self.balance_view = gui.add_image(np.full((8, 8, 3), 255, np.uint8), label="Balance (top view)",
+                                              format="png")
             self.selected = gui.add_dropdown("Keyframe", self._keyframe_labels())
             self.duration = gui.add_number("Duration (s)", 1.0, min=MIN_DURATION_S, max=MAX_DURATION_S, step=0.05,
                                            hint="Time to reach this keyframe from the one before")
@@ -115,7 +118,7 @@ class MotionEditor:
         self.sliders: dict[str, viser.GuiSliderHandle] = {}
         rng = np.rad2deg(self.description.joint_range)
         for limb, joints in limb_groups(self.description).items():
-            with gui.add_folder(limb, expand_by_default=limb in ("Left arm", "Right arm")):
+            with gui.add_folder(limb, expand_by_default=limb == "Right arm"):
                 for joint in joints:
                     k = self.description.joint_names.index(joint)
                     lo, hi = float(np.round(rng[k, 0], 1)), float(np.round(rng[k, 1], 1))
@@ -237,6 +240,7 @@ class MotionEditor:
             data.qpos[:] = playback.qpos[i]
             mujoco.mj_kinematics(model, data)
             self.scene.show(data, playback.balance[i])
+            self.balance_view.image = top_view(playback.balance[i], self.poses.soles(data))
             time.sleep(max(0.0, start + playback.times[i] - playback.times[0] - time.perf_counter()))
 
     def save(self, path_text: str) -> Path | None:
@@ -282,6 +286,7 @@ class MotionEditor:
         data = self.poses.pose(pose)
         balance = self.poses.static_balance()
         self.scene.show(data, balance)
+        self.balance_view.image = top_view(balance, self.poses.soles(data))
         rows = "\n".join(f"| {'▶' if k == i else ''} {k} | {t:.2f} | {d:.2f} |"
                          for k, (t, d) in enumerate(zip(doc.times, doc.durations)))
         self.table.content = (f"| # | t (s) | duration (s) |\n|---|---|---|\n{rows}\n\n"

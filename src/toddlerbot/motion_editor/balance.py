@@ -69,6 +69,10 @@ class PoseModel:
         on_floor = corners[corners[:, 2] < SOLE_CONTACT_M]
         return balance_of(self.data.subtree_com[self._torso], on_floor[:, :2])
 
+    def soles(self, data: mujoco.MjData) -> list[np.ndarray]:
+        """Top-view outline of each sole in state `data`, (k, 2) m."""
+        return [convex_hull(box_corners(self.model, data, g)[:, :2]) for g in self._feet]
+
     def contact_balance(self, data: mujoco.MjData) -> Balance:
         """Balance in a simulated state: the hull of the contact points with the floor."""
         return balance_of(data.subtree_com[self._torso], floor_contacts(data, self._floor))

@@ -1,9 +1,9 @@
 """The robot drawn in a viser scene from the compiled model's geoms, plus the balance overlay.
 
-The model is made of primitives only (boxes, capsules, spheres), so the robot is three batched meshes (unit box,
-unit cylinder, unit sphere; capsules are a cylinder and two end spheres) whose instances take each geom's pose
-and size: one frame of motion is a handful of array messages, not one per geom. Meshes are built here, so the
-page fetches nothing from outside (viser serves its own client).
+The model is made of primitives only (boxes, cylinders, capsules, spheres), so the robot is three batched
+meshes (unit box, unit cylinder, unit sphere; capsules are a cylinder and two end spheres) whose instances take
+each geom's pose and size: one frame of motion is a handful of array messages, not one per geom. Meshes are built
+here, so the page fetches nothing from outside (viser serves its own client).
 """
 
 from __future__ import annotations
@@ -14,6 +14,8 @@ import trimesh
 import viser
 
 from toddlerbot.motion_editor.balance import Balance
+from toddlerbot.robot.builder import COLLISION_GROUP, SKELETON_GROUP
+from toddlerbot.robot.visuals import VISUAL_GROUP
 
 _BOX, _CAPSULE, _SPHERE, _CYLINDER = (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_CAPSULE,
                                       mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CYLINDER)
@@ -22,14 +24,14 @@ FLOOR_Z = 0.001
 """Overlay lines sit this far above the floor, m (not hidden in it)."""
 CROSS_M = 0.015
 """Half-size of the cross marking the CoM's ground projection, m."""
-SEE_THROUGH_OPACITY = 0.3
+SEE_THROUGH_OPACITY = 0.45
 
 
 class RobotScene:
     def __init__(self, server: viser.ViserServer, model: mujoco.MjModel, root: str = "/robot") -> None:
         self.server = server
         self.model = model
-        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]  # the floor is drawn as a grid
+        geoms = drawn_geoms(model)
         self._boxes = [g for g in geoms if model.geom_type[g] == _BOX]
         self._sticks = [g for g in geoms if model.geom_type[g] in (_CAPSULE, _CYLINDER)]
         self._balls = [g for g in geoms if model.geom_type[g] == _SPHERE]
@@ -104,6 +106,14 @@ class RobotScene:
 
 def _colors(rgb: tuple[int, int, int], segments: int) -> np.ndarray:
     return np.tile(np.array(rgb, dtype=np.uint8), (segments, 2, 1))
+
+
+def drawn_geoms(model: mujoco.MjModel) -> list[int]:
+    """The robot's geoms as `sim run --video` draws them: the visual geometry, or where the model has none the
+    collision primitives and the skeleton of thin links (the floor is drawn as a grid instead)."""
+    robot = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
+    visual = [g for g in robot if model.geom_group[g] == VISUAL_GROUP]
+    return visual or [g for g in robot if model.geom_group[g] in (COLLISION_GROUP, SKELETON_GROUP)]
 
 
 def _quats(xmat: np.ndarray) -> np.ndarray:
