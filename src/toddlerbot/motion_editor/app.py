@@ -36,6 +36,8 @@ PACKAGE_DIR = Path(toddlerbot.__file__).resolve().parent
 GROUP_ORDER = ("neck", "waist", "arm", "leg", "gripper")
 FRAME_PERIOD_S = 0.04
 """Playback redraw period, s (25 frames per second of simulated time)."""
+TOP_VIEW_EVERY = 5
+"""Redraw the balance top view every this many playback frames (5 per second)."""
 EDIT_ACTIONS = ("Add", "Delete", "Earlier", "Later")
 MIRROR_ACTIONS = ("Left → right", "Right → left", "Swap")
 
@@ -236,11 +238,13 @@ class MotionEditor:
         step = max(1, round(FRAME_PERIOD_S / float(np.median(np.diff(playback.times))))) if len(playback.times) > 1 \
             else 1
         start = time.perf_counter()
-        for i in range(0, len(playback.times), step):
+        frames = range(0, len(playback.times), step)
+        for n, i in enumerate(frames):
             data.qpos[:] = playback.qpos[i]
             mujoco.mj_kinematics(model, data)
             self.scene.show(data, playback.balance[i])
-            self.balance_view.image = top_view(playback.balance[i], self.poses.soles(data))
+            if n % TOP_VIEW_EVERY == 0 or n == len(frames) - 1:  # a picture per frame would flood a slow browser
+                self.balance_view.image = top_view(playback.balance[i], self.poses.soles(data))
             time.sleep(max(0.0, start + playback.times[i] - playback.times[0] - time.perf_counter()))
 
     def save(self, path_text: str) -> Path | None:
