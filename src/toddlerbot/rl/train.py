@@ -418,7 +418,7 @@ def _cpu_name() -> str:
 def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts: TrainingState, key: jax.Array,
                 t_start: float, time_limit_s: float | None, progress) -> tuple[WarmStart, float]:
     """The run's warm start: loaded from ``warm_start.msgpack`` or made now (DAgger) and saved. Returns it and the
-    run's wall time so far."""
+    wall time the run spent before this call (the loaded warm start's; 0 when made now)."""
     from toddlerbot.rl.imitation import dagger
 
     path = run_dir / WARM_START
@@ -446,7 +446,7 @@ def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts:
               "env_steps": np.asarray(warm.env_steps, np.int64)}
     state = serialization.to_state_dict(jax.device_get(arrays))
     atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state, "history": json.dumps(warm.history)}))
-    return warm, time.perf_counter() - t_start
+    return warm, 0.0  # made in this call: its time is part of this call's wall time
 
 
 def _from_warm_start(ts: TrainingState, warm: WarmStart, ppo: PPO) -> TrainingState:
