@@ -3,6 +3,7 @@ camera frames, follower state and leader action per joint, episode boundaries an
 
 from __future__ import annotations
 
+import re
 import sys
 
 import numpy as np
@@ -108,3 +109,11 @@ def test_one_episode_and_bad_input(dataset_root, tmp_path, capsys):
     assert code == 2 and "--episode 2: the dataset has episodes 0-1" in err and len(err.strip().splitlines()) == 1
     code, _, err = _run(["manip", "dataset", "view", str(dataset_root), "--save", str(tmp_path / "x.mp4")], capsys)
     assert code == 2 and "expected a file name ending in .rrd" in err
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        taken = busy.getsockname()[1]
+        code, _, err = _run(["manip", "dataset", "view", str(dataset_root), "--web", "--port", str(taken - 1)], capsys)
+    assert code == 2 and re.search(rf"port ({taken - 1}|{taken}) is not free", err), err

@@ -149,16 +149,22 @@ def test_save_path_rules(tmp_path):
     assert check_save_path(str(tmp_path / "w.yaml")) == tmp_path / "w.yaml"
 
 
-def test_bad_motion_file_is_one_line_exit_2(tmp_path, capsys):
+@pytest.mark.parametrize("args,expected", [
+    (["BAD"], "bad.yaml: keyframe 1: left_knee = 500 deg is out of range [-120.0, 0.0] deg"),
+    (["wave", "--out", "copy.txt"], "copy.txt: expected a file name ending in .yaml"),
+    (["wave", "--out", str(MOTIONS_DIR / "mine.yaml")], "inside the installed toddlerbot package"),
+    (["wave", "--host", "8.8.8.8"], "--host 8.8.8.8: cannot listen there"),
+    (["no_such_motion"], "unknown motion 'no_such_motion'"),
+], ids=["bad_file", "not_yaml", "into_package", "foreign_host", "unknown"])
+def test_bad_input_is_one_line_exit_2(args, expected, tmp_path, capsys, monkeypatch):
     from toddlerbot.cli.main import main
 
     bad = tmp_path / "bad.yaml"
     bad.write_text("joints: [left_knee]\nkeyframes:\n  - {t: 0, left_knee: -30}\n  - {t: 1, left_knee: 500}\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("sys.argv", ["toddlerbot", "motion", "edit", *[str(bad) if a == "BAD" else a for a in args]])
     with pytest.raises(SystemExit) as exit_info:
-        import sys
-
-        sys.argv = ["toddlerbot", "motion", "edit", str(bad)]
         main()
     assert exit_info.value.code == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "bad.yaml: keyframe 1: left_knee = 500 deg is out of range" in err
+    assert len(err.splitlines()) == 1 and expected in err, err

@@ -157,7 +157,7 @@ def view(
                                               "open it later with `rerun FILE.rrd`.")] = None,
     web: Annotated[bool, typer.Option("--web", help="Serve Rerun's web viewer even where a display exists.")]
         = False,
-    port: Annotated[int, typer.Option("--port", min=1, max=65535, help="Web viewer port (its data stream uses "
+    port: Annotated[int, typer.Option("--port", min=1, max=65534, help="Web viewer port (its data stream uses "
                                       "--port + 1); forward both over SSH.")] = 9090,
 ) -> None:
     """Show a dataset in Rerun (extra `viz`): head-camera video, follower state and leader action per joint over
@@ -184,6 +184,7 @@ def view(
     if save is not None:
         recording.save(save)
     elif web or not has_display():
+        _check_free(port, port + 1)
         uri = recording.serve_grpc(grpc_port=port + 1)
         rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=uri)
     else:
@@ -208,3 +209,16 @@ def view(
             console.print("viewer stopped")
     else:
         console.print(summary, highlight=False)
+
+
+def _check_free(*ports: int) -> None:
+    """One line for a port already in use (Rerun's servers would not say so)."""
+    import socket
+
+    for port in ports:
+        with socket.socket() as probe:
+            try:
+                probe.bind(("", port))
+            except OSError as exc:
+                raise ToddlerbotError(f"--port: port {port} is not free ({exc.strerror}); the web viewer uses --port "
+                                      "and --port + 1, choose another --port") from None

@@ -65,6 +65,7 @@ def edit(
     if out is not None:
         check_save_path(str(out))
         output_file(out, "--out")
+    _check_host(host)
     editor = open_editor(description, keyframes, save_to, host, port)
     actual = editor.server.get_port()
     moved = f" (port {port} was busy)" if port not in (0, actual) else ""
@@ -78,3 +79,16 @@ def edit(
         console.print("motion editor stopped")
     finally:
         editor.server.stop()
+
+
+def _check_host(host: str) -> None:
+    """One line for an address this computer cannot listen on (viser would retry port after port forever)."""
+    import socket
+
+    try:
+        family = socket.getaddrinfo(host, None)[0][0]
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.bind((host, 0))
+    except (OSError, UnicodeError) as exc:
+        raise ToddlerbotError(f"--host {host}: cannot listen there ({getattr(exc, 'strerror', None) or exc}); use "
+                              "127.0.0.1 (this computer) or 0.0.0.0 (every network)") from None
