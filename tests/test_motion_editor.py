@@ -168,3 +168,31 @@ def test_bad_input_is_one_line_exit_2(args, expected, tmp_path, capsys, monkeypa
     assert exit_info.value.code == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and expected in err, err
+
+
+def test_page_actions_without_a_browser(description, tmp_path):
+    """The page's handlers on a served editor (no client): mirror, reorder, the status line's one-line errors."""
+    pytest.importorskip("viser")
+    from toddlerbot.motion_editor.app import limb_groups, open_editor
+
+    groups = limb_groups(description)
+    assert list(groups) == ["Neck", "Waist", "Left arm", "Right arm", "Left leg", "Right leg"]
+    assert len(groups["Left leg"]) == 6 and sum(map(len, groups.values())) == 30
+    editor = open_editor(description, Keyframes.from_motion(load_motion("wave", description), description), None,
+                         "127.0.0.1", 0)
+    try:
+        names = list(description.joint_names)
+        editor.save("")
+        assert editor.status.content.startswith("**error:** name a file to save to")
+        editor._edit("Later")  # keyframe 0's pose moves to 1
+        assert editor.current == 1 and editor.sliders["right_shoulder_roll"].value == -15
+        editor._mirror("Left → right")  # the left arm's home pose onto the right: wave's raise is undone
+        pose = editor.doc.poses[1]
+        assert np.rad2deg(pose[names.index("right_shoulder_roll")]) == pytest.approx(-15, abs=1e-3)
+        assert editor.sliders["right_shoulder_yaw"].value == pytest.approx(60)
+        editor.duration.value = 0.01  # below 0.05 s: refused, the motion keeps its timing
+        assert "duration 0.01 s: expected 0.05-60 s" in editor.status.content and editor.doc.times[1] == 1.0
+        path = editor.save(str(tmp_path / "w.yaml"))
+        assert path is not None and "9 keyframes, 5.00 s" in editor.status.content
+    finally:
+        editor.server.stop()

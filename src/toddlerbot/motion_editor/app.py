@@ -5,8 +5,9 @@ selected keyframe, duration, add/delete/move, mirror), Simulate (play in MuJoCo,
 joint sliders per limb, in degrees, over each joint's range from the spec. Every control acts on the selected
 keyframe; the 3D view shows it standing on the floor with its centre of mass and support polygon.
 
-Controls call back on viser's thread pool, so one lock guards the document; values set from here also fire the
-callbacks (viser calls them synchronously), which `_quiet` turns into no-ops.
+Controls call back on viser's thread pool, so one (re-entrant) lock guards the document; values set from here also
+fire the callbacks, synchronously on the same thread and so inside the lock, where `_quiet` turns them into no-ops
+(a user's change from another thread waits for the lock and then applies).
 """
 
 from __future__ import annotations
@@ -93,7 +94,8 @@ class MotionEditor:
     # -- page ------------------------------------------------------------------------------------------------
     def _build_gui(self, save_path: Path | None) -> None:
         gui = self.server.gui
-        gui.configure_theme(control_layout="fixed", control_width="large", show_logo=False, show_share_button=False)
+        gui.configure_theme(control_width="large", show_logo=False, show_share_button=False)
+        gui.main_panel.dock_right()
         with gui.add_folder("Motion"):
             self.status = gui.add_markdown("Ready.")
             self.name = gui.add_text("Name", self.doc.name)
@@ -144,9 +146,9 @@ class MotionEditor:
     # -- callbacks -------------------------------------------------------------------------------------------
     def _joint_callback(self, joint: str):
         def on_update(_event) -> None:
-            if self._quiet:
-                return
             with self._lock:
+                if self._quiet:
+                    return
                 self.doc.set_joint(self.current, joint, np.deg2rad(self.sliders[joint].value))
                 if self.mirror_edits.value:
                     follow = self.mirror.follow(self.doc.poses[self.current], joint)
@@ -156,26 +158,26 @@ class MotionEditor:
         return on_update
 
     def _set_name(self) -> None:
-        if not self._quiet:
-            with self._lock:
+        with self._lock:
+            if not self._quiet:
                 self.doc.name = self.name.value.strip() or "motion"
 
     def _set_interpolation(self) -> None:
-        if not self._quiet:
-            with self._lock:
+        with self._lock:
+            if not self._quiet:
                 self.doc.interpolation = self.interpolation.value
 
     def _select(self) -> None:
-        if self._quiet:
-            return
         with self._lock:
+            if self._quiet:
+                return
             self.current = self._keyframe_labels().index(self.selected.value)
             self._refresh()
 
     def _set_duration(self) -> None:
-        if self._quiet:
-            return
         with self._lock, self._reported():
+            if self._quiet:
+                return
             self.doc.set_duration(self.current, float(self.duration.value))
             self._refresh()
 
@@ -207,8 +209,11 @@ class MotionEditor:
         """Simulate the motion and animate the result in real time (on a worker thread unless `wait`)."""
         if self._playing.is_set():
             return None
+        motion = None
         with self._lock, self._reported():
             motion = self.doc.to_motion(f"motion {self.doc.name!r}")
+        if motion is None:  # the status line says why
+            return None
         self._playing.set()
         self.play_button.disabled = True
         self.result.content = f"Simulating {motion.duration:.2f} s ..."
