@@ -38,14 +38,19 @@ def test_excite_fit_eval(tmp_path: Path) -> None:
     params = tmp_path / "params.json"
     _ok(["sysid", "fit", str(logs / "manifest.json"), "-o", str(params), "--evals", "64", "--seed", "2"])
     body = json.loads(params.read_text())
-    assert body["motor"] == "XC330-T288" and body["fit"]["evals"] == 64 and len(body["fitted"]) == 9
+    assert body["motor"] == "XC330-T288" and body["fit"]["evals"] == 64
+    # the default model is the DC motor (started from the XC330's appendix values), every fitted parameter with
+    # a standard error, the gain conversion kept with its reason
+    assert body["actuator"]["model"] == body["fit"]["model"] == "dc_motor" and len(body["fitted"]) == 7
+    assert set(body["fit"]["uncertainty"]) == set(body["fitted"]) and "pwm_per_rad" in body["fit"]["fixed"]
+    assert all(u["std"] > 0 for u in body["fit"]["uncertainty"].values())
     assert not list(tmp_path.glob(".params*"))  # no temp file left behind
 
     out = json.loads(_ok(["sysid", "eval", str(logs / "manifest.json"), str(params), "--json",
                           "--plot", str(tmp_path / "plots")]))
     assert set(out) == {"mae_deg", "rmse_deg", "runs"}
     assert [r["file"] for r in out["runs"]] == ["steps_kp900.csv", "chirp_kp900.csv"]
-    assert all(set(r) == {"file", "mae_deg", "rmse_deg"} for r in out["runs"])
+    assert all(set(r) == {"file", "mae_deg", "rmse_deg", "kp"} and r["kp"] == 900 for r in out["runs"])
     assert np.mean([r["mae_deg"] for r in out["runs"]]) == pytest.approx(out["mae_deg"], rel=0.01)  # equal lengths
     assert out["rmse_deg"] >= out["mae_deg"] > 0
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["chirp_kp900.png", "steps_kp900.png"]

@@ -1,5 +1,6 @@
 """The extended friction model in the fit: torque-off (passive) replay, the supply-voltage law, a known extended
-model recovered from synthetic logs with drops, the 9-parameter model visibly worse on them, bounds reported."""
+model recovered from synthetic logs with drops, the 9-parameter model visibly worse on them, bounds reported, the
+friction budget applied by the robot simulator."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from toddlerbot.actuation.catalogue import default_catalogue
+from toddlerbot.actuation.catalogue import ActuatorParams, default_catalogue
 from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.main import app
 from toddlerbot.sysid.errors import SysIDError
@@ -23,7 +24,11 @@ from toddlerbot.sysid.params import at_bounds, parameter_names
 from toddlerbot.sysid.rigs import PendulumRig
 from toddlerbot.sysid.synthetic import synthesize, write_runs
 
-MOTOR = default_catalogue()["XL330-M288"]
+# an XL330-M288 in the appendix's terms (the catalogue's values before the DC-motor fit: the XC330's scaled by the
+# datasheet), at the issue's 7.4 V
+MOTOR = dataclasses.replace(default_catalogue()["XL330-M288"], actuator=ActuatorParams(
+    damping=0.0019, armature=0.0040, frictionloss=0.019, tau_max=0.40, q_dot_tau_max=2.60, q_dot_max=9.50,
+    tau_q_dot_max=0.25, kd_min=0.137, tau_brake=0.91, kp_scale=334.0))
 TRUTH = MOTOR.actuator.replace(stiction=0.06, stribeck_velocity=0.2, load_friction=0.35)
 RIG = PendulumRig(mass=0.49, length=0.1)
 NOISE = np.radians(0.1)
@@ -80,14 +85,14 @@ def test_extended_fit_recovers_the_model_that_the_appendix_model_cannot(manifest
     fields = dataclasses.asdict(TRUTH)
     start = TRUTH.replace(**{k: v * (1.15 if i % 2 else 0.85) for i, (k, v) in enumerate(fields.items())
                              if k != "kp_scale"})
-    extended = fit(manifest, model="extended", evals=960, popsize=24, sigma0=0.1, start=start, seed=1)
+    extended = fit(manifest, model="extended", evals=1600, popsize=24, sigma0=0.1, start=start, seed=1)
     appendix = fit(manifest, model="appendix", evals=960, popsize=24, sigma0=0.1, seed=1,
                    start=start.replace(stiction=0.0, load_friction=0.0))
     mae_ext, mae_app = (evaluate(manifest, r.params).mae_deg for r in (extended, appendix))
     assert mae_ext <= 1.5 * noise_mae
     for name in ("stiction", "stribeck_velocity", "load_friction", "tau_max", "kd_min", "armature"):
         assert getattr(extended.params, name) == pytest.approx(getattr(TRUTH, name), rel=0.15), name
-    assert mae_app > 8 * mae_ext  # measured: 2.1 deg against 0.094 deg
+    assert mae_app > 8 * mae_ext  # measured: 2.4 deg against 0.099 deg
     assert extended.fitted == parameter_names(False, "extended") and extended.model == "extended"
 
 
@@ -96,7 +101,7 @@ def test_bounds_are_reported() -> None:
     u = np.full(len(names), 0.5)
     u[names.index("kp_scale")], u[names.index("stiction")] = 0.995, 0.004
     assert at_bounds(u, names) == {"kp_scale": "upper", "stiction": "lower"}
-    with pytest.raises(SysIDError, match="unknown model 'richest'; expected one of appendix, extended"):
+    with pytest.raises(SysIDError, match="unknown model 'richest'; expected one of dc_motor, appendix, extended"):
         parameter_names(False, "richest")
 
 
@@ -126,7 +131,7 @@ def test_cli_fit_extended_writes_all_parameters_and_keeps_a_good_file(tmp_path: 
     assert out.read_text() == good
 
 
-def test_the_simulator_applies_a_fitted_extended_model_unchanged(tmp_path: Path) -> None:
+def test_the_simulator_applies_a_fitted_friction_budget(tmp_path: Path) -> None:
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
     from toddlerbot.sysid.params import save_params
@@ -145,7 +150,7 @@ def test_the_simulator_applies_a_fitted_extended_model_unchanged(tmp_path: Path)
     appendix = moved(xc330.actuator)
     # the extended fields at their defaults, written to a params.json, give the appendix model bit for bit
     np.testing.assert_array_equal(moved(xc330.actuator.replace(stribeck_velocity=0.5)), appendix)
-    # fitted extended friction slows the XC330s on their way to the targets (no simulator change needed)
+    # a fitted friction budget (load-dependent Coulomb friction) slows the XC330s on their way to the targets
     extended = moved(xc330.actuator.replace(stiction=0.05, load_friction=0.3))
     start = RobotDescription.load().home_motor_pos
     assert np.all(np.abs(extended - start)[xc] < np.abs(appendix - start)[xc])

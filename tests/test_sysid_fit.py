@@ -1,4 +1,4 @@
-"""The 9-parameter fit on synthetic logs from known parameters plus noise."""
+"""The appendix model's 9-parameter fit on synthetic logs from known parameters plus noise."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def test_fit_recovers_tracking_and_excited_parameters(manifest: Manifest) -> Non
     start = TRUTH.replace(**{k: v * (1.15 if i % 2 else 0.85) for i, (k, v) in enumerate(fields.items())
                              if k != "kp_scale"})
     before = evaluate(manifest, start)
-    result = fit(manifest, evals=1600, popsize=32, sigma0=0.1, start=start, seed=1)
+    result = fit(manifest, model="appendix", evals=1600, popsize=32, sigma0=0.1, start=start, seed=1)
     after = evaluate(manifest, result.params)
     assert before.mae_deg > 3 * np.degrees(NOISE)
     assert after.mae_deg <= 1.5 * np.degrees(NOISE)
@@ -52,15 +52,16 @@ def test_fit_recovers_tracking_and_excited_parameters(manifest: Manifest) -> Non
     for name in ("armature", "frictionloss", "tau_max", "kd_min", "tau_brake"):
         assert getattr(result.params, name) == pytest.approx(getattr(TRUTH, name), rel=0.10), name
     # seeded: the same call gives the same answer
-    again = fit(manifest, evals=64, popsize=32, sigma0=0.1, start=start, seed=1)
-    assert again.params == fit(manifest, evals=64, popsize=32, sigma0=0.1, start=start, seed=1).params
+    again = fit(manifest, model="appendix", evals=64, popsize=32, sigma0=0.1, start=start, seed=1)
+    assert again.params == fit(manifest, model="appendix", evals=64, popsize=32, sigma0=0.1, start=start,
+                               seed=1).params
 
 
 def test_fit_from_another_motor_models_defaults(manifest: Manifest) -> None:
     # the XC330's runs fitted from the 2XL430's catalogue values (armature x2, friction x2, speed curve far off)
     start = default_catalogue()["2XL430"].actuator
     assert evaluate(manifest, start).mae_deg > 10 * np.degrees(NOISE)
-    result = fit(manifest, evals=2000, start=start, seed=1)
+    result = fit(manifest, model="appendix", evals=2000, start=start, seed=1)
     assert evaluate(manifest, result.params).mae_deg <= 1.5 * np.degrees(NOISE)
 
 
@@ -76,7 +77,7 @@ def test_fast_steps_identify_the_speed_curve() -> None:
     fields = dataclasses.asdict(TRUTH)
     start = TRUTH.replace(**{k: v * (1.2 if i % 2 else 0.8) for i, (k, v) in enumerate(fields.items())
                              if k != "kp_scale"})
-    result = fit(manifest, evals=2000, start=start, seed=1)
+    result = fit(manifest, model="appendix", evals=2000, start=start, seed=1)
     assert evaluate(manifest, result.params).mae_deg <= 1.5 * np.degrees(NOISE)
     for name in ("q_dot_max", "tau_q_dot_max", "tau_max", "armature"):
         assert getattr(result.params, name) == pytest.approx(getattr(TRUTH, name), rel=0.15), name
@@ -96,7 +97,7 @@ def test_stagnating_runs_restart_with_larger_populations() -> None:
     t = np.arange(0, 0.05, 0.005)
     runs = synthesize([Excitation("rest", 900, t, np.zeros_like(t))], TestBedRig(0.01), TRUTH)
     manifest = Manifest(Path("rest.json"), default_catalogue()["XC330"], TestBedRig(0.01), tuple(runs))
-    result = fit(manifest, evals=900, popsize=8, seed=2)
+    result = fit(manifest, model="appendix", evals=900, popsize=8, seed=2)
     assert (result.restarts, result.generations, result.evals) == (4, 5, 8 + 16 + 32 + 64 + 97)
     assert result.rmse_deg < 1e-9
-    assert fit(manifest, evals=900, popsize=8, seed=2, restarts=0).evals == 8
+    assert fit(manifest, model="appendix", evals=900, popsize=8, seed=2, restarts=0).evals == 8

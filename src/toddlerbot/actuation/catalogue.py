@@ -1,16 +1,24 @@
-"""The Dynamixel motor catalogue: datasheet figures and actuator-model parameters per motor model."""
+"""The Dynamixel motor catalogue: datasheet figures and actuator-model parameters per motor model.
+
+Each model's ``actuator`` entry names its actuator model (``model: appendix``, the default, or ``dc_motor``) and
+that model's parameters (`ActuatorParams`, `toddlerbot.actuation.dc_motor.DCMotorParams`); `MOTOR_MODELS` maps
+the names to the classes.
+"""
 
 from __future__ import annotations
 
 import dataclasses
-import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 from pathlib import Path
+from typing import ClassVar
 
 import yaml
 
+from toddlerbot.actuation.dc_motor import DCMotorParams
+from toddlerbot.actuation.motor_params import MotorParams, check_fields
 from toddlerbot.errors import SpecError
 from toddlerbot.yaml_input import read_yaml
 
@@ -26,7 +34,9 @@ MOTOR_RANGES = {"stall_torque_nm": (1e-3, 1000.0), "mass_kg": (1e-3, 100.0), "ra
 
 @dataclass(frozen=True)
 class ActuatorParams:
-    """Parameters of the actuator model (appendix Eq. 8-10), in joint units of the motor's output shaft."""
+    """Parameters of the appendix's actuator model (Eq. 8-10), in joint units of the motor's output shaft."""
+
+    model: ClassVar[str] = "appendix"
 
     damping: float
     """Passive viscous resistance, N*m*s/rad."""
@@ -53,15 +63,10 @@ class ActuatorParams:
     stribeck_velocity: float = 0.1
     """Extended model: speed over which the excess static friction decays (exp(-(q_dot/v)^2)), rad/s."""
     load_friction: float = 0.0
-    """Extended model: gearbox friction per N*m of transmitted motor torque (1 - efficiency), 1 (0: none)."""
+    """Extended model: Coulomb friction per N*m of transmitted motor torque (1 - efficiency), 1 (0: none)."""
 
     def __post_init__(self) -> None:
-        for field in dataclasses.fields(self):
-            value = getattr(self, field.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"{field.name} must be a finite number >= 0, got {value!r}")
-            if value > ACTUATOR_MAX[field.name]:
-                raise ValueError(f"{field.name} must be at most {ACTUATOR_MAX[field.name]:g}, got {value:g}")
+        check_fields(self, ACTUATOR_MAX)
         if self.q_dot_max <= self.q_dot_tau_max:
             raise ValueError(f"q_dot_max ({self.q_dot_max}) must exceed q_dot_tau_max ({self.q_dot_tau_max})")
         if self.kp_scale <= 0:
@@ -73,6 +78,48 @@ class ActuatorParams:
 
     def replace(self, **changes: float) -> ActuatorParams:
         return dataclasses.replace(self, **changes)
+
+    def array_fields(self, kp_dynamixel: float, kd_dynamixel: float) -> dict[str, float]:
+        """This motor's `toddlerbot.actuation.model.ActuatorArrays` entries at these firmware gains."""
+        return self.fields_to_arrays(dataclasses.asdict(self), kp_dynamixel, kd_dynamixel)
+
+    @staticmethod
+    def fields_to_arrays(f: Mapping, kp_dynamixel, kd_dynamixel) -> dict:
+        """`ActuatorArrays` entries from field values (floats, or arrays of candidates in a fit; constants stay
+        scalars and broadcast): physical gains from kp_scale, no back-EMF after the limit, a linear PWM."""
+        same = ("kd_min", "tau_max", "q_dot_tau_max", "q_dot_max", "tau_q_dot_max", "tau_brake", "stiction",
+                "stribeck_velocity", "load_friction")
+        return {**{name: f[name] for name in same}, "kp": kp_dynamixel / f["kp_scale"],
+                "kd": kd_dynamixel / f["kp_scale"], "back_emf_damping": 0.0, "pwm_exponent": 1.0}
+
+
+MOTOR_MODELS: dict[str, type[ActuatorParams] | type[DCMotorParams]] = {
+    ActuatorParams.model: ActuatorParams, DCMotorParams.model: DCMotorParams,
+}
+"""Actuator models by the name a catalogue entry or params.json gives in ``model``."""
+
+
+def motor_params(fields: Mapping, source: str) -> MotorParams:
+    """Parameters from a mapping of field values with an optional ``model`` name (default ``appendix``);
+    raise ValueError naming an unknown model, a missing or an unknown field."""
+    fields = dict(fields)
+    name = fields.pop("model", ActuatorParams.model)
+    if not isinstance(name, str) or name not in MOTOR_MODELS:
+        raise ValueError(f"{source}: unknown actuator model {name!r}; expected one of {', '.join(MOTOR_MODELS)}")
+    cls = MOTOR_MODELS[name]
+    known = [f.name for f in dataclasses.fields(cls)]
+    missing = [f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING and f.name not in fields]
+    if missing:
+        raise ValueError(f"{source}: the {name} model needs {', '.join(missing)}")
+    unknown = sorted(set(fields) - set(known))
+    if unknown:
+        raise ValueError(f"{source}: unknown {name} field(s) {', '.join(unknown)}; expected {', '.join(known)}")
+    return cls(**fields)
+
+
+def params_dict(params: MotorParams) -> dict[str, float | str]:
+    """``{"model": name, field: value, ...}``: what `motor_params` reads back."""
+    return {"model": params.model, **dataclasses.asdict(params)}
 
 
 @dataclass(frozen=True)
@@ -88,7 +135,7 @@ class MotorModel:
     dimensions_mm: tuple[float, float, float]
     axes: int
     """Output shafts per unit: 2 for 2XL430 and 2XC430."""
-    actuator: ActuatorParams
+    actuator: MotorParams
     model_number: int | None = None
     """Model number reported by a Dynamixel ping (control table address 0); None if unknown."""
     rated_voltage: float = 12.0
@@ -118,7 +165,7 @@ class Catalogue:
             known = ", ".join(sorted(self._by_alias))
             raise SpecError(f"{self.source}: unknown motor model {name!r}; expected one of: {known}") from None
 
-    def with_actuator(self, name: str, params: ActuatorParams) -> Catalogue:
+    def with_actuator(self, name: str, params: MotorParams) -> Catalogue:
         """A copy in which one model uses new actuator parameters (e.g. the output of a system-ID fit)."""
         model = dataclasses.replace(self[name], actuator=params)
         return Catalogue({**self.models, model.name: model}, self.source)
@@ -138,7 +185,7 @@ def _parse(raw: object, source: str) -> Catalogue:
                 mass_kg=float(entry["mass_kg"]),
                 dimensions_mm=tuple(float(x) for x in entry["dimensions_mm"]),
                 axes=int(entry.get("axes", 1)),
-                actuator=ActuatorParams(**entry["actuator"]),
+                actuator=motor_params(entry["actuator"], "actuator"),
                 model_number=int(entry["model_number"]) if "model_number" in entry else None,
                 rated_voltage=float(entry.get("rated_voltage", 12.0)),
             )

@@ -1,7 +1,8 @@
 """Reading fitted actuator parameters (``params.json``, written by ``toddlerbot sysid fit``) into a catalogue.
 
-A ``params.json`` holds ``{"motor": <catalogue name>, "actuator": {ActuatorParams fields}, "fitted": [names],
-"fit": {...provenance...}}``. Fields it leaves out keep the catalogue's value.
+A ``params.json`` holds ``{"motor": <catalogue name>, "actuator": {"model": name, fields of that model},
+"fitted": [names], "fit": {...provenance...}}`` (no ``model``: the appendix's). Fields it leaves out keep the
+catalogue's value when the catalogue has the same model for the motor; a file with another model gives them all.
 """
 
 from __future__ import annotations
@@ -12,15 +13,16 @@ import math
 from collections.abc import Iterable
 from pathlib import Path
 
-from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, default_catalogue
+from toddlerbot.actuation.catalogue import MOTOR_MODELS, Catalogue, default_catalogue, motor_params
+from toddlerbot.actuation.motor_params import MotorParams
 from toddlerbot.errors import ParamsError, SpecError
 
 MAX_PARAMS_BYTES = 1 << 20
 """A params.json is a few hundred bytes; anything over 1 MiB is not one."""
 
 
-def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[str, ActuatorParams]:
-    """(catalogue motor name, ActuatorParams) of a params.json; raise `ParamsError` naming the file."""
+def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[str, MotorParams]:
+    """(catalogue motor name, parameters) of a params.json; raise `ParamsError` naming the file."""
     path = Path(path)
     catalogue = catalogue or default_catalogue()
     try:
@@ -39,17 +41,22 @@ def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[s
         name = catalogue[str(raw["motor"])].name
     except SpecError:
         raise ParamsError(f"{path}: unknown motor model {raw['motor']!r}") from None
-    known = {f.name for f in dataclasses.fields(ActuatorParams)}
-    unknown = sorted(set(raw["actuator"]) - known)
+    fields = dict(raw["actuator"])
+    model = fields.pop("model", "appendix")
+    if not isinstance(model, str) or model not in MOTOR_MODELS:
+        raise ParamsError(f"{path}: unknown actuator model {model!r}; expected one of {', '.join(MOTOR_MODELS)}")
+    known = {f.name for f in dataclasses.fields(MOTOR_MODELS[model])}
+    unknown = sorted(set(fields) - known)
     if unknown:
         raise ParamsError(
-            f"{path}: unknown actuator field(s) {', '.join(unknown)}; expected {', '.join(sorted(known))}"
+            f"{path}: unknown {model} field(s) {', '.join(unknown)}; expected {', '.join(sorted(known))}"
         )
-    for field, value in raw["actuator"].items():
+    for field, value in fields.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ParamsError(f"{path}: actuator.{field} must be a finite number, got {value!r}")
+    base = catalogue[name].actuator
     try:
-        params = dataclasses.replace(catalogue[name].actuator, **raw["actuator"])
+        params = base.replace(**fields) if base.model == model else motor_params({"model": model, **fields}, "actuator")
     except (TypeError, ValueError) as exc:
         raise ParamsError(f"{path}: {exc}") from None
     return name, params

@@ -22,8 +22,8 @@ from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, PROFILES, 
 from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.logs import read_columns
-from toddlerbot.sysid.manifest import load_manifest
-from toddlerbot.sysid.params import BOUNDS, SEARCHED_AS, parameter_names, save_params
+from toddlerbot.sysid.manifest import Manifest, load_manifest, select_gains
+from toddlerbot.sysid.params import DEFAULT_MODEL, SEARCH, SEARCHED_AS, parameter_names, save_params
 from toddlerbot.sysid.rigs import parse_rig
 from toddlerbot.sysid.synthetic import synthesize, write_runs
 from toddlerbot.sysid.testbed import armature_from_spindown, fit_friction
@@ -36,16 +36,28 @@ app.command("record")(record_command)
 
 ManifestArg = Annotated[Path, typer.Argument(help="Manifest (JSON or YAML) naming the run CSVs, motor and rig.")]
 JsonOption = Annotated[bool, typer.Option("--json", help="Machine-readable output.")]
+GainsOption = Annotated[list[float] | None, typer.Option(
+    "--kp", help="Only the manifest's runs at this firmware P gain (repeatable), e.g. fit on one gain and "
+                 "evaluate on another.")]
+
+
+def _runs(manifest: Path, kp: list[float] | None) -> Manifest:
+    m = load_manifest(manifest)
+    return select_gains(m, kp) if kp else m
 
 
 @app.command("fit")
 def fit_command(
     manifest: ManifestArg,
     output: Annotated[Path, typer.Option("-o", "--output", help="params.json to write.")],
-    fit_kp_scale: Annotated[bool, typer.Option("--fit-kp-scale", help="Also fit the firmware-to-physical kp factor.")]
-    = False,
-    model: Annotated[str, typer.Option("--model", help="appendix (the 9 parameters of section 8.9) or extended (plus "
-                                       "stiction, Stribeck velocity and load-dependent friction).")] = "appendix",
+    fit_kp_scale: Annotated[bool, typer.Option(
+        "--fit-kp-scale", help="Also fit the firmware-to-physical gain conversion (dc_motor: pwm_per_rad; appendix, "
+                               "extended: kp_scale).")] = False,
+    model: Annotated[str, typer.Option("--model", help="dc_motor (PWM duty, stall torque, back-EMF, load-dependent "
+                                       "friction: the one that holds across gains on real servos), appendix (the "
+                                       "9 parameters of section 8.9) or extended (plus stiction, Stribeck velocity "
+                                       "and load-dependent friction).")] = DEFAULT_MODEL,
+    kp: GainsOption = None,
     seed: Annotated[int, typer.Option("--seed", min=1, help="CMA-ES seed (>= 1); same seed, same result.")] = 1,
     evals: Annotated[int, typer.Option("--evals", min=4, help="Candidate evaluations (all restarts).")]
     = DEFAULT_EVALS,
@@ -55,11 +67,11 @@ def fit_command(
     start: Annotated[Path | None, typer.Option("--start", help="params.json to start from (default: catalogue).")]
     = None,
 ) -> None:
-    """Fit damping, friction loss, armature, tau_max, q_dot_tau_max, tau_q_dot_max, q_dot_max, kd_min, tau_brake
-    (--model extended: also stiction, stribeck_velocity, load_friction). Reports parameters left at a bound."""
+    """Fit an actuator model to the manifest's runs; prints each parameter's standard error, the parameters left
+    at a bound and the ones kept fixed (with the reason)."""
     parameter_names(fit_kp_scale, model)  # an unknown --model fails before any work
     output_file(output, "--output")  # and an unwritable -o: not after minutes of fitting
-    m = load_manifest(manifest)
+    m = _runs(manifest, kp)
     start_params = None
     if start is not None:
         name, start_params = load_params(start)
@@ -69,33 +81,48 @@ def fit_command(
                   TimeElapsedColumn(), console=console, transient=True) as bar:
         task = bar.add_task("", total=evals)
         result = run_fit(m, fit_kp_scale=fit_kp_scale, model=model, seed=seed, evals=evals, popsize=popsize,
-                         restarts=restarts,
-                         start=start_params,
+                         restarts=restarts, start=start_params,
                          progress=lambda n, rmse: bar.update(task, completed=n, description=f"RMSE {rmse:.3f} deg"))
     provenance = {
-        "manifest": str(manifest), "runs": len(m.runs), "rig": m.rig.type, "seed": seed, "evals": result.evals,
-        "generations": result.generations,
-        "restarts": result.restarts, "rmse_deg": result.rmse_deg, "wall_s": round(result.wall_s, 2),
-        "model": model, "at_bounds": result.at_bounds,
+        "manifest": str(manifest), "runs": len(m.runs), "kp": sorted({r.kp for r in m.runs}), "rig": m.rig.type,
+        "seed": seed, "evals": result.evals, "generations": result.generations, "restarts": result.restarts,
+        "rmse_deg": result.rmse_deg, "wall_s": round(result.wall_s, 2), "model": model, "at_bounds": result.at_bounds,
+        "uncertainty": {name: {"std": u.std, "relative": u.relative,
+                               "strongest_correlation": list(u.strongest_correlation)}
+                        for name, u in result.uncertainty.items()},
+        "fixed": result.fixed,
     }
     save_params(output, m.motor.name, result.params, result.fitted, provenance)
-    console.print(f"wrote {output}: {m.motor.name}, RMSE {result.rmse_deg:.3f} deg over {len(m.runs)} runs "
+    console.print(f"wrote {output}: {m.motor.name} ({model}), RMSE {result.rmse_deg:.3f} deg over {len(m.runs)} runs "
                   f"({result.evals} evaluations, {result.wall_s:.1f} s)")
+    table = Table(title="fitted parameters (standard error: linearised, residual autocorrelation counted)")
+    for col in ("parameter", "value", "std error", "relative", "most correlated with"):
+        table.add_column(col, justify="left" if col in ("parameter", "most correlated with") else "right")
+    for name in result.fitted:
+        u = result.uncertainty.get(name)
+        other, r = u.strongest_correlation if u else ("", 0.0)
+        table.add_row(name, f"{getattr(result.params, name):.4g}", f"{u.std:.2g}" if u else "-",
+                      f"{u.relative:.0%}" if u else "-", f"{other} ({r:+.2f})" if u else "")
+    console.print(table)
     for name, side in result.at_bounds.items():
-        lo, hi = BOUNDS[name]
+        lo, hi, _, unit = SEARCH[name]
         console.print(f"[yellow]warning:[/] {name} = {getattr(result.params, name):.4g} ended at its {side} search "
-                      f"bound ({lo:g} .. {hi:g}{SEARCHED_AS.get(name, '')}): not identified by these runs")
+                      f"bound ({lo:g} .. {hi:g}{SEARCHED_AS.get(name, '')} {unit}): not identified by these runs")
+    for name, reason in result.fixed.items():
+        console.print(f"fixed: {name} = {getattr(result.params, name):.4g} ({reason})")
 
 
 @app.command("eval")
 def eval_command(
     manifest: ManifestArg,
     params: Annotated[Path, typer.Argument(help="params.json (from `sysid fit`).")],
+    kp: GainsOption = None,
     as_json: JsonOption = False,
-    plot: Annotated[Path | None, typer.Option("--plot", help="Folder for measured-vs-simulated plots.")] = None,
+    plot: Annotated[Path | None, typer.Option("--plot", help="Folder for per-run plots: measured vs simulated "
+                                                             "position and velocity, simulated torque.")] = None,
 ) -> None:
     """Tracking MAE/RMSE (degrees) of a parameter set per run and overall."""
-    m = load_manifest(manifest)
+    m = _runs(manifest, kp)
     name, p = load_params(params)
     if name != m.motor.name:
         raise SysIDError(f"{params}: parameters are for {name}, but {manifest} is a {m.motor.name}")
@@ -104,12 +131,12 @@ def eval_command(
     if as_json:
         typer.echo(json.dumps(ev.to_json(), indent=2))
         return
-    table = Table(title=f"{name} on {m.rig.type}: tracking error")
-    for col in ("run", "MAE (deg)", "RMSE (deg)"):
+    table = Table(title=f"{name} ({p.model}) on {m.rig.type}: tracking error")
+    for col in ("run", "kp", "MAE (deg)", "RMSE (deg)"):
         table.add_column(col, justify="left" if col == "run" else "right")
     for r in ev.runs:
-        table.add_row(r.file, f"{r.mae_deg:.3f}", f"{r.rmse_deg:.3f}")
-    table.add_row("[bold]overall[/]", f"[bold]{ev.mae_deg:.3f}[/]", f"[bold]{ev.rmse_deg:.3f}[/]")
+        table.add_row(r.file, f"{r.kp:g}", f"{r.mae_deg:.3f}", f"{r.rmse_deg:.3f}")
+    table.add_row("[bold]overall[/]", "", f"[bold]{ev.mae_deg:.3f}[/]", f"[bold]{ev.rmse_deg:.3f}[/]")
     console.print(table)
     if written:
         console.print(f"wrote {len(written)} plot(s) to {plot}")

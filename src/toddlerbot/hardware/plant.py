@@ -1,7 +1,7 @@
 """The motion behind the emulated motors' registers.
 
 * `SimplePlant`: every motor is an independent inertia driven by the actuator model
-  (`toddlerbot.actuation.model.motor_torque`) with the gains in its control table (via `physical_gains`).
+  (`toddlerbot.actuation.model.motor_torque`) with the gains in its control table (via `actuator_arrays`).
 * `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor; the same
   actuator model runs every 1 ms physics step, paced to wall-clock time in a background thread.
 """

@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from toddlerbot.actuation.model import ActuatorArrays, motor_torque
+from toddlerbot.actuation.model import ActuatorArrays, friction_excess, motor_torque
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
 
@@ -172,7 +172,10 @@ class MJXPhysics:
 
         def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
             tau = motor_torque(targets, d.qpos[m.qpos], d.qvel[m.dof], actuators, xp=jnp)
-            return mjx.step(model, d.replace(ctrl=tau)), tau
+            # a fitted load-dependent friction budget raises the motors' frictionloss (adds exact zeros otherwise)
+            excess = friction_excess(d.qvel[m.dof], tau, actuators, xp=jnp)
+            stepped = model.tree_replace({"dof_frictionloss": model.dof_frictionloss.at[m.dof].add(excess)})
+            return mjx.step(stepped, d.replace(ctrl=tau)), tau
 
         data, taus = jax.lax.scan(substep, state, None, length=self.n_substeps)
         c = data._impl.contact

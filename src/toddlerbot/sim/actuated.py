@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.model import ActuatorArrays, motor_torque
+from toddlerbot.actuation.model import ActuatorArrays, friction_excess, has_friction_excess, motor_torque
 
 
 @dataclass(frozen=True)
@@ -38,13 +38,22 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
                   targets: np.ndarray, params: ActuatorArrays, n_substeps: int) -> np.ndarray:
     """Advance each robot ``n_substeps`` physics steps holding its motor targets (``targets`` (batch, n_motors),
     rad); ``params`` holds (n_motors,) arrays shared by the batch or (batch, n_motors) arrays, one row per robot.
-    Returns the motor torques of the last substep, (batch, n_motors) N*m."""
+    Returns the motor torques of the last substep, (batch, n_motors) N*m. A fitted load-dependent friction
+    (`toddlerbot.actuation.model.friction_excess`) raises the motor joints' frictionloss every substep and is
+    taken off again on return."""
     tau = np.zeros_like(targets)
+    budget = has_friction_excess(params)
+    frictionloss = [m.dof_frictionloss[motors.dof].copy() for m in models] if budget else []
     for _ in range(n_substeps):
         q = np.stack([d.qpos[motors.qpos] for d in datas])
         q_dot = np.stack([d.qvel[motors.dof] for d in datas])
         tau = motor_torque(targets, q, q_dot, params)
-        for m, d, row in zip(models, datas, tau, strict=True):
+        excess = friction_excess(q_dot, tau, params) if budget else None
+        for i, (m, d, row) in enumerate(zip(models, datas, tau, strict=True)):
             d.ctrl[motors.actuator] = row
+            if budget:
+                m.dof_frictionloss[motors.dof] = frictionloss[i] + excess[i]
             mujoco.mj_step(m, d)
+    for m, own in zip(models, frictionloss, strict=False):
+        m.dof_frictionloss[motors.dof] = own
     return tau

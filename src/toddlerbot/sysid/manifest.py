@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -92,6 +93,18 @@ def load_manifest(path: str | Path, description: RobotDescription | None = None)
             run = dataclasses.replace(run, voltage=np.full(len(run.time), voltage))
         runs.append(run)
     return Manifest(path=path, motor=motor, rig=rig, runs=tuple(runs))
+
+
+def select_gains(manifest: Manifest, kp: Iterable[float]) -> Manifest:
+    """The manifest with only its runs at the firmware P gains ``kp`` (to fit on one gain and evaluate on another);
+    raise `SysIDError` naming the gains it has when one asked for is missing."""
+    wanted = {float(k) for k in kp}
+    present = sorted({run.kp for run in manifest.runs})
+    missing = sorted(wanted - set(present))
+    if missing:
+        raise SysIDError(f"{manifest.path}: no runs at kp {', '.join(f'{k:g}' for k in missing)}; its runs have kp "
+                         f"{', '.join(f'{k:g}' for k in present)}")
+    return dataclasses.replace(manifest, runs=tuple(run for run in manifest.runs if run.kp in wanted))
 
 
 def _voltage(value: Any, path: Path, key: str) -> float | None:

@@ -1,7 +1,7 @@
-"""The fitted actuator parameters: search bounds, candidate matrices and ``params.json`` files.
+"""What a fit searches: the fitted models, each parameter's search range, candidate matrices, ``params.json``.
 
-A ``params.json`` (written by ``toddlerbot sysid fit``) holds ``{"motor": <catalogue name>, "actuator": {every
-ActuatorParams field, including the extended model's}, "fitted": [names], "fit": {...provenance...}}``.
+A ``params.json`` (written by ``toddlerbot sysid fit``) holds ``{"motor": <catalogue name>, "actuator": {"model":
+name, every field of that model}, "fitted": [names], "fit": {...provenance, uncertainty...}}``.
 `toddlerbot.actuation.params_file.catalogue_with_params` loads them into a motor `Catalogue` (and
 ``RobotDescription.load(motor_params=...)`` into a robot).
 """
@@ -11,66 +11,137 @@ from __future__ import annotations
 import dataclasses
 import json
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import ActuatorParams
+from toddlerbot.actuation.catalogue import ActuatorParams, params_dict
+from toddlerbot.actuation.dc_motor import DCMotorParams
+from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.actuation.motor_params import MotorParams
 from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
 
-MODEL_PARAMETERS = (
-    "damping", "frictionloss", "armature", "tau_max", "q_dot_tau_max", "tau_q_dot_max", "q_dot_max", "kd_min",
-    "tau_brake",
-)
-"""The 9 parameters of the appendix (section 8.9), always fitted."""
-EXTENDED_PARAMETERS = ("stiction", "stribeck_velocity", "load_friction")
-"""Fitted in addition with ``model="extended"`` (see `toddlerbot.actuation.model.extra_friction`)."""
-MODELS = ("appendix", "extended")
+
+class SearchRange(NamedTuple):
+    """Where the fit looks for one parameter."""
+
+    low: float
+    high: float
+    log: bool
+    """Searched on a log scale (positive parameters spanning decades), else linearly."""
+    unit: str
+
+
+SEARCH: dict[str, SearchRange] = {
+    "damping": SearchRange(1e-4, 0.05, True, "N*m*s/rad"),
+    "frictionloss": SearchRange(1e-3, 0.3, True, "N*m"),
+    "armature": SearchRange(2e-4, 0.03, True, "kg*m^2"),
+    "tau_max": SearchRange(0.05, 6.0, True, "N*m"),
+    "q_dot_tau_max": SearchRange(0.0, 8.0, False, "rad/s"),
+    "tau_q_dot_max": SearchRange(0.0, 1.0, False, "x tau_max"),  # a FRACTION of tau_max (the limit falls)
+    "q_dot_max": SearchRange(0.2, 20.0, False, "rad/s above q_dot_tau_max"),  # the span, so q_dot_max > knee
+    "kd_min": SearchRange(0.01, 2.0, True, "N*m*s/rad"),
+    "tau_brake": SearchRange(0.05, 10.0, True, "N*m"),
+    "kp_scale": SearchRange(15.0, 1000.0, True, "firmware kp per N*m/rad"),  # 173.8 / stall over the X series
+    "stiction": SearchRange(1e-4, 0.3, True, "N*m"),
+    "stribeck_velocity": SearchRange(0.01, 3.0, True, "rad/s"),
+    "load_friction": SearchRange(0.0, 0.8, False, "N*m per N*m"),
+    "stall_torque": SearchRange(0.05, 10.0, True, "N*m at the rated voltage"),
+    "no_load_speed": SearchRange(1.0, 100.0, True, "rad/s at the rated voltage"),
+    "pwm_per_rad": SearchRange(2e-4, 0.05, True, "duty per rad per firmware kp"),
+    "pwm_exponent": SearchRange(0.5, 1.5, False, "1"),
+}
+"""Search range of every fitted parameter (q_dot_max and tau_q_dot_max: of the span / fraction they are searched
+as, see `SEARCHED_AS`)."""
+
+SEARCHED_AS = {"q_dot_max": " above q_dot_tau_max", "tau_q_dot_max": " x tau_max"}
+"""How the ranges of the parameters not searched directly apply."""
+
 BOUND_MARGIN = 0.01
 """A fitted parameter within this share of its searched range (the unit cube, log-scaled where the search is) of
 a bound is reported as at that bound."""
 
-BOUNDS: dict[str, tuple[float, float]] = {
-    "damping": (1e-4, 0.05),  # N*m*s/rad
-    "frictionloss": (1e-3, 0.3),  # N*m
-    "armature": (2e-4, 0.03),  # kg*m^2
-    "tau_max": (0.05, 6.0),  # N*m
-    "q_dot_tau_max": (0.0, 8.0),  # rad/s
-    "tau_q_dot_max": (0.0, 1.0),  # FRACTION of tau_max (the limit falls with speed)
-    "q_dot_max": (0.2, 20.0),  # rad/s ABOVE q_dot_tau_max (searched as the span, so q_dot_max > q_dot_tau_max)
-    "kd_min": (0.01, 2.0),  # N*m*s/rad
-    "tau_brake": (0.05, 10.0),  # N*m
-    "kp_scale": (15.0, 1000.0),  # firmware P gain per N*m/rad: 173.8 / stall torque over the X series (motors.yaml)
-    "stiction": (1e-4, 0.3),  # N*m above frictionloss
-    "stribeck_velocity": (0.01, 3.0),  # rad/s
-    "load_friction": (0.0, 0.6),  # 1 (share of the transmitted torque)
+
+@dataclass(frozen=True)
+class FitModel:
+    """One model `sysid fit --model` can fit: its parameter class and what is fitted, what is not and why."""
+
+    name: str
+    params_class: type[ActuatorParams] | type[DCMotorParams]
+    fitted: tuple[str, ...]
+    """Always fitted."""
+    gain_parameter: str
+    """The firmware-to-physical gain conversion, fitted with ``--fit-kp-scale`` (else kept from the start)."""
+    fixed: dict[str, str]
+    """Parameters of the class the fit leaves as they start, with the reason."""
+
+
+APPENDIX = ("damping", "frictionloss", "armature", "tau_max", "q_dot_tau_max", "tau_q_dot_max", "q_dot_max",
+            "kd_min", "tau_brake")
+FIT_MODELS: dict[str, FitModel] = {
+    "dc_motor": FitModel(
+        "dc_motor", DCMotorParams,
+        ("stall_torque", "no_load_speed", "pwm_exponent", "load_friction", "frictionloss", "damping", "armature"),
+        "pwm_per_rad", {}),
+    "appendix": FitModel(
+        "appendix", ActuatorParams, APPENDIX, "kp_scale",
+        {"stiction": "the 9-parameter model of the appendix has none", "stribeck_velocity": "no stiction",
+         "load_friction": "the 9-parameter model of the appendix has none"}),
+    "extended": FitModel(
+        "extended", ActuatorParams, (*APPENDIX, "stiction", "stribeck_velocity", "load_friction"), "kp_scale", {}),
 }
-"""Search bounds of each parameter (q_dot_max: bounds of q_dot_max - q_dot_tau_max; tau_q_dot_max: bounds of
-tau_q_dot_max / tau_max)."""
-
-SEARCHED_AS = {"q_dot_max": " above q_dot_tau_max", "tau_q_dot_max": " x tau_max"}
-"""How the bounds of the parameters not searched directly apply."""
-
-LOG_SCALED = frozenset({"damping", "frictionloss", "armature", "tau_max", "kd_min", "tau_brake", "kp_scale",
-                        "stiction", "stribeck_velocity"})
-"""Parameters searched on a log scale (positive, spanning one to three decades); the speeds and the torque
-fraction are searched linearly."""
+"""The fitted models; the first is `sysid fit`'s default (docs/sysid.md: the one that holds on real servos)."""
+DEFAULT_MODEL = next(iter(FIT_MODELS))
 
 
-def parameter_names(fit_kp_scale: bool, model: str = "appendix") -> tuple[str, ...]:
-    """The fitted parameters of ``model`` (``appendix``: the 9 of section 8.9; ``extended``: plus stiction,
-    Stribeck velocity and load friction), plus kp_scale if asked."""
-    if model not in MODELS:
-        raise SysIDError(f"unknown model {model!r}; expected one of {', '.join(MODELS)}")
-    names = MODEL_PARAMETERS + (EXTENDED_PARAMETERS if model == "extended" else ())
-    return (*names, "kp_scale") if fit_kp_scale else names
+def fit_model(name: str) -> FitModel:
+    """The `FitModel` called ``name``; raise `SysIDError` naming the known ones."""
+    if name not in FIT_MODELS:
+        raise SysIDError(f"unknown model {name!r}; expected one of {', '.join(FIT_MODELS)}")
+    return FIT_MODELS[name]
+
+
+def parameter_names(fit_kp_scale: bool, model: str = DEFAULT_MODEL) -> tuple[str, ...]:
+    """The fitted parameters of ``model``, plus its gain conversion if asked."""
+    m = fit_model(model)
+    return (*m.fitted, m.gain_parameter) if fit_kp_scale else m.fitted
+
+
+def start_params(model: str, params: MotorParams) -> MotorParams:
+    """The start of a ``model`` fit from a motor's parameters (its catalogue entry or ``--start``): the same
+    parameters where the model matches, else the same motor in the other model's terms (`dc_motor_like`,
+    `appendix_like`)."""
+    cls = fit_model(model).params_class
+    if isinstance(params, cls):
+        return params
+    return dc_motor_like(params) if cls is DCMotorParams else appendix_like(params)
+
+
+def dc_motor_like(p: ActuatorParams) -> DCMotorParams:
+    """The DC motor closest to an appendix-model motor: its torque from rest and physical gain, the no-load speed
+    where its torque-speed line (through the two breakpoints of Eq. 9) reaches zero, its passive terms."""
+    slope = (p.tau_max - p.tau_q_dot_max) / (p.q_dot_max - p.q_dot_tau_max)
+    no_load = p.q_dot_tau_max + p.tau_max / slope if slope > 0 else p.q_dot_max
+    return DCMotorParams(damping=p.damping, armature=p.armature, frictionloss=p.frictionloss,
+                         stall_torque=p.tau_max, no_load_speed=no_load, pwm_per_rad=1.0 / (p.kp_scale * p.tau_max),
+                         load_friction=p.load_friction)
+
+
+def appendix_like(p: DCMotorParams) -> ActuatorParams:
+    """The appendix-model motor closest to a DC motor: its stall torque falling linearly to zero at the no-load
+    speed (Eq. 9 with the knee at rest), braking at the stall torque, its gain, no kd_min."""
+    return ActuatorParams(damping=p.damping, armature=p.armature, frictionloss=p.frictionloss,
+                          tau_max=p.stall_torque, q_dot_tau_max=0.0, q_dot_max=p.no_load_speed, tau_q_dot_max=0.0,
+                          kd_min=p.back_emf_damping, tau_brake=p.stall_torque, kp_scale=p.kp_scale,
+                          load_friction=p.load_friction)
 
 
 def at_bounds(u: np.ndarray, names: Sequence[str]) -> dict[str, str]:
     """Parameters of a unit-cube point within `BOUND_MARGIN` of a bound: name -> ``"lower"`` / ``"upper"``
-    (for q_dot_max and tau_q_dot_max the bound is on the searched span / fraction, see `BOUNDS`)."""
+    (for q_dot_max and tau_q_dot_max the bound is on the searched span / fraction, see `SEARCH`)."""
     out = {}
     for name, x in zip(names, np.asarray(u, dtype=float), strict=True):
         if x <= BOUND_MARGIN:
@@ -80,7 +151,7 @@ def at_bounds(u: np.ndarray, names: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def _searched(name: str, params: ActuatorParams) -> float:
+def searched_value(name: str, params: MotorParams) -> float:
     """The value the optimiser sees for ``name`` (span for q_dot_max, fraction of tau_max for tau_q_dot_max)."""
     if name == "q_dot_max":
         return params.q_dot_max - params.q_dot_tau_max
@@ -89,38 +160,61 @@ def _searched(name: str, params: ActuatorParams) -> float:
     return getattr(params, name)
 
 
-def to_unit(params: ActuatorParams, names: Sequence[str]) -> np.ndarray:
-    """Parameters -> point of the unit cube the optimiser searches (clipped into the bounds)."""
+def to_unit(params: MotorParams, names: Sequence[str]) -> np.ndarray:
+    """Parameters -> point of the unit cube the optimiser searches (clipped into the ranges)."""
     u = []
     for name in names:
-        lo, hi = BOUNDS[name]
-        value = min(max(_searched(name, params), lo), hi)
-        u.append(np.log(value / lo) / np.log(hi / lo) if name in LOG_SCALED else (value - lo) / (hi - lo))
+        lo, hi, log, _ = SEARCH[name]
+        value = min(max(searched_value(name, params), lo), hi)
+        u.append(np.log(value / lo) / np.log(hi / lo) if log else (value - lo) / (hi - lo))
     return np.clip(np.array(u), 0.0, 1.0)
 
 
-def from_unit(u: np.ndarray, names: Sequence[str], base: ActuatorParams) -> dict[str, np.ndarray]:
-    """Unit-cube points (pop, len(names)) -> every ActuatorParams field as an array (pop,); unfitted fields
-    keep ``base``'s value."""
+@dataclass(frozen=True)
+class Candidates:
+    """P parameter sets of one model, field by field: what a fit's generation simulates at once."""
+
+    params_class: type[ActuatorParams] | type[DCMotorParams]
+    fields: dict[str, np.ndarray]
+    """Every field of the class, each an array of shape (P,)."""
+
+    @classmethod
+    def of(cls, params: MotorParams) -> Candidates:
+        """One candidate: ``params``."""
+        return cls(type(params), {f.name: np.array([float(getattr(params, f.name))])
+                                  for f in dataclasses.fields(params)})
+
+    def __len__(self) -> int:
+        return len(next(iter(self.fields.values())))
+
+    def arrays(self, kp_dynamixel: np.ndarray, kd_dynamixel: np.ndarray) -> ActuatorArrays:
+        """Actuator arrays of shape (P, R) for runs at firmware gains ``kp_dynamixel``, ``kd_dynamixel`` (R,)."""
+        column = {k: np.asarray(v, dtype=float)[:, None] for k, v in self.fields.items()}
+        return ActuatorArrays(**self.params_class.fields_to_arrays(
+            column, np.asarray(kp_dynamixel)[None, :], np.asarray(kd_dynamixel)[None, :]))
+
+    def params(self, i: int) -> MotorParams:
+        """Candidate ``i`` as parameters (validated)."""
+        return self.params_class(**{k: float(v[i]) for k, v in self.fields.items()})
+
+
+def from_unit(u: np.ndarray, names: Sequence[str], base: MotorParams) -> Candidates:
+    """Unit-cube points (pop, len(names)) -> candidates of ``base``'s model; unfitted fields keep ``base``'s
+    value."""
     u = np.atleast_2d(np.clip(u, 0.0, 1.0))
-    out = {f.name: np.full(len(u), float(getattr(base, f.name))) for f in dataclasses.fields(ActuatorParams)}
+    out = {f.name: np.full(len(u), float(getattr(base, f.name))) for f in dataclasses.fields(base)}
     for i, name in enumerate(names):
-        lo, hi = BOUNDS[name]
-        out[name] = lo * (hi / lo) ** u[:, i] if name in LOG_SCALED else lo + u[:, i] * (hi - lo)
+        lo, hi, log, _ = SEARCH[name]
+        out[name] = lo * (hi / lo) ** u[:, i] if log else lo + u[:, i] * (hi - lo)
     if "q_dot_max" in names:
         out["q_dot_max"] = out["q_dot_max"] + out["q_dot_tau_max"]
     if "tau_q_dot_max" in names:
         out["tau_q_dot_max"] = out["tau_q_dot_max"] * out["tau_max"]
-    return out
+    return Candidates(type(base), out)
 
 
-def params_at(fields: dict[str, np.ndarray], i: int) -> ActuatorParams:
-    """Candidate ``i`` of `from_unit`'s output as ActuatorParams."""
-    return ActuatorParams(**{k: float(v[i]) for k, v in fields.items()})
-
-
-def save_params(path: str | Path, motor: str, params: ActuatorParams, fitted: Iterable[str],
+def save_params(path: str | Path, motor: str, params: MotorParams, fitted: Iterable[str],
                 fit: dict[str, Any]) -> Path:
     """Write a params.json atomically (a failed or interrupted write leaves any previous file untouched)."""
-    body = {"motor": motor, "actuator": dataclasses.asdict(params), "fitted": list(fitted), "fit": fit}
+    body = {"motor": motor, "actuator": params_dict(params), "fitted": list(fitted), "fit": fit}
     return atomic_write_text(path, json.dumps(body, indent=2) + "\n")

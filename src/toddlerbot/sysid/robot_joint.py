@@ -1,8 +1,10 @@
 """The ``robot_joint`` rig: one motor joint of the fixed-base robot model, simulated with MuJoCo.
 
 The rig motor follows the replayed goal positions with the candidate parameters (its joint's damping, armature
-and friction loss are set in the MuJoCo model), at the logged supply voltage and passive while torque was off;
-every other motor holds its home position with the description's parameters and the spec's firmware gains.
+and friction loss are set in the MuJoCo model, the friction loss raised every step by the model's load-dependent
+budget, `toddlerbot.actuation.model.friction_excess`), at the run's supply voltage and applying no torque while it
+was off; every other motor holds its home position with the description's parameters and the spec's firmware
+gains.
 Candidates are simulated one after another (slower than the vectorised one-degree-of-freedom rigs).
 """
 
@@ -11,10 +13,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.catalogue import ActuatorParams, MotorModel
-from toddlerbot.actuation.model import actuator_arrays, at_voltage, motor_torque, passive_torque
-from toddlerbot.sysid.batch import RunBatch
+from toddlerbot.actuation.catalogue import MotorModel
+from toddlerbot.actuation.model import actuator_arrays, at_voltage, friction_excess, motor_torque
+from toddlerbot.actuation.motor_params import MotorParams
+from toddlerbot.sysid.batch import Replay, RunBatch
 from toddlerbot.sysid.errors import SysIDError
+from toddlerbot.sysid.params import Candidates
 from toddlerbot.sysid.rigs import RobotJointRig
 
 
@@ -27,8 +31,10 @@ def rig_motor(rig: RobotJointRig) -> MotorModel:
     return description.motor_models[description.motor_names.index(rig.joint)]
 
 
-def simulate_robot_joint(batch: RunBatch, rig: RobotJointRig, fields: dict[str, np.ndarray]) -> np.ndarray:
-    """Simulated rig-joint positions (P, N) at every log sample for P candidates."""
+def simulate_robot_joint(batch: RunBatch, rig: RobotJointRig, candidates: Candidates,
+                         full: bool = False) -> Replay:
+    """Simulated rig-joint replay (each (P, N)) for P candidates; ``full``:
+    also velocity and torque."""
     rig_motor(rig)
     description = rig.robot
     base_model = description.model(base="fixed", scene=False)
@@ -37,45 +43,46 @@ def simulate_robot_joint(batch: RunBatch, rig: RobotJointRig, fields: dict[str, 
     qadr = np.array([base_model.joint(name).qposadr[0] for name in names])
     vadr = np.array([base_model.joint(name).dofadr[0] for name in names])
     home = base_model.key("home").qpos.copy()
-    n_cand = len(fields["damping"])
-    out = np.empty((n_cand, len(batch.measured)))
-    for c in range(n_cand):
-        cand = ActuatorParams(**{k: float(v[c]) for k, v in fields.items()})
+    out = [np.empty((len(candidates), len(batch.measured))) for _ in range(3 if full else 1)]
+    for c in range(len(candidates)):
+        cand = candidates.params(c)
         model = _with_joint_params(base_model, vadr[rig_index], rig_index, cand, float(batch.voltage_ratio.max()))
         params = [cand if i == rig_index else p for i, p in enumerate(description.actuator_params)]
         for r, run in enumerate(batch.runs):
             kp, kd = description.default_kp.copy(), description.default_kd.copy()
             kp[rig_index], kd[rig_index] = run.kp, run.kd
-            arrays = actuator_arrays(params, kp, kd)
+            scale = np.ones(len(names))
+            scale[rig_index] = batch.voltage_ratio[r]
+            p = at_voltage(actuator_arrays(params, kp, kd), scale)
             data = mujoco.MjData(model)
             data.qpos[:] = home
             data.qpos[qadr[rig_index]] = batch.q0[r]
             data.qvel[vadr[rig_index]] = batch.v0[r]
             target = home[qadr].copy()
-            scale = np.ones(len(names))
-            record = np.empty(len(batch.goal))
+            record = np.empty((len(batch.goal), 3))
             for k in range(len(batch.goal)):
-                record[k] = data.qpos[qadr[rig_index]]
                 target[rig_index] = batch.goal[k, r]
-                scale[rig_index] = batch.voltage_ratio[k, r]
-                p = at_voltage(arrays, scale)
                 q_dot = data.qvel[vadr]
                 tau = motor_torque(target, data.qpos[qadr], q_dot, p)
                 if not batch.torque_on[k, r]:
-                    tau[rig_index] = passive_torque(q_dot, p)[rig_index]
+                    tau[rig_index] = 0.0
+                record[k] = data.qpos[qadr[rig_index]], q_dot[rig_index], tau[rig_index]
+                model.dof_frictionloss[vadr[rig_index]] = cand.frictionloss + friction_excess(
+                    q_dot, tau, p)[rig_index]
                 data.ctrl[:] = tau
                 mujoco.mj_step(model, data)
             mask = batch.sample_run == r
-            out[c, mask] = record[batch.sample_step[mask]]
-    return out
+            for i, values in enumerate(out):
+                values[c, mask] = record[batch.sample_step[mask], i]
+    return Replay(*out)
 
 
-def _with_joint_params(base: mujoco.MjModel, dof: int, actuator: int, p: ActuatorParams,
+def _with_joint_params(base: mujoco.MjModel, dof: int, actuator: int, p: MotorParams,
                        voltage_ratio: float) -> mujoco.MjModel:
     model = base.__copy__()
     model.dof_damping[dof] = p.damping
     model.dof_armature[dof] = p.armature
     model.dof_frictionloss[dof] = p.frictionloss
-    limit = max(p.tau_brake, p.tau_max, p.tau_q_dot_max) * max(voltage_ratio, 1.0)
+    limit = max(p.tau_brake, p.tau_max) * max(voltage_ratio, 1.0)
     model.actuator_ctrlrange[actuator] = (-limit, limit)
     return model

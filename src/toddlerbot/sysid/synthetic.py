@@ -8,16 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import ActuatorParams
-from toddlerbot.actuation.model import FRICTION_SMOOTHING, actuator_arrays, at_voltage, limit_torque, pd_torque
+from toddlerbot.actuation.model import actuator_arrays, at_voltage, motor_torque
+from toddlerbot.actuation.motor_params import MotorParams
 from toddlerbot.sysid.excitation import Excitation
 from toddlerbot.sysid.logs import MotorLog, write_log
 from toddlerbot.sysid.manifest import write_manifest
+from toddlerbot.sysid.params import Candidates
 from toddlerbot.sysid.rigs import Rig, SimpleRig
 from toddlerbot.sysid.simulate import DT, RunBatch, simulate
 
 
-def synthesize(excitations: list[Excitation], rig: Rig, params: ActuatorParams, noise_std: float = 0.0,
+def synthesize(excitations: list[Excitation], rig: Rig, params: MotorParams, noise_std: float = 0.0,
                seed: int = 0, q0: float | None = None, dt: float = DT, voltage: float | None = None,
                rated_voltage: float | None = None) -> list[MotorLog]:
     """Runs with simulated positions (rad) plus Gaussian noise of std ``noise_std`` rad; ``voltage``: the supply
@@ -27,8 +28,7 @@ def synthesize(excitations: list[Excitation], rig: Rig, params: ActuatorParams, 
                    torque_enable=e.torque_enable, voltage=None if voltage is None else np.full_like(e.time, voltage))
             for e in excitations]
     batch = RunBatch.from_runs(runs, dt, rated_voltage)
-    fields = {k: np.array([float(v)]) for k, v in dataclasses.asdict(params).items()}
-    clean = batch.split(simulate(batch, rig, fields)[0])
+    clean = batch.split(simulate(batch, rig, Candidates.of(params)).position[0])
     rng = np.random.default_rng(seed)
     return [dataclasses.replace(r, position=q + rng.normal(0.0, noise_std, q.shape))
             for r, q in zip(runs, clean, strict=True)]
@@ -48,13 +48,14 @@ ENCODER_COUNTS = 4096
 """Counts per revolution of the X-series absolute encoder (e-Manual: 12 bit)."""
 
 
-def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: ActuatorParams, voltage: float,
+def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: MotorParams, voltage: float,
                       rated_voltage: float, sag: float = 0.3, noise_std: float = np.radians(0.05), seed: int = 0,
                       latency: float = 0.002, dt: float = 0.00025) -> list[MotorLog]:
     """Pendulum / test-bed runs from a plant RICHER than any model the fit can express, to test the fit against
     model error rather than only noise:
 
     * the static friction decays exponentially (exp(-|q_dot| / stribeck_velocity)), not as the model's Gaussian;
+    * the motor sees its momentary supply, not the run's median the replay assumes;
     * each position is read up to ``latency`` s before its logged timestamp (uniformly at random), as a bus
       read returns a sample taken some time before the host stamps it;
     * the supply sags by ``sag`` V per N*m of motor torque relative to the stall torque (logged, as a servo reports
@@ -81,12 +82,11 @@ def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: Act
         p = at_voltage(base, volts / rated_voltage)
         q_rec[k], volt_rec[k] = q, volts
         gravity = rig.gravity_gain * np.sin(q)
-        powered = limit_torque(pd_torque(goal[k], q, v, p), v, p)
-        tau = np.where(on[k] > 0.5, powered, 0.0)
-        friction = (params.stiction * np.exp(-np.abs(v) / params.stribeck_velocity)
-                    + params.load_friction * np.abs(tau)) * np.tanh(v / FRICTION_SMOOTHING)
-        v_free = (inertia * v + dt * (tau - friction - gravity)) / implicit
-        v = np.sign(v_free) * np.maximum(np.abs(v_free) - dt * params.frictionloss / implicit, 0.0)
+        tau = np.where(on[k] > 0.5, motor_torque(goal[k], q, v, p), 0.0)
+        budget = (params.frictionloss + p.stiction * np.exp(-np.abs(v) / p.stribeck_velocity)
+                  + p.load_friction * np.abs(tau))
+        v_free = (inertia * v + dt * (tau - gravity)) / implicit
+        v = np.sign(v_free) * np.maximum(np.abs(v_free) - dt * budget / implicit, 0.0)
         q = q + dt * v
     rng = np.random.default_rng(seed)
     count = 2.0 * np.pi / ENCODER_COUNTS

@@ -1,0 +1,107 @@
+"""The DC-motor actuator model: the Dynamixel firmware's P controller setting a PWM duty on a DC motor.
+
+The firmware turns the position error into a PWM duty, ``duty = clip(pwm_per_rad * kp * (q_target - q), -1, 1)``
+(kp in firmware units: the X-series divides the gain by a constant and the error is in encoder counts, so
+``pwm_per_rad`` is one number per firmware; `toddlerbot.actuation.catalogue` gives the XL330's). The winding
+then sees ``duty * V - k_e * q_dot``, so at the output shaft
+
+    tau = stall_torque * sign(duty) |duty|^pwm_exponent - (stall_torque / no_load_speed) * q_dot,
+
+with the stall torque ``k_t V / R`` and the no-load speed ``V / k_e`` both at the motor's rated voltage (the
+e-Manual's figures; `toddlerbot.actuation.model.at_voltage` scales both with the supply). The same parameters hold
+for every firmware gain: kp enters in its own units. Coulomb friction is a budget that grows with the transmitted
+torque (``load_friction``), so a loaded gearbox holds its load.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+from toddlerbot.actuation.motor_params import check_fields
+
+DC_MOTOR_MAX = {"damping": 10.0, "armature": 1.0, "frictionloss": 100.0, "stall_torque": 1000.0,
+                "no_load_speed": 1000.0, "pwm_per_rad": 10.0, "pwm_exponent": 3.0, "load_friction": 1.0}
+"""Plausible upper bound of each field (units as in `DCMotorParams`), orders of magnitude above the system-ID search
+bounds and any Dynamixel's figure."""
+
+
+@dataclass(frozen=True)
+class DCMotorParams:
+    """Parameters of the DC-motor model, in joint units of the motor's output shaft."""
+
+    model: ClassVar[str] = "dc_motor"
+
+    damping: float
+    """Passive viscous resistance, N*m*s/rad (powered or not)."""
+    armature: float
+    """Reflected rotor inertia, kg*m^2."""
+    frictionloss: float
+    """Coulomb friction at no load, N*m."""
+    stall_torque: float
+    """Torque at full PWM duty and rest, at the rated voltage, N*m (k_t V / R)."""
+    no_load_speed: float
+    """Speed at which the back-EMF cancels the full supply, at the rated voltage, rad/s (V / k_e)."""
+    pwm_per_rad: float
+    """PWM duty (1 = 100 %) per rad of position error per unit of firmware kp, 1/rad."""
+    pwm_exponent: float = 1.0
+    """The drive torque grows as duty^pwm_exponent, 1 (1: proportional to the duty)."""
+    load_friction: float = 0.0
+    """Coulomb friction per N*m of motor torque (1 - gearbox efficiency), 1."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, DC_MOTOR_MAX)
+        for name in ("stall_torque", "no_load_speed", "pwm_per_rad", "pwm_exponent"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.load_friction >= 1:
+            raise ValueError(f"load_friction must be < 1 (share of the transmitted torque), got {self.load_friction}")
+
+    @property
+    def tau_max(self) -> float:
+        """Torque from rest at full duty, N*m."""
+        return self.stall_torque
+
+    @property
+    def tau_brake(self) -> float:
+        """Braking torque at full duty from the no-load speed (stall torque plus as much back-EMF), N*m."""
+        return 2.0 * self.stall_torque
+
+    @property
+    def q_dot_max(self) -> float:
+        """The no-load speed, rad/s."""
+        return self.no_load_speed
+
+    @property
+    def kp_scale(self) -> float:
+        """Firmware kp per N*m/rad of physical stiffness (the appendix model's conversion factor)."""
+        return 1.0 / (self.pwm_per_rad * self.stall_torque)
+
+    @property
+    def back_emf_damping(self) -> float:
+        """k_t k_e / R = stall torque / no-load speed, N*m*s/rad (independent of the supply)."""
+        return self.stall_torque / self.no_load_speed
+
+    def array_fields(self, kp_dynamixel: float, kd_dynamixel: float) -> dict[str, float]:
+        """This motor's `toddlerbot.actuation.model.ActuatorArrays` entries at these firmware gains."""
+        return self.fields_to_arrays(dataclasses.asdict(self), kp_dynamixel, kd_dynamixel)
+
+    @staticmethod
+    def fields_to_arrays(f: Mapping, kp_dynamixel, kd_dynamixel) -> dict:
+        """`ActuatorArrays` entries from field values (floats, or arrays of candidates in a fit; constants
+        stay scalars and broadcast): PD on the duty
+        (the firmware's D gain taken in the units of kp), a flat limit at the stall torque, the back-EMF after it,
+        load-dependent friction only."""
+        per_unit = f["pwm_per_rad"] * f["stall_torque"]
+        return {
+            "kp": kp_dynamixel * per_unit, "kd": kd_dynamixel * per_unit, "kd_min": 0.0,
+            "tau_max": f["stall_torque"], "q_dot_tau_max": 0.0, "q_dot_max": f["no_load_speed"],
+            "tau_q_dot_max": f["stall_torque"], "tau_brake": f["stall_torque"],
+            "back_emf_damping": f["stall_torque"] / f["no_load_speed"], "pwm_exponent": f["pwm_exponent"],
+            "stiction": 0.0, "stribeck_velocity": 1.0, "load_friction": f["load_friction"],
+        }
+
+    def replace(self, **changes: float) -> DCMotorParams:
+        return dataclasses.replace(self, **changes)

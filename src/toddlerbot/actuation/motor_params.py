@@ -1,0 +1,50 @@
+"""What every actuator-model parameter set provides (`MotorParams`), and the check they share."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Protocol
+
+
+class MotorParams(Protocol):
+    """A motor model's parameters, in joint units of the motor's output shaft (`ActuatorParams`: the appendix's
+    model; `DCMotorParams`: the DC-motor model). The model builder, the hardware emulator and the summaries use
+    the passive terms and the three envelope figures; the actuator model uses `array_fields`."""
+
+    model: str
+    damping: float
+    """Passive viscous resistance, N*m*s/rad."""
+    armature: float
+    """Reflected rotor inertia, kg*m^2."""
+    frictionloss: float
+    """Coulomb friction, N*m."""
+
+    @property
+    def tau_max(self) -> float:
+        """Largest torque from rest, N*m."""
+
+    @property
+    def tau_brake(self) -> float:
+        """Largest torque the motor applies at all (braking), N*m: the simulator's actuator range."""
+
+    @property
+    def q_dot_max(self) -> float:
+        """Speed at which the motor runs out of torque to accelerate, rad/s (the hardware slew limit)."""
+
+    def array_fields(self, kp_dynamixel: float, kd_dynamixel: float) -> dict[str, float]:
+        """One motor's entries of every `toddlerbot.actuation.model.ActuatorArrays` field at these firmware gains."""
+
+    def replace(self, **changes: float) -> MotorParams:
+        """A copy with some fields changed (validated again)."""
+
+
+def check_fields(params: object, maxima: dict[str, float]) -> None:
+    """Raise ValueError naming the first dataclass field that is not a finite number in [0, its plausible maximum]
+    (finite is not enough: tau_max 1e300 is finite)."""
+    for field in dataclasses.fields(params):
+        value = getattr(params, field.name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise ValueError(f"{field.name} must be a finite number >= 0, got {value!r}")
+        if value > maxima[field.name]:
+            raise ValueError(f"{field.name} must be at most {maxima[field.name]:g}, got {value:g}")
