@@ -2,7 +2,7 @@
 
 The firmware turns the position error into a PWM duty, ``duty = clip(pwm_per_rad * kp * (q_target - q), -1, 1)``
 (kp in firmware units: the X-series divides the gain by a constant and the error is in encoder counts, so
-``pwm_per_rad`` is one number per firmware; `toddlerbot.actuation.catalogue` gives the XL330's). The winding
+``pwm_per_rad`` is one number per firmware; ``motors.yaml`` gives the XL330's, with its source). The winding
 then sees ``duty * V - k_e * q_dot``, so at the output shaft
 
     tau = stall_torque * sign(duty) |duty|^pwm_exponent - (stall_torque / no_load_speed) * q_dot,

@@ -8,10 +8,11 @@ error), so every run pulls on the parameters it excites (measured: fits started 
 converge more reliably). The velocity pins the dynamics that position alone leaves loose on real logs (passive
 damping against friction loss): on the XL330-M288 kp-100 logs, fits from the catalogue's and from the datasheet's
 values reach the same parameters with it (1.93 deg on kp 400 from both) and different ones without (1.97 and
-2.38 deg). CMA-ES (the ``cma`` package) searches the
-unit cube mapped onto `toddlerbot.sysid.params.SEARCH` (log-scaled for the positive, multi-decade parameters), the
-first run starting from the catalogue's values for the motor (converted to the fitted model where the catalogue has
-the other one, `toddlerbot.sysid.params.start_params`). Each generation is evaluated as one vectorised simulation
+2.38 deg).
+
+CMA-ES (the ``cma`` package) searches the unit cube mapped onto `toddlerbot.sysid.params.SEARCH` (log-scaled for
+the positive, multi-decade parameters), the first run starting from the catalogue's values for the motor (converted
+to the fitted model where the catalogue has the other one, `toddlerbot.sysid.params.start_params`). Each generation is evaluated as one vectorised simulation
 of all candidates x all runs. A run that stagnates (its best loss improves by less than ``STAGNATION_TOL`` over
 ``patience`` generations) or that meets one of cma's own stopping criteria (e.g. flat fitness) is restarted with twice
 the population (IPOP), from the middle of the search cube, until the evaluation budget or the allowed restarts are
@@ -133,7 +134,6 @@ def _fit_stage(
     t0 = time.perf_counter()
     names = parameter_names(fit_kp_scale, model)
     batch = RunBatch.from_runs(manifest.runs, dt, manifest.motor.rated_voltage)
-
     with_velocity = batch.measured_velocity is not None
 
     def replay(u: np.ndarray) -> Replay:
