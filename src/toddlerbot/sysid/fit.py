@@ -12,12 +12,13 @@ values reach the same parameters with it (1.93 deg on kp 400 from both) and diff
 
 CMA-ES (the ``cma`` package) searches the unit cube mapped onto `toddlerbot.sysid.params.SEARCH` (log-scaled for
 the positive, multi-decade parameters), the first run starting from the catalogue's values for the motor (converted
-to the fitted model where the catalogue has the other one, `toddlerbot.sysid.params.start_params`). Each generation is evaluated as one vectorised simulation
-of all candidates x all runs. A run that stagnates (its best loss improves by less than ``STAGNATION_TOL`` over
-``patience`` generations) or that meets one of cma's own stopping criteria (e.g. flat fitness) is restarted with twice
-the population (IPOP), from the middle of the search cube, until the evaluation budget or the allowed restarts are
-spent; the best candidate of all runs is returned, with the standard error of each fitted parameter
-(`toddlerbot.sysid.uncertainty`). Same manifest, seed and options give the same result.
+to the fitted model where the catalogue has the other one, `toddlerbot.sysid.params.start_params`). Each generation
+is evaluated as one vectorised simulation of all candidates x all runs. A run that stagnates (its best loss improves
+by less than ``STAGNATION_TOL`` over ``patience`` generations) or that meets one of cma's own stopping criteria
+(e.g. flat fitness) is restarted with twice the population (IPOP), from the middle of the search cube, until the
+evaluation budget or the allowed restarts are spent; the best candidate of all runs is returned, with the standard
+error of each fitted parameter (`toddlerbot.sysid.uncertainty`). Same manifest, seed and options give the same
+result.
 """
 
 from __future__ import annotations
