@@ -282,7 +282,8 @@ class CPUPhysics:
             d.qpos[:], d.qvel[:], d.qacc_warmstart[:] = state.float64(i)
             d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
         torque = step_actuated(models, datas, self.addresses.motors, targets[idx],
-                               ActuatorArrays(*(x[idx] for x in actuators)), self.n_substeps)
+                               ActuatorArrays(*(x[idx] for x in actuators)), self.n_substeps,
+                               sensors_last_only=True)
         for d in datas:
             if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo reset the diverged data: end it
                 d.qpos[:] = np.nan

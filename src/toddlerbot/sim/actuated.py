@@ -35,21 +35,26 @@ class MotorAddresses:
 
 
 def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjData], motors: MotorAddresses,
-                  targets: np.ndarray, params: ActuatorArrays, n_substeps: int) -> np.ndarray:
+                  targets: np.ndarray, params: ActuatorArrays, n_substeps: int,
+                  sensors_last_only: bool = False) -> np.ndarray:
     """Advance each robot ``n_substeps`` physics steps holding its motor targets (``targets`` (batch, n_motors),
     rad); ``params`` holds (n_motors,) arrays shared by the batch or (batch, n_motors) arrays, one row per robot.
     Returns the motor torques of the last substep, (batch, n_motors) N*m. A fitted load-dependent friction
     (`toddlerbot.actuation.model.friction_excess`) raises the motor joints' frictionloss every substep and is
-    taken off again on return."""
+    taken off again on return. ``sensors_last_only``: MuJoCo's sensors are evaluated in the last substep only (the
+    dynamics do not read them; this toggles the models' sensor flag, so only for models no other thread steps)."""
     tau = np.zeros_like(targets)
     budget = has_friction_excess(params)
     frictionloss = [m.dof_frictionloss[motors.dof].copy() for m in models] if budget else []
-    for _ in range(n_substeps):
+    for k in range(n_substeps):
         q = np.stack([d.qpos[motors.qpos] for d in datas])
         q_dot = np.stack([d.qvel[motors.dof] for d in datas])
         tau = motor_torque(targets, q, q_dot, params)
         excess = friction_excess(q_dot, tau, params) if budget else None
+        skip = sensors_last_only and k < n_substeps - 1
         for i, (m, d, row) in enumerate(zip(models, datas, tau, strict=True)):
+            if sensors_last_only:
+                m.opt.disableflags = m.opt.disableflags | _NO_SENSOR if skip else m.opt.disableflags & ~_NO_SENSOR
             d.ctrl[motors.actuator] = row
             if budget:
                 m.dof_frictionloss[motors.dof] = frictionloss[i] + excess[i]
@@ -57,3 +62,6 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     for m, own in zip(models, frictionloss, strict=False):
         m.dof_frictionloss[motors.dof] = own
     return tau
+
+
+_NO_SENSOR = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
