@@ -6,6 +6,7 @@ and env steps per second on this machine.
                                                             #   backend in the same run (minutes)
     PYTHONPATH=src python benchmarks/bench_rl.py --tracking walk-rl walk-zmp [--weights F.npz]  # Table 7 errors
                                                             #   on the default and held-out schedules (only)
+    PYTHONPATH=src python benchmarks/bench_rl.py --curves recipe=runs/rl/cpu_walk ...   # learning curves (only)
     PYTHONPATH=src python benchmarks/bench_rl.py --solver-cpu   # + each model setting in CPU MuJoCo (float64)
     PYTHONPATH=src python benchmarks/bench_rl.py --settings # + 10 s stand, constraint residual, steps/s per
                                                             #   training-model setting (a GPU run: add
@@ -150,6 +151,25 @@ def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | Non
                 plot_velocity_tracking(r, f"{name}, {label}", Path(plot_dir) / f"tracking_{name}_{label}.png")
 
 
+def curves(runs: list[str], path: str) -> None:
+    """Learning curves of training runs (``label=run_dir``) in one figure, and each run's key numbers."""
+    from toddlerbot.rl.plot import learning_curves, run_records
+
+    records = {}
+    for item in runs:
+        label, _, run_dir = item.partition("=")
+        warm, history = run_records(Path(run_dir))
+        records[label] = (warm, history)
+        for name, rows in (("warm start", warm), ("PPO", history)):
+            if rows:
+                last = rows[-1]
+                print(f"{label} {name}: {len(rows)} records, {last['env_steps']:,} env steps, "
+                      f"{last['walltime'] / 60:.1f} min; " + ", ".join(
+                          f"{k} {last[k]:.4g}" for k in ("bc_loss", "fall_rate", "episode_reward", "episode_length",
+                                                         "lin_vel_error", "ang_vel_error", "sps") if k in last))
+    print(f"curves: {learning_curves(records, Path(path))}")
+
+
 SETTINGS = (  # (contacts, Newton iterations, line-search iterations, Jacobian, linkage weld loops)
     ("all", 4, 8, "dense", True),  # round 1's model
     ("all", 4, 8, "dense", False),
@@ -243,6 +263,9 @@ def main() -> None:
                         help="Table 7 errors on the default and held-out schedules (default policies: walk-rl)")
     parser.add_argument("--weights", default=None, help="walk-rl's exported .npz (default: the shipped one)")
     parser.add_argument("--plots", default=None, help="folder for the tracking plots")
+    parser.add_argument("--curves", nargs="+", default=None, metavar="LABEL=RUN",
+                        help="plot the learning curves of these training runs (only)")
+    parser.add_argument("--out", default="docs/figures/rl_learning_curves.png", help="figure of --curves")
     parser.add_argument("--stand-envs", type=int, default=8)
     parser.add_argument("--stand-seconds", type=float, default=10.0)
     args = parser.parse_args()
@@ -251,6 +274,9 @@ def main() -> None:
 
         use_full_precision()  # as training does, before anything compiles
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}")
+    if args.curves:
+        curves(args.curves, args.out)
+        return
     if args.tracking is not None:
         bench_tracking(args.tracking or ["walk-rl"], args.weights, args.plots)
         return

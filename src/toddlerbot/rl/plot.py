@@ -13,8 +13,10 @@ import matplotlib.pyplot as plt
 from toddlerbot.files import save_figure
 
 CURVES = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
-          ("lin_vel_error", "|v_xy - command| (m/s)"), ("ang_vel_error", "|yaw rate - command| (rad/s)"))
-"""PPO metrics plotted (episode means of the training episodes that ended in the epoch)."""
+          ("lin_vel_error", "|v_xy - command| (m/s)"), ("ang_vel_error", "|yaw rate - command| (rad/s)"),
+          ("fall_rate", "falls per env step"))
+"""PPO metrics plotted (episode means of the training episodes that ended in the epoch; falls per step also for
+the warm start's iterations, dashed)."""
 
 
 def run_records(run_dir: Path) -> tuple[list[dict], list[dict]]:
@@ -38,6 +40,9 @@ def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path) 
             for row, x in enumerate((steps, minutes)):
                 ax = axes[row, col]
                 ax.plot(x, values, marker="o", ms=2, color=f"C{i}", label=label)
+                if warm and key in warm[0]:
+                    wx = [w["env_steps"] for w in warm] if row == 0 else [w["walltime"] / 60 for w in warm]
+                    ax.plot(wx, [w[key] for w in warm], ls="--", marker="s", ms=2, color=f"C{i}")
                 if warm:
                     ax.axvline(offset if row == 0 else warm[-1]["walltime"] / 60, color=f"C{i}", ls=":", lw=1)
                 ax.set_xlabel("environment steps" if row == 0 else "wall time (min)")
