@@ -102,16 +102,13 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     description = description or RobotDescription.load(variant="gripper")
     model = scene_model(description, chain.scene)
     robot = MuJoCoRobot(description, model=model)
-    robot.reset()
     rng = np.random.default_rng(seed)
+    shift = np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
+    robot.initial_motor_offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
+    obs = robot.reset()
     if chain.scene == "wagon":
-        shift = np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
         shift_wagon(model, robot.data, shift + perturbation.wagon_shift)
-    pose_offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
-    for name, angle in zip(description.motor_names, pose_offset):
-        robot.data.qpos[model.joint(name).qposadr[0]] += angle
-    mujoco.mj_forward(model, robot.data)
-    obs = robot.observe()
+        mujoco.mj_forward(model, robot.data)
     probe = SceneProbe(model, robot.data)
     bars = [(side, p.target) for name, p in chain.success if isinstance(p, GraspedParams)
             for side in (SIDES if p.hands in ("both", "either") else (p.hands,))]
@@ -128,7 +125,7 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     limit = sum(s.until.after or s.timeout or UNBOUNDED_SKILL_S for s in chain.skills) + 1.0
     started = time.perf_counter()
     try:
-        runner.start(obs, description.home_motor_pos + pose_offset)
+        runner.start(obs, description.home_motor_pos + robot.initial_motor_offset)
         k = 0
         while obs.time < limit:
             command = runner.step(obs)

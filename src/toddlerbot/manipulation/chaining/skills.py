@@ -27,6 +27,8 @@ from toddlerbot.manipulation.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, G
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.sim.scenes import SIDES, grasp_site
 
+MAX_ARM_KP_SCALE = 3.0
+"""Largest arm gain multiple a chain may ask for (walk-zmp's swing leg runs at 3x the spec's gains)."""
 DP_CHECKPOINTS = Path(__file__).resolve().parent.parent / "dp" / "checkpoints"
 """Shipped diffusion-policy checkpoints (``{task}.pt``), as `dp.evaluate.shipped_checkpoint` finds them."""
 
@@ -46,6 +48,10 @@ class GraspParams:
     """Pre-grasp point this far behind the grasp point along the fingers, m."""
     grip_fraction: float = 0.85
     """Closed gripper target as a fraction of the drive's range from open."""
+    arm_kp_scale: float = 1.0
+    """The grasping arms' firmware kp while grasping, as a multiple of the spec's. The targets lead the IK solution
+    by the gravity sag at these gains, so a skill after it that holds the arms at the spec's gains (`hold` skills,
+    and `hold: [arm]` after one) supports 1/arm_kp_scale of the arms' weight and the rest lies on the bar."""
     approach_s: float = 1.5
     reach_s: float = 1.5
     close_s: float = 0.8
@@ -53,6 +59,10 @@ class GraspParams:
     max_correction: float = MAX_CORRECTION
     checkpoint: str | None = None
     """Task whose shipped diffusion-policy checkpoint grasps instead of the script, when one is shipped."""
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.arm_kp_scale <= MAX_ARM_KP_SCALE:
+            raise ValueError(f"arm_kp_scale: expected a number in [1, {MAX_ARM_KP_SCALE:g}], got {self.arm_kp_scale}")
 
 
 @dataclass(frozen=True)
@@ -119,6 +129,8 @@ class ScriptedGrasp(Skill):
         self.iks = [ArmIK(d, env.model, side, site=grasp_site(side)) for side in sides]
         self.grippers = [d.motor_names.index(f"{side}_gripper_drive") for side in sides]
         self.kp = d.default_kp.copy()
+        for ik in self.iks:
+            self.kp[ik.arm] *= p.arm_kp_scale
         self._stiffness = d.actuator_arrays(self.kp).kp
 
     def _bar(self) -> np.ndarray:
