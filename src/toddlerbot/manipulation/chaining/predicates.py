@@ -12,7 +12,7 @@ import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.manipulation.chaining.probe import SceneProbe
-from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.interface import FALL_TILT_RAD, Observation, Robot, tilt
 from toddlerbot.sim.scenes import SIDES
 
 Hands = Literal["both", "either", "left", "right"]
@@ -53,9 +53,8 @@ class MovedParams:
 
 @dataclass(frozen=True)
 class UprightParams:
-    max_tilt: float = 0.5
-    """Largest angle between the torso's (IMU's) z axis and the vertical, rad: a robot that fell holding the handle
-    has not pushed the wagon."""
+    max_tilt: float = FALL_TILT_RAD
+    """Largest angle between the torso's (IMU's) z axis and the vertical, rad (default: the one fall threshold)."""
 
 
 @dataclass(frozen=True)
@@ -98,8 +97,7 @@ def _moved_sim(p: MovedParams, ctx: Context) -> bool:
 
 
 def _upright(p: UprightParams, ctx: Context) -> bool:
-    _, x, y, _ = ctx.obs.imu_quat
-    return 1.0 - 2.0 * (x * x + y * y) >= np.cos(p.max_tilt)  # the IMU z axis' vertical component
+    return tilt(ctx.obs.imu_quat) <= p.max_tilt
 
 
 PREDICATES: dict[str, Predicate] = {
