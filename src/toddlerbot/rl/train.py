@@ -11,7 +11,7 @@ gradients are averaged with ``pmean``), so several GPUs on one host are used wit
 with ``CUDA_VISIBLE_DEVICES``.
 
 Run directory layout: ``config.json``, ``checkpoints/step_<n>.msgpack``, ``metrics.jsonl``,
-``training_curve.png``.
+``training_curve.png``, ``tensorboard/`` (the same metrics as TensorBoard scalars, `toddlerbot.metrics`).
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from flax import serialization
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez, atomic_write_bytes, atomic_write_text
+from toddlerbot.metrics import Dashboards, MetricsLogger
 from toddlerbot.rl.config import (
     CommandConfig,
     EnvConfig,
@@ -223,7 +224,7 @@ class PPO:
         metrics.update(
             episode_reward=jnp.sum(episodes["sum_reward"] * done) / jnp.maximum(n_done, 1),
             episode_length=jnp.sum(episodes["length"] * done) / jnp.maximum(n_done, 1),
-            **{name: jnp.sum(episodes[name] * done) / lengths for name in TRACKING_METRICS},
+            **{name: jnp.sum(episodes[name] * done) / lengths for name in TRACKING_METRICS if name in episodes},
             episodes=n_done, step_reward=jnp.mean(data.reward),
             fall_rate=jnp.sum(done * (1 - extras["truncation"])) / done.size,
         )
@@ -315,14 +316,18 @@ def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState,
 def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | None = None, resume: bool = False,
           progress: Progress | None = None, env: WalkEnv | None = None, max_epochs: int | None = None,
           time_limit_s: float | None = None, imitation_cfg: ImitationConfig | None = None,
-          imitation_progress: Callable[[dict], None] | None = None) -> tuple[TrainingState, list[dict]]:
+          imitation_progress: Callable[[dict], None] | None = None,
+          dashboards: Dashboards | None = None) -> tuple[TrainingState, list[dict]]:
     """Train (or, with ``resume``, continue training) into ``run_dir``; returns the final state and the metric
     history (one dict per epoch). A run with ``imitation_cfg.iterations`` starts with the DAgger warm start
     (`toddlerbot.rl.imitation`, saved as ``warm_start.msgpack``; its records in ``imitation.jsonl``) and PPO
     continues from its actor, critic and normaliser. ``max_epochs`` / ``time_limit_s`` stop this call early
     (after a checkpoint; an epoch is not started when the previous one's duration says it would end past the
     limit); ``resume`` continues from there. Records hold ``walltime``: seconds since the run started, every
-    phase included (summed over resumed calls)."""
+    phase included (summed over resumed calls). Every record goes through one `MetricsLogger`: the JSON lines,
+    the TensorBoard scalars ``ppo/<key>`` and ``dagger/<key>`` in ``tensorboard/`` and, with
+    ``dashboards.wandb``, W&B (``dashboards`` default: JSON lines and TensorBoard). Their x axis is the run's
+    environment steps, the warm start's included (as in ``training_curve.png``)."""
     t_start = time.perf_counter()
     use_full_precision()
     run_dir = Path(run_dir)
@@ -343,6 +348,17 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         if env.cfg.motor_params:
             record = motor_params_record(env.cfg.motor_params)
             atomic_write_text(run_dir / MOTOR_PARAMS_RECORD, json.dumps(record, indent=1))
+    config = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
+    with MetricsLogger.open(run_dir, {"ppo": "metrics.jsonl", "dagger": "imitation.jsonl"}, dashboards,
+                            job_type="rl-train", config=config) as metrics:
+        return _train(run_dir, env, cfg, resume, progress, max_epochs, time_limit_s, imitation_cfg,
+                      imitation_progress, metrics, t_start)
+
+
+def _train(run_dir: Path, env: WalkEnv, cfg: PPOConfig, resume: bool, progress: Progress | None,
+           max_epochs: int | None, time_limit_s: float | None, imitation_cfg: ImitationConfig,
+           imitation_progress: Callable[[dict], None] | None, metrics: MetricsLogger,
+           t_start: float) -> tuple[TrainingState, list[dict]]:
     ppo = PPO(env, cfg)
 
     key = jax.random.PRNGKey(cfg.seed)
@@ -357,7 +373,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     elif imitation_cfg.iterations > 0:
         key, k_warm = jax.random.split(key)
         warm, prior_walltime = _warm_start(run_dir, env, ppo, imitation_cfg, ts, k_warm, t_start, time_limit_s,
-                                           imitation_progress)
+                                           imitation_progress, metrics)
         ts = _from_warm_start(ts, warm, ppo)
     elif resume:
         raise ToddlerbotError(f"{run_dir}: no checkpoint to resume from")
@@ -366,6 +382,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     key, k_env = jax.random.split(key)
     env_state = ppo.reset(k_env)
     device = describe_device(env)
+    warm_steps = _warm_start_env_steps(run_dir)
     epochs_run, last_epoch = 0, 0.0
     while int(ts.env_steps) < ppo.total_steps:
         elapsed = time.perf_counter() - t_start
@@ -375,19 +392,18 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         epochs_run += 1
         key, k_epoch = jax.random.split(key)
         t0 = time.perf_counter()
-        ts, env_state, metrics = ppo.epoch(ts, env_state, k_epoch)
+        ts, env_state, epoch_metrics = ppo.epoch(ts, env_state, k_epoch)
         last_epoch = time.perf_counter() - t0
         steps = int(ts.env_steps)
         record = {"env_steps": steps, "epoch_seconds": last_epoch,
                   "walltime": prior_walltime + time.perf_counter() - t_start, "device": device,
-                  "sps": ppo.updates_per_epoch * cfg.env_steps_per_update / last_epoch, **metrics}
+                  "sps": ppo.updates_per_epoch * cfg.env_steps_per_update / last_epoch, **epoch_metrics}
         if evaluator is not None:
             eval_metrics = evaluator.run_evaluation((ts.normalizer_params, ts.params.policy, ts.params.value), {})
             record.update({k: float(v) for k, v in eval_metrics.items() if np.ndim(v) == 0})
         history.append(record)
         save_checkpoint(run_dir, ts, key, history)
-        with (run_dir / "metrics.jsonl").open("a") as f:
-            f.write(json.dumps(record) + "\n")
+        metrics.log("ppo", record, step=warm_steps + steps)
         if progress:
             progress(steps, ppo.total_steps, record)
     return ts, history
@@ -416,7 +432,8 @@ def _cpu_name() -> str:
 
 
 def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts: TrainingState, key: jax.Array,
-                t_start: float, time_limit_s: float | None, progress) -> tuple[WarmStart, float]:
+                t_start: float, time_limit_s: float | None, progress,
+                metrics: MetricsLogger) -> tuple[WarmStart, float]:
     """The run's warm start: loaded from ``warm_start.msgpack`` or made now (DAgger) and saved. Returns it and the
     wall time the run spent before this call (the loaded warm start's; 0 when made now)."""
     from toddlerbot.rl.imitation import dagger
@@ -435,8 +452,7 @@ def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts:
     log.unlink(missing_ok=True)  # an interrupted warm start starts over
 
     def record(m: dict) -> None:
-        with log.open("a") as f:
-            f.write(json.dumps(m) + "\n")
+        metrics.log("dagger", m, step=m["env_steps"])
         if progress:
             progress(m)
 
@@ -447,6 +463,13 @@ def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts:
     state = serialization.to_state_dict(jax.device_get(arrays))
     atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state, "history": json.dumps(warm.history)}))
     return warm, 0.0  # made in this call: its time is part of this call's wall time
+
+
+def _warm_start_env_steps(run_dir: Path) -> int:
+    """Environment steps of the run's warm start (its last record in ``imitation.jsonl``; 0 without one)."""
+    path = run_dir / "imitation.jsonl"
+    lines = [line for line in path.read_text(encoding="utf-8").splitlines() if line] if path.is_file() else []
+    return int(json.loads(lines[-1])["env_steps"]) if lines else 0
 
 
 def _from_warm_start(ts: TrainingState, warm: WarmStart, ppo: PPO) -> TrainingState:
