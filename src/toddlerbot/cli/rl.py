@@ -1,4 +1,4 @@
-"""``toddlerbot rl``: train a walking policy with PPO in MJX and export it for numpy inference."""
+"""``toddlerbot rl``: train a walking policy with PPO in MJX and export it for numpy or onnxruntime inference."""
 
 from __future__ import annotations
 
@@ -8,7 +8,15 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import output_dir, output_file, training_budget
+from toddlerbot.cli.options import (
+    TensorBoardOption,
+    WandbModeOption,
+    WandbOption,
+    dashboards,
+    output_dir,
+    output_file,
+    training_budget,
+)
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
@@ -53,9 +61,13 @@ def train(
     motor_params: Annotated[list[Path] | None, typer.Option(
         "--motor-params", help="Fitted actuator parameters (sysID params.json; repeat for several motor models): "
                                "the robot trains on them, domain randomisation scales around them.")] = None,
+    tensorboard: TensorBoardOption = True,
+    wandb: WandbOption = False,
+    wandb_mode: WandbModeOption = None,
 ) -> None:
     """Train with PPO (on a CPU: the CPU recipe of docs/rl.md, a DAgger warm start from walk-zmp then PPO; with a
-    GPU: the one-GPU configuration; --smoke: a tiny run) with checkpoints and a training curve."""
+    GPU: the one-GPU configuration; --smoke: a tiny run) with checkpoints, a training curve and TensorBoard
+    scalars (RUN/tensorboard; --wandb: also Weights & Biases)."""
     import os
 
     from toddlerbot.rl.config import SMOKE_XLA_FLAGS
@@ -63,6 +75,7 @@ def train(
     training_budget(minutes, epochs, "--epochs")
     for option, count in (("--timesteps", timesteps), ("--num-envs", num_envs)):
         training_budget(None, count, option)
+    sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     smoke_run = smoke or (resume is not None and (resume / "smoke").is_file())
     if smoke_run:  # must be set before JAX starts its CPU backend
         os.environ.setdefault("XLA_FLAGS", SMOKE_XLA_FLAGS)
@@ -136,7 +149,8 @@ def train(
 
         _, history = training.train(run_dir, env_cfg, ppo_cfg, resume=resume is not None, progress=progress,
                                     time_limit_s=None if minutes is None else 60 * minutes, max_epochs=epochs,
-                                    imitation_cfg=imitation_cfg, imitation_progress=imitation_progress)
+                                    imitation_cfg=imitation_cfg, imitation_progress=imitation_progress,
+                                    dashboards=sinks)
     if not history:
         raise ToddlerbotError(f"{run_dir}: no epoch ran (limits too tight?)")
     png = plot.training_curve(history, run_dir / "training_curve.png", warm=plot.run_records(run_dir)[0])
@@ -147,12 +161,38 @@ def train(
 
 @app.command()
 def export(
-    run: Annotated[Path, typer.Argument(help="Training run directory.")],
-    out: Annotated[Path, typer.Option(help="Exported .npz.")] = DEFAULT_WEIGHTS,
+    run: Annotated[Path, typer.Argument(help="Training run directory, or an exported .npz (for --format onnx).")],
+    out: Annotated[Path | None, typer.Option(help="File to write (default: the shipped walk_rl.npz for npz; for "
+                                                  "onnx the source's name with .onnx, or RUN/policy.onnx).")] = None,
+    export_format: Annotated[str, typer.Option("--format", help="npz (numpy inference) or onnx (onnxruntime; "
+                                                                 "checked against the numpy policy).")] = "npz",
     checkpoint: Annotated[str | None, typer.Option(help="A checkpoint file name of the run (default: the latest; "
                                                         "'warm_start': the DAgger warm start).")] = None,
 ) -> None:
-    """Write the run's latest checkpoint as a numpy-only policy file for the `walk-rl` runtime policy."""
+    """Write the run's latest checkpoint as a policy file for the `walk-rl` runtime policy: numpy-only .npz, or
+    .onnx (graph: raw observation -> action; metadata in the model) verified against the numpy policy."""
+    from toddlerbot.rl.onnx_export import EXPORT_FORMATS
+
+    if export_format not in EXPORT_FORMATS:
+        raise ToddlerbotError(f"--format {export_format!r}: expected one of {', '.join(EXPORT_FORMATS)}")
+    if export_format == "onnx":
+        from toddlerbot.rl.onnx_export import export_onnx, require_onnx
+
+        if out is None:
+            out = run / "policy.onnx" if run.is_dir() else run.with_suffix(".onnx")
+        output_file(out, "--out")
+        require_onnx()
+        if run.is_dir():
+            _require_jax()
+        path, report = export_onnx(run, out, checkpoint=checkpoint)
+        console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB); ONNX vs numpy, max abs action "
+                      f"difference: {report['random']:.2g} on {report['n_random']} random observations, "
+                      f"{report['recorded']:.2g} on {report['n_recorded']} recorded in the simulator")
+        return
+    if not run.is_dir():
+        raise ToddlerbotError(f"{run}: not a training run directory (an .npz is already the numpy export; "
+                              "--format onnx converts it)")
+    out = DEFAULT_WEIGHTS if out is None else out
     output_file(out, "--out")
     _require_jax()
     from toddlerbot.rl.export import export_run

@@ -30,6 +30,8 @@ def run(
     ] = None,
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around "
                                                "or a motion YAML file.")] = None,
+    weights: Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz, "
+                                                 "or .onnx run by onnxruntime; default: the shipped .npz).")] = None,
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")] = 10.0,
     control_hz: Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")] = 50.0,
     realtime: Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")] = False,
@@ -66,6 +68,8 @@ def run(
         raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
     if (task is not None or checkpoint is not None) and policy != "dp":
         raise ToddlerbotError("--task and --checkpoint are for --policy dp")
+    if weights is not None and policy != "walk-rl":
+        raise ToddlerbotError("--weights is for --policy walk-rl")
     duration(seconds, "--seconds")
     positive(control_hz, "--control-hz", "Hz")
     outputs = {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json}
@@ -85,7 +89,7 @@ def run(
                                           1.0 / control_hz, threads)
     else:
         robot = MuJoCoRobot(description, SimConfig(control_dt=1.0 / control_hz))
-        pol = make_policy(policy, robot, motion)
+        pol = make_policy(policy, robot, motion, weights)
     recorder, render_skipped = None, None
     if video or snapshot:
         try:

@@ -1,4 +1,5 @@
-"""Numpy-only inference of an exported RL walking policy (no JAX: this runs on the robot's CPU at 50 Hz).
+"""Inference of an exported RL walking policy without JAX (this runs on the robot's CPU at 50 Hz): numpy, or
+onnxruntime for an ONNX export.
 
 An exported policy is one ``.npz`` file holding
 
@@ -14,6 +15,10 @@ An exported policy is one ``.npz`` file holding
 * for a residual policy (leg targets = gait reference + ``action_scale`` x action), the `GaitReference` arrays
   (``ref_vx``, ``ref_vy``, ``ref_yaw``, ``ref_period``, ``ref_leg_motor_pos``, ``ref_contact``), and for a policy
   trained with walk-zmp's leg gain schedule, ``kp_stance_scale`` / ``kp_swing_scale`` (`leg_gain_scale`).
+
+or one ``.onnx`` file (`toddlerbot rl export --format onnx`): the graph maps the raw observation to the
+deterministic action (normalisation, MLP, ``tanh`` or ``clip`` included) and every other array above travels in
+the model's ``metadata_props`` (`onnx_metadata`), so `RLPolicyFile` reads and checks both the same way.
 
 `obs_frame` is the single definition of one observation frame; the MJX environment builds its frames with the
 same function (``xp=jax.numpy``), which is what makes training and deployment agree.
@@ -172,17 +177,73 @@ def _swish(x: np.ndarray) -> np.ndarray:
 MAX_POLICY_BYTES = 256 << 20
 """Largest exported policy file read, bytes (the shipped one is well under 1 MiB)."""
 
+NETWORK_ARRAYS = ("obs_mean", "obs_std")
+"""Arrays of an export that belong to the network (with ``layer{i}_kernel`` / ``layer{i}_bias``); the others are
+the policy's metadata, which an ONNX export carries in its ``metadata_props``."""
+ONNX_FORMAT = "toddlerbot-rl-onnx/1"
+ONNX_INDEX = "toddlerbot.policy"
+"""Metadata key of an ONNX export's index: JSON ``{"format", "arrays": {name: {"dtype", "shape"}}}``; each array
+is stored under ``toddlerbot.<name>``: text scalars as they are, other arrays as the JSON of ``tolist()``."""
+ONNX_INPUT, ONNX_OUTPUT = "obs", "action"
+"""Names of an ONNX export's input (batch, n_obs) float32 raw observations and output (batch, n_legs) actions."""
+
+
+def is_network_array(name: str) -> bool:
+    return name in NETWORK_ARRAYS or (name.startswith("layer") and name.endswith(("_kernel", "_bias")))
+
+
+def onnx_metadata(arrays: dict[str, np.ndarray]) -> dict[str, str]:
+    """The metadata arrays of an export (everything but the network) as ONNX ``metadata_props`` strings; exact:
+    `arrays_from_onnx_metadata` gives the same arrays back."""
+    index, props = {}, {}
+    for name, value in arrays.items():
+        if is_network_array(name):
+            continue
+        value = np.asarray(value)
+        if value.dtype.kind not in "Uifb":
+            raise ValueError(f"{name}: dtype {value.dtype} cannot travel in ONNX metadata")
+        index[name] = {"dtype": value.dtype.str, "shape": list(value.shape)}
+        text = value.dtype.kind == "U" and value.ndim == 0
+        props[f"toddlerbot.{name}"] = str(value) if text else json.dumps(value.tolist())
+    return {ONNX_INDEX: json.dumps({"format": ONNX_FORMAT, "arrays": index}), **props}
+
+
+def arrays_from_onnx_metadata(props: dict[str, str], path: Path) -> dict[str, np.ndarray]:
+    """The metadata arrays an ONNX export carries (`onnx_metadata`), or a one-line `ToddlerbotError`."""
+    if ONNX_INDEX not in props:
+        raise ToddlerbotError(f"{path}: an ONNX model without toddlerbot policy metadata ({ONNX_INDEX}); export it "
+                              "with `toddlerbot rl export --format onnx`")
+    try:
+        index = json.loads(props[ONNX_INDEX])
+        if index.get("format") != ONNX_FORMAT:
+            raise ValueError(f"format {index.get('format')!r}, expected {ONNX_FORMAT!r}")
+        arrays = {}
+        for name, spec in index["arrays"].items():
+            raw = props[f"toddlerbot.{name}"]
+            dtype = np.dtype(spec["dtype"])
+            text = dtype.kind == "U" and not spec["shape"]
+            arrays[name] = np.array(raw if text else json.loads(raw), dtype=dtype).reshape(spec["shape"])
+        return arrays
+    except KeyError as exc:
+        raise ToddlerbotError(f"{path}: ONNX policy metadata misses {exc.args[0]!r}") from None
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise ToddlerbotError(f"{path}: malformed ONNX policy metadata ({' '.join(str(exc).split())})") from None
+
+
+def _check_size(path: Path) -> None:
+    size = path.stat().st_size
+    if size == 0:
+        raise ToddlerbotError(f"{path}: empty file, not an exported RL policy")
+    if size > MAX_POLICY_BYTES:
+        raise ToddlerbotError(f"{path}: {size} bytes; an exported policy has at most {MAX_POLICY_BYTES} bytes")
+
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
     """Every array of an .npz file (no pickled objects), or a one-line `ToddlerbotError` naming the file."""
     import zipfile
 
     try:
-        size = path.stat().st_size
-        if size == 0:
-            raise ToddlerbotError(f"{path}: empty file, not an exported RL policy")
-        if size > MAX_POLICY_BYTES:
-            raise ToddlerbotError(f"{path}: {size} bytes; an exported policy has at most {MAX_POLICY_BYTES} bytes")
+        _check_size(path)
         loaded = np.load(path, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):
             raise ToddlerbotError(f"{path}: a single .npy array, not an exported RL policy (.npz)")
@@ -195,46 +256,108 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
         raise ToddlerbotError(f"{path}: not a readable .npz file ({reason})") from None
 
 
-def _check_policy_arrays(policy: RLPolicyFile, path: Path) -> None:
-    """Shapes chain through the network, every number is finite, indices and names fit the motors."""
-    if not policy.kernels:
-        raise ToddlerbotError(f"{path}: no network layers (layer0_kernel)")
-    width = policy.kernels[0].shape[0] if policy.kernels[0].ndim == 2 else -1
-    for i, (kernel, bias) in enumerate(zip(policy.kernels, policy.biases, strict=True)):
-        if kernel.ndim != 2 or kernel.shape[0] != width or bias.shape != (kernel.shape[1],):
-            raise ToddlerbotError(f"{path}: layer{i} has kernel {kernel.shape} and bias {bias.shape}; expected "
-                                  f"({width}, n) and (n,)")
-        width = kernel.shape[1]
-    n_motors, n_legs = len(policy.home_motor_pos), len(policy.leg_motor_index)
-    if width < n_legs or len(policy.motor_names) != n_motors or policy.home_motor_pos.shape != (n_motors,):
-        raise ToddlerbotError(f"{path}: network output {width}, {len(policy.motor_names)} motor names and home pose "
-                              f"{policy.home_motor_pos.shape} do not fit {n_legs} commanded of {n_motors} motors")
-    if policy.leg_motor_index.ndim != 1 or np.any((policy.leg_motor_index < 0) | (policy.leg_motor_index >= n_motors)):
-        raise ToddlerbotError(f"{path}: leg_motor_index must hold motor indices in 0..{n_motors - 1}")
-    arrays = {"obs_mean": policy.obs_mean, "obs_std": policy.obs_std, "home_motor_pos": policy.home_motor_pos}
-    arrays |= {f"layer{i}_kernel": k for i, k in enumerate(policy.kernels)}
-    arrays |= {f"layer{i}_bias": b for i, b in enumerate(policy.biases)}
-    for name, array in arrays.items():
-        if not np.all(np.isfinite(array)):
-            raise ToddlerbotError(f"{path}: {name} holds non-finite values (NaN or inf)")
-    if policy.obs_std.shape != policy.obs_mean.shape or np.any(policy.obs_std <= 0):
-        raise ToddlerbotError(f"{path}: obs_std must be positive and shaped like obs_mean {policy.obs_mean.shape}")
+class NumpyNetwork:
+    """The actor MLP of an ``.npz`` export run with numpy: normalisation, swish hidden layers, the deterministic
+    action (``tanh(mean)`` or ``clip(mean, -1, 1)``)."""
+
+    def __init__(self, data: dict[str, np.ndarray], n_actions: int, distribution: str) -> None:
+        n_layers = len([k for k in data if k.endswith("_kernel")])
+        self.kernels = [data[f"layer{i}_kernel"].astype(np.float32) for i in range(n_layers)]
+        self.biases = [data[f"layer{i}_bias"].astype(np.float32) for i in range(n_layers)]
+        self.obs_mean = data["obs_mean"].astype(np.float32)
+        self.obs_std = data["obs_std"].astype(np.float32)
+        self.n_actions, self.distribution = n_actions, distribution
+
+    def check(self, path: Path) -> None:
+        """Shapes chain through the network, every number is finite, the output holds the actions."""
+        if not self.kernels:
+            raise ToddlerbotError(f"{path}: no network layers (layer0_kernel)")
+        width = self.kernels[0].shape[0] if self.kernels[0].ndim == 2 else -1
+        for i, (kernel, bias) in enumerate(zip(self.kernels, self.biases, strict=True)):
+            if kernel.ndim != 2 or kernel.shape[0] != width or bias.shape != (kernel.shape[1],):
+                raise ToddlerbotError(f"{path}: layer{i} has kernel {kernel.shape} and bias {bias.shape}; expected "
+                                      f"({width}, n) and (n,)")
+            width = kernel.shape[1]
+        if width < self.n_actions:
+            raise ToddlerbotError(f"{path}: network output {width} does not fit {self.n_actions} commanded motors")
+        arrays = {"obs_mean": self.obs_mean, "obs_std": self.obs_std}
+        arrays |= {f"layer{i}_kernel": k for i, k in enumerate(self.kernels)}
+        arrays |= {f"layer{i}_bias": b for i, b in enumerate(self.biases)}
+        for name, array in arrays.items():
+            if not np.all(np.isfinite(array)):
+                raise ToddlerbotError(f"{path}: {name} holds non-finite values (NaN or inf)")
+        if self.obs_std.shape != self.obs_mean.shape or np.any(self.obs_std <= 0):
+            raise ToddlerbotError(f"{path}: obs_std must be positive and shaped like obs_mean {self.obs_mean.shape}")
+
+    @property
+    def n_inputs(self) -> int:
+        return self.kernels[0].shape[0] if self.obs_mean.shape == (self.kernels[0].shape[0],) else -1
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
+        for i, (k, b) in enumerate(zip(self.kernels, self.biases, strict=True)):
+            # einsum runs single-threaded: a threaded BLAS gemv stalls for milliseconds on a busy CPU
+            x = np.einsum("i,ij->j", x, k) + b
+            if i < len(self.kernels) - 1:
+                x = _swish(x)
+        mean = x[: self.n_actions]
+        return np.tanh(mean) if self.distribution == "tanh_normal" else np.clip(mean, -1.0, 1.0)
+
+
+class OnnxNetwork:
+    """The graph of an ``.onnx`` export (raw observation -> deterministic action, normalisation included) run by
+    onnxruntime on one CPU thread. onnxruntime is imported here only (extra ``[onnx]``)."""
+
+    def __init__(self, path: Path) -> None:
+        try:
+            import onnxruntime as ort
+        except ImportError:
+            raise ToddlerbotError(f"{path}: running an ONNX policy needs onnxruntime, which is not installed "
+                                  "(pip install 'toddlerbot[onnx]')") from None
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = 1
+        options.inter_op_num_threads = 1
+        options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        options.log_severity_level = 3  # errors only
+        try:
+            self.session = ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own types for foreign or truncated bytes
+            reason = " ".join(str(exc).split())[:300] or type(exc).__name__
+            raise ToddlerbotError(f"{path}: not a readable ONNX model ({reason})") from None
+        inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
+        if [i.name for i in inputs] != [ONNX_INPUT] or [o.name for o in outputs] != [ONNX_OUTPUT]:
+            raise ToddlerbotError(f"{path}: ONNX inputs {[i.name for i in inputs]} and outputs "
+                                  f"{[o.name for o in outputs]}; an exported policy has [{ONNX_INPUT!r}] and "
+                                  f"[{ONNX_OUTPUT!r}]")
+        self.metadata = dict(self.session.get_modelmeta().custom_metadata_map)
+        in_shape, out_shape = inputs[0].shape, outputs[0].shape
+        self.n_inputs = in_shape[-1] if len(in_shape) == 2 and isinstance(in_shape[-1], int) else -1
+        self.n_outputs = out_shape[-1] if len(out_shape) == 2 and isinstance(out_shape[-1], int) else -1
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float32).reshape(1, -1)
+        return self.session.run(None, {ONNX_INPUT: x})[0][0]
 
 
 class RLPolicyFile:
-    """An exported policy loaded for numpy inference (validated: finite numbers, consistent shapes)."""
+    """An exported policy (``.npz`` for numpy inference, or ``.onnx`` for onnxruntime) loaded and validated:
+    finite numbers, consistent shapes, metadata that fits the network. Both formats carry the same metadata and
+    go through the same checks; only `action`'s implementation differs."""
 
     def __init__(self, path: str | Path) -> None:
         path = Path(path)
         if not path.is_file():
             raise ToddlerbotError(f"{path}: exported policy not found (run `toddlerbot rl export`)")
-        data = _read_npz(path)
+        self.format = "onnx" if path.suffix.lower() == ".onnx" else "npz"
+        if self.format == "onnx":
+            _check_size(path)
+            onnx_net = OnnxNetwork(path)
+            data = arrays_from_onnx_metadata(onnx_net.metadata, path)
+        else:
+            data = _read_npz(path)
+        self.metadata_arrays = {k: v for k, v in data.items() if not is_network_array(k)}
+        """The export's arrays other than the network (what an ONNX export carries as metadata)."""
         try:
-            n_layers = len([k for k in data if k.endswith("_kernel")])
-            self.kernels = [data[f"layer{i}_kernel"].astype(np.float32) for i in range(n_layers)]
-            self.biases = [data[f"layer{i}_bias"].astype(np.float32) for i in range(n_layers)]
-            self.obs_mean = data["obs_mean"].astype(np.float32)
-            self.obs_std = data["obs_std"].astype(np.float32)
             self.home_motor_pos = data["home_motor_pos"].astype(float)
             self.leg_motor_index = data["leg_motor_index"].astype(int)
             self.motor_names = tuple(str(n) for n in data["motor_names"].reshape(-1))
@@ -247,29 +370,64 @@ class RLPolicyFile:
             self.gain_scales = ((data["kp_stance_scale"].astype(float), data["kp_swing_scale"].astype(float))
                                 if "kp_stance_scale" in data else None)
             """(stance, swing) P-gain factors of `leg_gain_scale` (None: the spec's gains)."""
+            network = onnx_net if self.format == "onnx" else \
+                NumpyNetwork(data, len(self.leg_motor_index), self.distribution)
         except KeyError as exc:
             raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from None
         except (ValueError, TypeError) as exc:  # wrong dtypes, malformed JSON or config fields
             raise ToddlerbotError(f"{path}: malformed exported policy ({' '.join(str(exc).split())})") from None
-        _check_policy_arrays(self, path)
+        if isinstance(network, NumpyNetwork):
+            network.check(path)
+        elif network.n_outputs != len(self.leg_motor_index):
+            raise ToddlerbotError(f"{path}: ONNX output width {network.n_outputs} does not fit "
+                                  f"{len(self.leg_motor_index)} commanded motors")
+        self._check_metadata(path)
+        self.network = network
+        """The action function: `NumpyNetwork` (its arrays: ``kernels``, ``biases``, ``obs_mean``, ``obs_std``)
+        or `OnnxNetwork`."""
         self.path = path
         frame = self.obs_config.frame_size(len(self.home_motor_pos), len(self.leg_motor_index))
         expected = self.obs_config.history * frame
-        if self.kernels[0].shape[0] != expected or self.obs_mean.shape != (expected,):
-            raise ToddlerbotError(f"{path}: network input {self.kernels[0].shape[0]} does not match the observation "
+        if network.n_inputs != expected:
+            raise ToddlerbotError(f"{path}: network input {network.n_inputs} does not match the observation "
                                   f"config ({expected} = {self.obs_config.history} frames)")
+
+    def _check_metadata(self, path: Path) -> None:
+        """Indices and names fit the motors, the home pose is finite."""
+        n_motors, n_legs = len(self.home_motor_pos), len(self.leg_motor_index)
+        if len(self.motor_names) != n_motors or self.home_motor_pos.shape != (n_motors,):
+            raise ToddlerbotError(f"{path}: {len(self.motor_names)} motor names and home pose "
+                                  f"{self.home_motor_pos.shape} do not fit {n_legs} commanded of {n_motors} motors")
+        if self.leg_motor_index.ndim != 1 or np.any((self.leg_motor_index < 0) | (self.leg_motor_index >= n_motors)):
+            raise ToddlerbotError(f"{path}: leg_motor_index must hold motor indices in 0..{n_motors - 1}")
+        if not np.all(np.isfinite(self.home_motor_pos)):
+            raise ToddlerbotError(f"{path}: home_motor_pos holds non-finite values (NaN or inf)")
+
+    @property
+    def kernels(self) -> list[np.ndarray]:
+        return self._numpy_network().kernels
+
+    @property
+    def biases(self) -> list[np.ndarray]:
+        return self._numpy_network().biases
+
+    @property
+    def obs_mean(self) -> np.ndarray:
+        return self._numpy_network().obs_mean
+
+    @property
+    def obs_std(self) -> np.ndarray:
+        return self._numpy_network().obs_std
+
+    def _numpy_network(self) -> NumpyNetwork:
+        if not isinstance(self.network, NumpyNetwork):
+            raise ToddlerbotError(f"{self.path}: an ONNX export holds its weights in the graph, not as arrays")
+        return self.network
 
     def action(self, obs: np.ndarray) -> np.ndarray:
         """Deterministic action in [-1, 1]^12 (what the environment applies for the policy's mean) for one
         observation vector, normalised on the fly."""
-        x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
-        for i, (k, b) in enumerate(zip(self.kernels, self.biases, strict=True)):
-            # einsum runs single-threaded: a threaded BLAS gemv stalls for milliseconds on a busy CPU
-            x = np.einsum("i,ij->j", x, k) + b
-            if i < len(self.kernels) - 1:
-                x = _swish(x)
-        mean = x[: len(self.leg_motor_index)]
-        return np.tanh(mean) if self.distribution == "tanh_normal" else np.clip(mean, -1.0, 1.0)
+        return self.network(obs)
 
 
 class RLController:
