@@ -7,7 +7,16 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import duration, output_dir, output_file, training_budget
+from toddlerbot.cli.options import (
+    TensorBoardOption,
+    WandbModeOption,
+    WandbOption,
+    dashboards,
+    duration,
+    output_dir,
+    output_file,
+    training_budget,
+)
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
@@ -38,8 +47,13 @@ def train(
     device: Annotated[str, typer.Option(help="Torch device to train on: cpu, cuda, cuda:1, ...")] = "cpu",
     checkpoint_every: Annotated[int, typer.Option(min=1, help="Save checkpoint.pt every this many steps (and at "
                                                                "the end).")] = 500,
+    tensorboard: TensorBoardOption = True,
+    wandb: WandbOption = False,
+    wandb_mode: WandbModeOption = None,
 ) -> None:
-    """Train on the dataset's episodes (validation episodes held out), with a progress bar and a loss curve."""
+    """Train on the dataset's episodes (validation episodes held out), with a progress bar, a loss curve and
+    TensorBoard scalars (OUT/tensorboard; --wandb: also Weights & Biases)."""
+    sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before any work
     require_torch()
     import torch
 
@@ -62,7 +76,7 @@ def train(
         console.print(f"dataset {dataset}: {len(windows)} windows; run directory {out}")
         result = run_training(windows, preset, out, minutes=minutes, resume=resume,
                               schedule=TrainSchedule(max_steps=steps, checkpoint_every=checkpoint_every),
-                              imagenet_weights=imagenet_weights, device=device)
+                              imagenet_weights=imagenet_weights, device=device, dashboards=sinks)
     finally:
         torch.set_num_threads(previous_threads)  # in-process callers (tests, notebooks) keep their setting
     last = result.history[-1] if result.history else {}

@@ -99,3 +99,25 @@ def _probe(folder: Path, name: str, option: str, path: Path) -> None:
         os.unlink(probe)
     except OSError as exc:
         raise ToddlerbotError(f"{option} {path}: cannot write there ({exc.strerror or exc})") from None
+
+
+TensorBoardOption = Annotated[bool, typer.Option(
+    "--tensorboard/--no-tensorboard", help="Write the metrics as TensorBoard scalars into RUN/tensorboard/ "
+                                           "(tensorboard --logdir RUN).")]
+WandbOption = Annotated[bool, typer.Option(
+    "--wandb", help="Also log the metrics to Weights & Biases (extra [wandb]; project: WANDB_PROJECT, default "
+                    "toddlerbot).")]
+WandbModeOption = Annotated[str | None, typer.Option(
+    "--wandb-mode", help="online or offline (files in RUN/wandb/ for a later `wandb sync`); default: WANDB_MODE, "
+                         "else online.")]
+
+
+def dashboards(tensorboard: bool, wandb: bool, wandb_mode: str | None):
+    """The training's metric sinks (`toddlerbot.metrics.Dashboards`), their packages checked now."""
+    from toddlerbot.metrics import Dashboards
+
+    if wandb_mode is not None and not wandb:
+        raise ToddlerbotError(f"--wandb-mode {wandb_mode}: W&B logging is off; add --wandb")
+    chosen = Dashboards(tensorboard=tensorboard, wandb=wandb, wandb_mode=wandb_mode)
+    chosen.check()
+    return chosen

@@ -2,7 +2,9 @@
 loss with AdamW, keep an EMA copy, evaluate on the validation episodes, checkpoint, plot the loss curve.
 
 A run directory holds ``checkpoint.pt`` (latest, resumable), ``config.json`` (the config, readable),
-``split.json`` (the episodes of each side), ``metrics.json`` (the history) and ``loss_curve.png``.
+``split.json`` (the episodes of each side), ``metrics.json`` (the history), ``metrics.jsonl`` (the same records,
+written as they come), ``tensorboard/`` (them as TensorBoard scalars ``dp/<key>``, `toddlerbot.metrics`) and
+``loss_curve.png``.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from toddlerbot.manipulation.dp.data import (
 from toddlerbot.manipulation.dp.ema import EMA
 from toddlerbot.manipulation.dp.imagenet import load_imagenet_weights
 from toddlerbot.manipulation.dp.plot import plot_loss_curve
+from toddlerbot.metrics import Dashboards, MetricsLogger
 
 CHECKPOINT = "checkpoint.pt"
 VAL_SEED = 12345
@@ -140,7 +143,8 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
 
 def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes: float | None = None,
           resume: bool = False, schedule: TrainSchedule | None = None, show_progress: bool = True,
-          imagenet_weights: str | Path | None = None, device: str = "cpu") -> TrainResult:
+          imagenet_weights: str | Path | None = None, device: str = "cpu",
+          dashboards: Dashboards | None = None) -> TrainResult:
     """Train (or, with ``resume``, continue) a diffusion policy on ``dataset``; checkpoints go to ``out_dir``.
 
     ``imagenet_weights``: a local torchvision ResNet-18 state dict to start the ``resnet18`` encoder from
@@ -148,6 +152,8 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     ``device``: ``cpu`` or a torch device such as ``cuda`` (batches are assembled on the CPU and moved there).
     Stops at ``minutes`` of wall time or ``schedule.max_steps`` (at least one of them must be given).
     ``config``'s state/action dims are taken from the dataset; on resume the checkpoint's config is used.
+    Each record (``step``, ``train_loss``, ``val_loss``, ``learning_rate``, ``steps_per_s``, ``seconds``) goes to
+    ``metrics.jsonl``, TensorBoard (``dashboards`` default) and, with ``dashboards.wandb``, W&B, at x = its step.
     """
     schedule = schedule or TrainSchedule()
     if minutes is not None:
@@ -170,38 +176,49 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     deadline = None if schedule.minutes is None else started + 60.0 * schedule.minutes
     checkpoint = run_dir / CHECKPOINT
     losses: list[torch.Tensor] = []  # kept on the device: reading each one would wait for the GPU every step
+    since = (state.step, started)
+
+    def record() -> None:
+        nonlocal since
+        now = time.perf_counter()
+        entry = {"step": state.step, "train_loss": _mean(losses),
+                 "val_loss": validation_loss(state, val_set, schedule.val_batches),
+                 "learning_rate": float(state.optimizer.param_groups[0]["lr"]),
+                 "steps_per_s": (state.step - since[0]) / max(now - since[1], 1e-9), "seconds": now - started}
+        state.history.append(entry)
+        metrics.log("dp", entry, step=state.step)
+        losses.clear()
+        since = (state.step, time.perf_counter())  # validation time is not training time
+
     state.policy.train()
-    with Progress(TextColumn("dp train"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
-                  disable=not show_progress) as bar:
-        task = bar.add_task("train", total=schedule.max_steps, completed=state.step, info="")
-        while True:
-            if schedule.max_steps is not None and state.step >= schedule.max_steps:
-                break
-            if deadline is not None and time.perf_counter() >= deadline:
-                break
-            indices = torch.randperm(n_train, generator=state.data_rng)[:batch_size].tolist()
-            loss = state.policy.loss(_batch(train_set, indices, keys, target))
-            state.optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            state.optimizer.step()
-            state.ema.update(state.policy)
-            state.step += 1
-            losses.append(loss.detach())
-            if state.step % schedule.log_every == 0:
-                record = {"step": state.step, "train_loss": _mean(losses),
-                          "val_loss": validation_loss(state, val_set, schedule.val_batches),
-                          "seconds": time.perf_counter() - started}
-                state.history.append(record)
-                losses.clear()
-                val = "-" if record["val_loss"] is None else f"{record['val_loss']:.4f}"
-                bar.update(task, info=f"step {state.step} loss {record['train_loss']:.4f} val {val}")
-            if state.step % schedule.checkpoint_every == 0:
-                save_checkpoint(checkpoint, state)
-            bar.update(task, completed=state.step)
-    if losses:
-        state.history.append({"step": state.step, "train_loss": _mean(losses),
-                              "val_loss": validation_loss(state, val_set, schedule.val_batches),
-                              "seconds": time.perf_counter() - started})
+    with MetricsLogger.open(run_dir, {"dp": "metrics.jsonl"}, dashboards, job_type="dp-train",
+                            config=json.loads(cfg.to_json())) as metrics:
+        with Progress(TextColumn("dp train"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
+                      disable=not show_progress) as bar:
+            task = bar.add_task("train", total=schedule.max_steps, completed=state.step, info="")
+            while True:
+                if schedule.max_steps is not None and state.step >= schedule.max_steps:
+                    break
+                if deadline is not None and time.perf_counter() >= deadline:
+                    break
+                indices = torch.randperm(n_train, generator=state.data_rng)[:batch_size].tolist()
+                loss = state.policy.loss(_batch(train_set, indices, keys, target))
+                state.optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                state.optimizer.step()
+                state.ema.update(state.policy)
+                state.step += 1
+                losses.append(loss.detach())
+                if state.step % schedule.log_every == 0:
+                    record()
+                    last = state.history[-1]
+                    val = "-" if last["val_loss"] is None else f"{last['val_loss']:.4f}"
+                    bar.update(task, info=f"step {state.step} loss {last['train_loss']:.4f} val {val}")
+                if state.step % schedule.checkpoint_every == 0:
+                    save_checkpoint(checkpoint, state)
+                bar.update(task, completed=state.step)
+        if losses:
+            record()
     save_checkpoint(checkpoint, state)
     atomic_write_text(run_dir / "metrics.json", json.dumps(state.history, indent=1) + "\n")
     if state.history:
