@@ -21,6 +21,7 @@ import numbers
 import os
 import secrets
 import sys
+import time
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,7 +123,9 @@ class TensorBoardSink:
     def __init__(self, log_dir: Path) -> None:
         tensorboardx = import_tensorboardx()
         self.log_dir = Path(log_dir)
-        self.writer = tensorboardx.SummaryWriter(logdir=str(self.log_dir))
+        # the event file is named after the second it was opened in: two training calls within one second (a quick
+        # resume) would share a name and the second would overwrite the first, so the nanoseconds make it unique
+        self.writer = tensorboardx.SummaryWriter(logdir=str(self.log_dir), filename_suffix=f".{time.time_ns()}")
 
     def write(self, stream: str, record: Mapping[str, Any], step: int) -> None:
         for key, value in scalars(record).items():
