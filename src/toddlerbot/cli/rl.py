@@ -187,7 +187,7 @@ def export(
         path, report = export_onnx(run, out, checkpoint=checkpoint)
         console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB); ONNX vs numpy, max abs action "
                       f"difference: {report['random']:.2g} on {report['n_random']} random observations, "
-                      f"{report['recorded']:.2g} on {report['n_recorded']} recorded in the simulator")
+                      f"{report['recorded']:.2g} on {report['n_recorded']} recorded in the simulator", soft_wrap=True)
         return
     if not run.is_dir():
         raise ToddlerbotError(f"{run}: not a training run directory (an .npz is already the numpy export; "

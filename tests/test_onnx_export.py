@@ -1,0 +1,263 @@
+"""ONNX export of walking policies: the graph equals the numpy policy, the metadata travels in the model, and
+walk-rl runs from the .onnx file alone with the same checks as from the .npz."""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+onnx = pytest.importorskip("onnx")
+ort = pytest.importorskip("onnxruntime")
+
+from toddlerbot.cli.main import main  # noqa: E402
+from toddlerbot.errors import ToddlerbotError  # noqa: E402
+from toddlerbot.policies.rl_inference import ONNX_INPUT, RLPolicyFile  # noqa: E402
+from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy  # noqa: E402
+from toddlerbot.rl import onnx_export  # noqa: E402
+from toddlerbot.rl.onnx_export import export_onnx, random_observations, recorded_observations  # noqa: E402
+
+TOL = 1e-5
+
+
+def _cli(monkeypatch, capsys, *args):
+    """(exit code, stdout, stderr) of ``toddlerbot ARGS`` run in this process."""
+    monkeypatch.setattr(sys, "argv", ["toddlerbot", *map(str, args)])
+    with pytest.raises(SystemExit) as info:
+        main()
+    out = capsys.readouterr()
+    return info.value.code, out.out, out.err
+
+
+def _max_diff(onnx_policy, numpy_policy, observations):
+    batch = onnx_policy.network.session.run(None, {ONNX_INPUT: observations.astype(np.float32)})[0]
+    single = np.stack([onnx_policy.action(o) for o in observations])  # the runtime's one-row path
+    numpy_actions = np.stack([numpy_policy.action(o) for o in observations])
+    np.testing.assert_array_equal(batch, single)
+    return float(np.max(np.abs(batch - numpy_actions))), numpy_actions
+
+
+@pytest.fixture(scope="module")
+def shipped(tmp_path_factory):
+    """The shipped walk_rl.npz exported to ONNX (with the exporter's own check) and both loaded."""
+    out = tmp_path_factory.mktemp("onnx") / "walk_rl.onnx"
+    path, report = export_onnx(DEFAULT_WEIGHTS, out, record_steps=40)
+    return RLPolicyFile(path), RLPolicyFile(DEFAULT_WEIGHTS), report
+
+
+def test_shipped_policy_onnx_equals_numpy_on_random_and_recorded_observations(shipped):
+    onnx_policy, numpy_policy, report = shipped
+    assert report["n_random"] == 256 and report["n_recorded"] == 40
+    assert report["random"] <= TOL and report["recorded"] <= TOL
+    assert numpy_policy.distribution == "tanh_normal"  # round 1's file: the action is tanh(mean)
+    rng_obs = random_observations(numpy_policy, 64, seed=11)
+    diff, actions = _max_diff(onnx_policy, numpy_policy, rng_obs)
+    assert diff <= TOL
+    assert np.abs(actions).max() > 0.1  # a network that does something
+    recorded = recorded_observations(DEFAULT_WEIGHTS, steps=20)
+    assert recorded.shape == (20, 1245)
+    diff, _ = _max_diff(onnx_policy, numpy_policy, recorded)
+    assert diff <= TOL
+    graph_ops = [n.op_type for n in onnx.load(str(onnx_policy.path)).graph.node]
+    assert graph_ops[-1] == "Tanh" and graph_ops.count("MatMul") == 4
+
+
+def test_metadata_round_trip_is_exact(shipped):
+    onnx_policy, numpy_policy, _ = shipped
+    assert onnx_policy.format == "onnx" and numpy_policy.format == "npz"
+    assert set(onnx_policy.metadata_arrays) == set(numpy_policy.metadata_arrays) == {
+        "home_motor_pos", "leg_motor_index", "leg_motors", "meta", "motor_names", "obs_config"}
+    for name, value in numpy_policy.metadata_arrays.items():
+        other = onnx_policy.metadata_arrays[name]
+        assert other.dtype == value.dtype and other.shape == value.shape
+        np.testing.assert_array_equal(other, value)
+    assert onnx_policy.motor_names == numpy_policy.motor_names and len(onnx_policy.motor_names) == 30
+    assert onnx_policy.meta == numpy_policy.meta and onnx_policy.meta["ctrl_dt"] == 0.02
+    assert onnx_policy.obs_config == numpy_policy.obs_config and onnx_policy.obs_config.history == 15
+    np.testing.assert_array_equal(onnx_policy.leg_motor_index, numpy_policy.leg_motor_index)
+    props = {p.key: p.value for p in onnx.load(str(onnx_policy.path)).metadata_props}
+    assert json.loads(props["toddlerbot.motor_names"])[0] == "neck_yaw_drive"
+    assert json.loads(props["toddlerbot.meta"])["ctrl_dt"] == 0.02
+
+
+def _residual_policy(tmp_path, motor_names=None):
+    """A small residual policy in the current format (Gaussian: clip(mean)) with a gait reference and gain schedule."""
+    pytest.importorskip("jax")
+    import itertools
+
+    from toddlerbot.policies.rl_inference import GaitReference, ObsConfig
+    from toddlerbot.rl.config import EnvConfig
+    from toddlerbot.rl.export import write_policy
+    from toddlerbot.robot.description import RobotDescription
+
+    description = RobotDescription.load()
+    obs = ObsConfig(history=3, gait_period=0.6)
+    n_in = obs.history * obs.frame_size(30, 12)
+    rng = np.random.default_rng(4)
+    arrays = {}
+    for i, (a, b) in enumerate(itertools.pairwise([n_in, 48, 32, 12])):
+        gain = 4.0 if b == 12 else 1.0  # a trained-looking head: some means beyond +-1, so clipping is exercised
+        arrays[f"layer{i}_kernel"] = (rng.normal(size=(a, b)) * gain / np.sqrt(a)).astype(np.float32)
+        arrays[f"layer{i}_bias"] = rng.normal(size=b).astype(np.float32) * 0.1
+    arrays["obs_mean"] = rng.normal(size=n_in).astype(np.float32) * 0.1
+    arrays["obs_std"] = rng.uniform(0.05, 1.0, n_in).astype(np.float32)
+    arrays["distribution"], arrays["action_std"] = np.array("normal"), np.full(12, 0.4, np.float32)
+    stance = (rng.uniform(size=(3, 3, 3, 10, 2)) > 0.5) * 1.0
+    reference = GaitReference(np.linspace(-0.1, 0.15, 3), np.linspace(-0.08, 0.08, 3), np.linspace(-0.4, 0.4, 3), 0.6,
+                              rng.normal(size=(3, 3, 3, 10, 12)) * 0.05, stance)
+    swing = np.zeros((2, 30))
+    swing[0, :6], swing[1, 6:12] = 0.7, 0.8
+    space = {**reference.arrays(), "kp_stance_scale": np.full(30, 1.1), "kp_swing_scale": swing}
+    path = write_policy(tmp_path / "residual.npz", arrays, EnvConfig(obs=obs), {"run": "test"}, description, space)
+    if motor_names is not None:
+        data = dict(np.load(path))
+        data["motor_names"] = np.array(motor_names)
+        np.savez(path, **data)
+    return path
+
+
+def test_residual_policy_with_reference_and_gains_round_trips(tmp_path):
+    npz = _residual_policy(tmp_path)
+    path, report = export_onnx(npz, tmp_path / "residual.onnx", record_steps=15)
+    assert report["random"] <= TOL and report["recorded"] <= TOL and report["n_recorded"] == 15
+    onnx_policy, numpy_policy = RLPolicyFile(path), RLPolicyFile(npz)
+    assert numpy_policy.distribution == "normal"
+    for name in ("ref_vx", "ref_leg_motor_pos", "ref_contact", "ref_period", "kp_stance_scale", "kp_swing_scale",
+                 "action_std", "distribution"):
+        np.testing.assert_array_equal(onnx_policy.metadata_arrays[name], numpy_policy.metadata_arrays[name])
+        assert onnx_policy.metadata_arrays[name].dtype == numpy_policy.metadata_arrays[name].dtype
+    np.testing.assert_array_equal(onnx_policy.reference.leg_motor_pos, numpy_policy.reference.leg_motor_pos)
+    diff, actions = _max_diff(onnx_policy, numpy_policy, random_observations(numpy_policy, 128, seed=2))
+    assert diff <= TOL
+    assert 0 < np.mean(np.abs(actions) == 1.0) < 1  # clip(mean, -1, 1) exercised and not everywhere
+    assert [n.op_type for n in onnx.load(str(path)).graph.node][-1] == "Clip"
+
+
+def _drive_both(npz_path, onnx_path, steps, command):
+    """Motor targets and gains of walk-rl from the .npz and from the .onnx, both fed the observations of one
+    simulated robot (driven by the .npz policy)."""
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+    robot = MuJoCoRobot()
+    from_npz, from_onnx = WalkRLPolicy(robot, npz_path), WalkRLPolicy(robot, onnx_path)
+    obs = robot.reset()
+    from_npz.reset(obs)
+    from_onnx.reset(obs)
+    rows = []
+    for _ in range(steps):
+        a, b = from_npz.act(obs, command), from_onnx.act(obs, command)
+        rows.append((a.motor_targets, b.motor_targets, a.kp, b.kp))
+        obs = robot.step(a.motor_targets, a.kp, a.kd)
+    return rows
+
+
+def test_walk_rl_from_onnx_sends_the_npz_motor_targets(shipped, tmp_path):
+    onnx_policy, _, _ = shipped
+    rows = _drive_both(DEFAULT_WEIGHTS, onnx_policy.path, 25, np.array([0.1, 0.0, 0.0]))
+    targets_npz = np.array([r[0] for r in rows])
+    targets_onnx = np.array([r[1] for r in rows])
+    assert np.max(np.abs(targets_npz - targets_onnx)) <= 0.25 * TOL  # action_scale x action tolerance
+    assert np.ptp(targets_npz, axis=0).max() > 1e-3  # the targets move over the 25 steps
+    # a residual policy with a gain schedule: same targets and the same P gains
+    npz = _residual_policy(tmp_path)
+    path, _ = export_onnx(npz, tmp_path / "residual.onnx", record_steps=0)
+    rows = _drive_both(npz, path, 10, np.array([0.05, 0.0, 0.1]))
+    assert max(np.max(np.abs(a - b)) for a, b, _, _ in rows) <= 0.25 * TOL
+    assert all(np.array_equal(ka, kb) for _, _, ka, kb in rows) and rows[0][2] is not None
+
+
+def test_wrong_motor_set_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    names = list(RLPolicyFile(DEFAULT_WEIGHTS).motor_names)
+    names[0], names[1] = names[1], names[0]
+    npz = _residual_policy(tmp_path, motor_names=names)
+    path, report = export_onnx(npz, tmp_path / "swapped.onnx")
+    assert report["n_recorded"] == 0  # not the default robot's motors: nothing to record, random check only
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+    with pytest.raises(ToddlerbotError, match="trained for motors") as info:
+        WalkRLPolicy(MuJoCoRobot(), path)
+    assert "\n" not in str(info.value)
+    code, _, err = _cli(monkeypatch, capsys, "sim", "run", "--policy", "walk-rl", "--weights", path, "--seconds",
+                        "0.1")
+    assert code == 2 and err.count("\n") == 1 and "trained for motors ('neck_pitch_drive'" in err
+
+
+def test_cli_export_from_npz_and_bad_format(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "w.onnx"
+    code, stdout, _ = _cli(monkeypatch, capsys, "rl", "export", _residual_policy(tmp_path), "--format", "onnx",
+                           "--out", out)
+    assert code == 0 and out.is_file() and "max abs action difference" in stdout
+    figures = [float(x) for x in stdout.split("difference:")[1].replace(",", " ").split() if x[0].isdigit()]
+    assert figures[0] <= TOL and figures[1] == 256  # difference on 256 random observations
+    code, _, err = _cli(monkeypatch, capsys, "rl", "export", DEFAULT_WEIGHTS, "--format", "tflite", "--out",
+                        tmp_path / "x.tflite")
+    assert code == 2 and err.count("\n") == 1 and "--format 'tflite': expected one of npz, onnx" in err
+    assert not (tmp_path / "x.tflite").exists()
+
+
+def test_failed_verification_is_one_line_and_writes_nothing(tmp_path, monkeypatch):
+    monkeypatch.setattr(onnx_export, "TOLERANCE", 0.0)  # any float32 rounding difference now fails
+    out = tmp_path / "strict.onnx"
+    with pytest.raises(ToddlerbotError, match="ONNX actions differ from the numpy policy by") as info:
+        export_onnx(_residual_policy(tmp_path), out, record_steps=0)
+    assert "\n" not in str(info.value) and "tolerance 0" in str(info.value)
+    assert not out.exists() and not list(tmp_path.glob(".strict*"))
+
+
+def test_onnx_runtime_missing_or_foreign_models_are_one_line_errors(shipped, tmp_path, monkeypatch):
+    onnx_policy = shipped[0]
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)  # import fails as if not installed
+    with pytest.raises(ToddlerbotError, match=r"needs onnxruntime, which is not installed") as info:
+        RLPolicyFile(onnx_policy.path)
+    assert "\n" not in str(info.value)
+    monkeypatch.undo()
+    (tmp_path / "junk.onnx").write_bytes(b"not a protobuf at all")
+    with pytest.raises(ToddlerbotError, match="not a readable ONNX model"):
+        RLPolicyFile(tmp_path / "junk.onnx")
+    model = onnx.load(str(onnx_policy.path))
+    del model.metadata_props[:]
+    onnx.save(model, str(tmp_path / "bare.onnx"))
+    with pytest.raises(ToddlerbotError, match="without toddlerbot policy metadata"):
+        RLPolicyFile(tmp_path / "bare.onnx")
+
+
+def _small_run(tmp_path):
+    """A training run directory (config + one checkpoint of a small network) as `rl train` leaves it."""
+    jax = pytest.importorskip("jax")
+    pytest.importorskip("brax")
+    from toddlerbot.policies.rl_inference import ObsConfig
+    from toddlerbot.rl import train
+    from toddlerbot.rl.config import EnvConfig, PPOConfig
+    from toddlerbot.rl.export import _template
+    from toddlerbot.robot.description import RobotDescription
+
+    run = tmp_path / "run"
+    env_cfg = EnvConfig(obs=ObsConfig(history=2, gait_period=0.72), residual=False)
+    ppo_cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=(32, 16), value_hidden=(16,))
+    run.mkdir()
+    train.save_config(run, env_cfg, ppo_cfg)
+    state, _ = _template(env_cfg, ppo_cfg, RobotDescription.load(), 7)
+    policy = state.params.policy
+    head = policy["params"]["Dense_0"]
+    policy["params"]["Dense_0"] = {**head, "kernel": head["kernel"] * 6.0}  # some means beyond +-1: clipping
+    state = state.replace(params=state.params.replace(policy=policy), env_steps=jax.numpy.asarray(4096))
+    train.save_checkpoint(run, state, jax.random.PRNGKey(0), [{"env_steps": 4096, "walltime": 1.0}])
+    return run
+
+
+def test_small_run_exports_to_onnx_equal_to_its_npz(tmp_path, monkeypatch, capsys):
+    run = _small_run(tmp_path)
+    code, _, err = _cli(monkeypatch, capsys, "rl", "export", run, "--out", tmp_path / "run.npz")
+    assert code == 0, err
+    code, stdout, err = _cli(monkeypatch, capsys, "rl", "export", run, "--format", "onnx", "--out",
+                             tmp_path / "run.onnx")
+    assert code == 0, err
+    assert "on 256 random observations" in stdout and "on 50 recorded" in stdout
+    onnx_policy, numpy_policy = RLPolicyFile(tmp_path / "run.onnx"), RLPolicyFile(tmp_path / "run.npz")
+    assert onnx_policy.meta["checkpoint"] == numpy_policy.meta["checkpoint"] == "step_000000004096.msgpack"
+    assert onnx_policy.network.n_inputs == numpy_policy.network.n_inputs == 2 * (2 + 3 + 60 + 12 + 6)
+    for observations in (random_observations(numpy_policy, 128, seed=8),
+                         recorded_observations(tmp_path / "run.npz", steps=20)):
+        diff, actions = _max_diff(onnx_policy, numpy_policy, observations)
+        assert diff <= TOL and len(actions) in (128, 20)
+    assert 0 < np.mean(np.abs(actions) == 1.0) < 1 or np.abs(actions).max() > 0.05
