@@ -14,7 +14,7 @@ LAYER = {
     "policies": 3, "runtime": 3,
     "rl": 4, "manipulation": 4, "motion_editor": 4, "cli": 4,
 }
-HEAVY = {"jax", "jaxlib", "flax", "brax", "optax", "orbax", "torch"}
+HEAVY = {"jax", "jaxlib", "flax", "brax", "optax", "orbax", "torch", "onnx"}
 HEAVY_ALLOWED = {"rl", "manipulation"}
 LAZY_HEAVY_ALLOWED = {"cli"}
 """The CLI may import heavy frameworks inside the commands that need them, never at module level."""
@@ -49,3 +49,15 @@ def test_imports_point_down(area, path):
         return
     for name in _imports(path, module_level_only=area in LAZY_HEAVY_ALLOWED):
         assert name.split(".")[0] not in HEAVY, f"{path.name} ({area}) imports {name}; core modules must not need it"
+
+
+LAZY_ONLY = {"onnxruntime"}
+"""Optional runtimes that core modules may import inside the function that needs them, never at module level (the
+robot runs with numpy, scipy and mujoco alone; `walk-rl` imports onnxruntime only to run an .onnx policy)."""
+
+
+@pytest.mark.parametrize("area,path", [(a, p) for a, p in _modules() if a not in HEAVY_ALLOWED],
+                         ids=lambda v: str(v).split("toddlerbot/")[-1])
+def test_optional_runtimes_are_imported_lazily(area, path):
+    for name in _imports(path, module_level_only=True):
+        assert name.split(".")[0] not in LAZY_ONLY, f"{path.name} ({area}) imports {name} at module level"
