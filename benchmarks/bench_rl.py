@@ -1,5 +1,5 @@
-"""RL figures: numpy inference latency of a full-size policy, and (with --env) MJX environment JIT-compile time
-and env steps per second on this machine.
+"""RL figures: inference latency of a full-size policy (numpy, and onnxruntime for its ONNX export), and (with
+--env) MJX environment JIT-compile time and env steps per second on this machine.
 
     PYTHONPATH=src python benchmarks/bench_rl.py            # inference only (seconds)
     PYTHONPATH=src python benchmarks/bench_rl.py --env      # + env compile and throughput, MJX vs the CPU
@@ -34,6 +34,9 @@ def bench_inference(repeats: int = 2000) -> None:
 
 
 def _bench_inference(hidden: tuple[int, ...], repeats: int) -> None:
+    """Per-step time of `RLController.step` (observation, network, reference interpolation) and of the network
+    alone, numpy (single-threaded einsum) and, when onnx and onnxruntime are installed, the same policy exported to
+    ONNX and run by onnxruntime on one thread; the two are timed alternately so that they share the machine's load."""
     from toddlerbot.policies.rl_inference import GaitReference, ObsConfig, RLController, RLPolicyFile
     from toddlerbot.rl.config import EnvConfig
     from toddlerbot.rl.export import write_policy
@@ -51,25 +54,44 @@ def _bench_inference(hidden: tuple[int, ...], repeats: int) -> None:
         arrays[f"layer{i}_bias"] = np.zeros(b, np.float32)
     arrays["obs_mean"], arrays["obs_std"] = np.zeros(n_in, np.float32), np.ones(n_in, np.float32)
     arrays["distribution"], arrays["action_std"] = np.array("normal"), np.full(legs, 0.5, np.float32)
+    controllers = {}
     with tempfile.TemporaryDirectory() as tmp:
         # a residual policy: the reference (the default grid's shape) is interpolated every step
         reference = GaitReference(np.linspace(-0.1, 0.15, 6), np.linspace(-0.08, 0.08, 5), np.linspace(-0.4, 0.4, 5),
                                   0.6, rng.normal(size=(6, 5, 5, 30, legs)), np.ones((6, 5, 5, 30, 2)))
         space = {**reference.arrays(), "kp_stance_scale": np.ones(30), "kp_swing_scale": np.zeros((2, 30))}
         path = write_policy(Path(tmp) / "p.npz", arrays, EnvConfig(obs=obs), {}, description, space)
-        ctrl = RLController(RLPolicyFile(path))
-    home = ctrl.policy.home_motor_pos
+        controllers["numpy"] = RLController(RLPolicyFile(path))
+        try:
+            from toddlerbot.rl.onnx_export import export_onnx
+
+            onnx_path, report = export_onnx(path, Path(tmp) / "p.onnx", record_steps=0)
+            controllers["onnxruntime"] = RLController(RLPolicyFile(onnx_path))
+            onnx_note = f"ONNX vs numpy max abs action difference {report['random']:.1g}"
+        except Exception as exc:  # onnx or onnxruntime not installed: the numpy figure alone
+            onnx_note = f"onnxruntime skipped: {' '.join(str(exc).split())}"
+    home = controllers["numpy"].policy.home_motor_pos
     quat = np.array([1.0, 0, 0, 0])
-    for _ in range(50):
-        ctrl.step(0.0, np.zeros(3), home, np.zeros(30), np.zeros(3), quat)
-    times = np.empty(repeats)
+    x = np.random.default_rng(1).normal(size=(repeats, n_in)).astype(np.float32)
+    for ctrl in controllers.values():
+        for _ in range(50):
+            ctrl.step(0.0, np.zeros(3), home, np.zeros(30), np.zeros(3), quat)
+    step_times = {name: np.empty(repeats) for name in controllers}
+    net_times = {name: np.empty(repeats) for name in controllers}
     for i in range(repeats):
-        t0 = time.perf_counter()
-        ctrl.step(i * 0.02, np.array([0.1, 0, 0]), home, np.zeros(30), np.zeros(3), quat)
-        times[i] = time.perf_counter() - t0
-    print(f"numpy inference, policy {sizes} ({n_in} inputs = {obs.history} frames): "
-          f"median {np.median(times) * 1e3:.3f} ms, p99 {np.percentile(times, 99) * 1e3:.3f} ms per 50 Hz step "
-          "(reference interpolation included)")
+        for name, ctrl in controllers.items():
+            t0 = time.perf_counter()
+            ctrl.step(i * 0.02, np.array([0.1, 0, 0]), home, np.zeros(30), np.zeros(3), quat)
+            t1 = time.perf_counter()
+            ctrl.policy.action(x[i])
+            net_times[name][i], step_times[name][i] = time.perf_counter() - t1, t1 - t0
+    print(f"inference, policy {sizes} ({n_in} inputs = {obs.history} frames), one thread, {repeats} steps "
+          f"(load average {os.getloadavg()[0]:.1f}); {onnx_note}")
+    for name in controllers:
+        st, nt = step_times[name], net_times[name]
+        print(f"  {name:12s} 50 Hz step (reference interpolation included): median {np.median(st) * 1e3:.3f} ms, "
+              f"p99 {np.percentile(st, 99) * 1e3:.3f} ms; network alone: median {np.median(nt) * 1e3:.3f} ms, "
+              f"p99 {np.percentile(nt, 99) * 1e3:.3f} ms")
 
 
 def bench_env(mjx_batches: tuple[int, ...], cpu_batches: tuple[int, ...], steps: int) -> None:
