@@ -4,7 +4,9 @@
 runs one PPO epoch and stops, `--resume` continues from its checkpoint (optimiser state
 included) for the second epoch, and the export of the result acts exactly like the JAX policy. Each CLI call is
 its own process (the smoke run sets its XLA flags before JAX starts); a persistent compilation cache lets the
-resumed run reuse the first run's compiled program.
+resumed run reuse the first run's compiled program. Both calls log to TensorBoard (the default) and to W&B
+(``--wandb`` with the fake ``wandb`` module of ``tests/fake_wandb``, which writes its calls to a file): the
+dashboards are checked on this run rather than on a second training.
 """
 
 import json
@@ -20,16 +22,20 @@ jax = pytest.importorskip("jax")
 pytest.importorskip("brax")
 pytest.importorskip("mujoco.mjx")
 
+from dashboard_support import FAKE_WANDB_DIR, expected_scalars, numbers, read_jsonl, read_scalars  # noqa: E402
 from toddlerbot.policies.rl_inference import RLPolicyFile  # noqa: E402
 from toddlerbot.rl import config, export, train  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 pytestmark = pytest.mark.slow
 SRC = Path(__file__).resolve().parents[1] / "src"
+WANDB_CALLS = "wandb_calls.jsonl"
+"""The fake W&B module's record of its calls, beside the run directory."""
 
 
 def _cli(*args, cache: Path) -> str:
-    env = {**os.environ, "PYTHONPATH": f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
+    path = os.pathsep.join([str(FAKE_WANDB_DIR), str(SRC), os.environ.get("PYTHONPATH", "")])
+    env = {**os.environ, "PYTHONPATH": path, "FAKE_WANDB_LOG": str(cache.parent / WANDB_CALLS),
            "JAX_COMPILATION_CACHE_DIR": str(cache), "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0"}
     out = subprocess.run([sys.executable, "-m", "toddlerbot.cli.main", *args], env=env, capture_output=True,
                          text=True, timeout=900)
@@ -41,11 +47,12 @@ def _cli(*args, cache: Path) -> str:
 def smoke_run(tmp_path_factory):
     root = tmp_path_factory.mktemp("rl")
     run = root / "run"
-    _cli("rl", "train", "--smoke", "--out", str(run), "--epochs", "1", cache=root / "xla")
+    _cli("rl", "train", "--smoke", "--out", str(run), "--epochs", "1", "--wandb", "--wandb-mode", "offline",
+         cache=root / "xla")
     ckpt1 = train.checkpoint_paths(run)
     description = RobotDescription.load()
     first, _ = export.restore_checkpoint(ckpt1[-1], *train.load_config(run), description)
-    _cli("rl", "train", "--resume", str(run), cache=root / "xla")
+    _cli("rl", "train", "--resume", str(run), "--wandb", cache=root / "xla")
     final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], *train.load_config(run),
                                                description)
     return run, first, ckpt1, final, history
@@ -117,3 +124,31 @@ def test_export_of_the_smoke_run_matches_jax_policy(smoke_run, tmp_path):
     assert policy.meta["device"].startswith("CPU") and policy.meta["walltime_s"] > 0
     assert policy.obs_config == env_cfg.obs
     assert policy.reference is not None and policy.gain_scales is not None  # residual, walk-zmp's gains
+
+
+def test_smoke_run_dashboards_hold_the_json_lines_records(smoke_run):
+    """TensorBoard (read with its own reader) and W&B hold every number of ``imitation.jsonl`` and
+    ``metrics.jsonl``, at the run's environment steps (the warm start's included), over both training calls."""
+    run = smoke_run[0]
+    warm, epochs = read_jsonl(run / "imitation.jsonl"), read_jsonl(run / "metrics.jsonl")
+    offset = warm[-1]["env_steps"]
+    warm_steps, ppo_steps = [w["env_steps"] for w in warm], [offset + e["env_steps"] for e in epochs]
+    scalars = read_scalars(run / "tensorboard")
+    assert scalars == {**expected_scalars("dagger", warm, warm_steps), **expected_scalars("ppo", epochs, ppo_steps)}
+    for key in ("policy_loss", "v_loss", "entropy_loss", "total_loss", "episode_reward", "episode_length", "kl_mean",
+                "kl_max", "learning_rate", "sps", "walltime", "lin_vel_error", "ang_vel_error", "fall_rate"):
+        assert [step for step, _ in scalars[f"ppo/{key}"]] == ppo_steps, key  # one point per epoch
+    for key in ("bc_loss", "value_loss", "fall_rate", "step_reward"):
+        assert len(scalars[f"dagger/{key}"]) == config.SMOKE_IMITATION.iterations, key
+    assert len(list((run / "tensorboard").iterdir())) == 2  # one event file per training call
+
+    calls = read_jsonl(run.parent / WANDB_CALLS)
+    inits = [c for c in calls if c["call"] == "init"]
+    assert len(inits) == 2 and inits[0]["id"] == inits[1]["id"] and inits[0]["mode"] == "offline"
+    assert inits[1]["mode"] is None and inits[0]["config"]["ppo"]["num_envs"] == config.SMOKE.num_envs
+    assert [c["exit_code"] for c in calls if c["call"] == "finish"] == [0, 0]
+    logs = [c["data"] for c in calls if c["call"] == "log"]
+    assert [{k[7:]: v for k, v in d.items()} for d in logs if "dagger/step" in d] == \
+        [{**numbers(w), "step": step} for w, step in zip(warm, warm_steps)]
+    assert [{k[4:]: v for k, v in d.items()} for d in logs if "ppo/step" in d] == \
+        [{**numbers(e), "step": step} for e, step in zip(epochs, ppo_steps)]
