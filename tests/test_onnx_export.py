@@ -261,3 +261,64 @@ def test_small_run_exports_to_onnx_equal_to_its_npz(tmp_path, monkeypatch, capsy
         diff, actions = _max_diff(onnx_policy, numpy_policy, observations)
         assert diff <= TOL and len(actions) in (128, 20)
     assert 0 < np.mean(np.abs(actions) == 1.0) < 1 or np.abs(actions).max() > 0.05
+
+
+# diffusion policy ----------------------------------------------------------------------------------------------
+def _dp_checkpoint(tmp_path, **changes):
+    pytest.importorskip("torch")
+    from dataclasses import replace
+
+    from toddlerbot.manipulation.dp.checkpoint import new_training_state, save_checkpoint
+    from toddlerbot.manipulation.dp.config import TINY
+
+    cfg = replace(TINY, **changes).with_dims(5, 4, tuple(f"j{i}" for i in range(5)), tuple(f"a{i}" for i in range(4)))
+    ranges = {"observation.state": (-np.ones(5), np.linspace(0.5, 2, 5)), "action": (np.zeros(4), np.arange(1, 5.0))}
+    return save_checkpoint(tmp_path / "dp.pt", new_training_state(cfg, ranges))
+
+
+@pytest.mark.parametrize("changes", [{"crop_size": 88}, {"encoder": "none"}], ids=["small_cnn_crop", "state_only"])
+def test_dp_networks_in_onnx_equal_torch_and_sample_the_same_chunk(tmp_path, changes):
+    import torch
+
+    from toddlerbot.manipulation.dp.checkpoint import load_policy
+    from toddlerbot.manipulation.dp.onnx_export import ENCODER_FILE, UNET_FILE, example_inputs, export_onnx
+    from toddlerbot.manipulation.dp.policy import IMAGE, STATE, normal_noise
+
+    checkpoint = _dp_checkpoint(tmp_path, **changes)
+    paths, report = export_onnx(checkpoint, tmp_path / "onnx")
+    assert report[ENCODER_FILE] <= TOL and report[UNET_FILE] <= TOL
+    assert report[f"{UNET_FILE} scale"] > 0.1  # outputs of a size where 1e-5 means something
+    policy = load_policy(checkpoint)
+    sessions = {name: ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]) for name, path in
+                paths.items()}
+    props = {p.key: p.value for p in onnx.load(str(paths[UNET_FILE])).metadata_props}
+    assert json.loads(props["toddlerbot.dp_config"]) == json.loads(policy.config.to_json())
+    np.testing.assert_allclose(json.loads(props["toddlerbot.action_half_range"]), [0.5, 1.0, 1.5, 2.0])
+    # a batch of 3 (the graphs were traced with 2): deterministic DDIM chunks from onnxruntime and from torch
+    inputs = example_inputs(policy, batch=3, seed=5)[ENCODER_FILE]
+    cond = sessions[ENCODER_FILE].run(None, {k: v.numpy() for k, v in inputs.items()})[0]
+    batch = {STATE: inputs["state"], **({IMAGE: inputs["images"]} if "images" in inputs else {})}
+    expected = policy.sample(batch, generator=torch.Generator().manual_seed(0), sampler="ddim").numpy()
+    x = normal_noise((3, policy.config.horizon, 4), torch.Generator().manual_seed(0), torch.device("cpu"))
+    steps = policy.schedule.inference_timesteps(policy.config.inference_steps)
+    for k, t in enumerate(steps):
+        out = sessions[UNET_FILE].run(None, {"sample": x.numpy(), "timestep": np.full(3, t, np.int64),
+                                             "cond": cond})[0]
+        x = policy.schedule.ddim_step(x, torch.from_numpy(out), t, steps[k + 1] if k + 1 < len(steps) else -1)
+    chunk = policy.action_norm.unnormalize(x).numpy()
+    assert chunk.shape == expected.shape == (3, policy.config.horizon, 4)
+    assert np.max(np.abs(chunk - expected)) <= 1e-5 * 4  # action units: up to 2 x half range 2
+    assert np.ptp(expected) > 0.1
+
+
+def test_dp_export_cli_formats(tmp_path, monkeypatch, capsys):
+    checkpoint = _dp_checkpoint(tmp_path)
+    code, stdout, err = _cli(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "onnx", "--out",
+                             tmp_path / "onnx")
+    assert code == 0, err
+    assert sorted(p.name for p in (tmp_path / "onnx").iterdir()) == ["noise_unet.onnx", "observation_encoder.onnx"]
+    differences = [float(line.split("max abs difference ")[1].split()[0]) for line in stdout.splitlines()]
+    assert len(differences) == 2 and max(differences) <= TOL
+    code, _, err = _cli(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "tflite", "--out",
+                        tmp_path / "x")
+    assert code == 2 and err.count("\n") == 1 and "--format 'tflite': expected one of pt, onnx" in err

@@ -111,10 +111,29 @@ def info(
 @app.command()
 def export(
     checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by dp train (RUN/checkpoint.pt).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Policy file to write (config and EMA weights only).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="pt: the policy file to write (config and EMA weights "
+                                                          "only); onnx: a folder for the two graphs.")],
+    export_format: Annotated[str, typer.Option("--format", help="pt (torch, for dp eval / sim run) or onnx "
+                                                                 "(observation encoder and noise U-Net, checked "
+                                                                 "against torch).")] = "pt",
 ) -> None:
-    """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy."""
+    """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy; or, with --format
+    onnx, its per-inference networks as ONNX graphs (observation_encoder.onnx, noise_unet.onnx)."""
+    from toddlerbot.manipulation.dp.onnx_export import FORMATS
+
+    if export_format not in FORMATS:
+        raise ToddlerbotError(f"--format {export_format!r}: expected one of {', '.join(FORMATS)}")
     require_torch()
+    if export_format == "onnx":
+        from toddlerbot.manipulation.dp.onnx_export import export_onnx
+
+        output_dir(out, "--out")
+        paths, report = export_onnx(checkpoint, out)
+        for name, path in paths.items():
+            console.print(f"wrote {path}: {path.stat().st_size / 1e6:.1f} MB; onnxruntime vs torch on random "
+                          f"inputs, max abs difference {report[name]:.2g} (outputs up to "
+                          f"{report[name + ' scale']:.2g})", soft_wrap=True)
+        return
     from toddlerbot.manipulation.dp.checkpoint import export_policy
 
     output_file(out, "--out")
