@@ -3,6 +3,7 @@ small-CNN CPU configuration and the appendix-size ResNet-18 configuration.
 
     PYTHONPATH=src python benchmarks/bench_dp.py                  # one CPU thread, both configurations
     PYTHONPATH=src python benchmarks/bench_dp.py --device cuda    # on a GPU (threads setting ignored)
+    PYTHONPATH=src python benchmarks/bench_dp.py --onnx           # networks per inference: torch vs onnxruntime
 
 The appendix bounds inference at 0.1 s on a Jetson GPU; the issue's target for the shipped small configuration is
 <= 50 ms on one CPU core. State and action are 16-d (two 7-joint arms and grippers), images 96x96.
@@ -78,6 +79,55 @@ def bench(name: str, device: str, train_repeats: int, infer_repeats: int) -> Non
           f"{np.median(infer_cpu) * 1e3:.1f} ms CPU (p90 {np.percentile(infer_cpu, 90) * 1e3:.1f})")
 
 
+def bench_onnx(name: str, repeats: int) -> None:
+    """The networks of one inference (encoder once, U-Net per denoising step) in torch and in onnxruntime (the
+    `dp export --format onnx` graphs), one thread each, timed alternately; the sampler's arithmetic is left out."""
+    import tempfile
+
+    from toddlerbot.manipulation.dp.onnx_export import (
+        ENCODER_FILE,
+        UNET_FILE,
+        example_inputs,
+        export_policy_onnx,
+        session,
+    )
+
+    config = PRESETS[name].with_dims(DIM, DIM)
+    policy = DiffusionPolicy(config).eval()
+    with tempfile.TemporaryDirectory() as tmp:
+        paths, report = export_policy_onnx(policy, tmp)
+        sessions = {k: session(p) for k, p in paths.items()}
+    inputs = example_inputs(policy, batch=1)
+    feeds = {k: {n: v.numpy() for n, v in inputs[k].items()} for k in inputs}
+    steps = config.inference_steps
+
+    def torch_networks() -> None:
+        with torch.inference_mode():
+            cond = policy.condition({"observation.state": inputs[ENCODER_FILE]["state"],
+                                     **({"observation.images.head": inputs[ENCODER_FILE]["images"]}
+                                        if "images" in inputs[ENCODER_FILE] else {})})
+            for _ in range(steps):
+                policy.unet(inputs[UNET_FILE]["sample"], inputs[UNET_FILE]["timestep"], cond)
+
+    def onnx_networks() -> None:
+        cond = sessions[ENCODER_FILE].run(None, feeds[ENCODER_FILE])[0]
+        for _ in range(steps):
+            sessions[UNET_FILE].run(None, {**feeds[UNET_FILE], "cond": cond})
+
+    torch_networks(), onnx_networks()  # warm-up
+    times = {"torch": [], "onnxruntime": []}
+    for _ in range(repeats):
+        for label, fn in (("torch", torch_networks), ("onnxruntime", onnx_networks)):
+            times[label].append(timed(fn, 1, "cpu"))
+    print(f"{name:8s} networks of one inference (encoder + {steps} U-Net steps), one thread; ONNX vs torch max abs "
+          f"difference: encoder {report[ENCODER_FILE]:.1g}, U-Net {report[UNET_FILE]:.1g}")
+    for label, rows in times.items():
+        wall = np.concatenate([w for w, _ in rows])
+        cpu = np.concatenate([c for _, c in rows])
+        print(f"  {label:12s} median {np.median(wall) * 1e3:.1f} ms wall (p90 {np.percentile(wall, 90) * 1e3:.1f}), "
+              f"{np.median(cpu) * 1e3:.1f} ms CPU (p90 {np.percentile(cpu, 90) * 1e3:.1f})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
@@ -85,6 +135,8 @@ def main() -> None:
     parser.add_argument("--configs", nargs="+", default=["small", "appendix"], choices=sorted(PRESETS))
     parser.add_argument("--train-repeats", type=int, default=5)
     parser.add_argument("--infer-repeats", type=int, default=30)
+    parser.add_argument("--onnx", action="store_true", help="only: the networks of one inference in torch and in "
+                                                              "onnxruntime (dp export --format onnx), one thread")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     where = torch.cuda.get_device_name() if args.device == "cuda" else f"{platform.processor() or 'cpu'}, " \
@@ -92,7 +144,10 @@ def main() -> None:
     print(f"torch {torch.__version__} on {args.device} ({where}); load average {os.getloadavg()[0]:.1f} on "
           f"{os.cpu_count()} cores")
     for name in args.configs:
-        bench(name, args.device, args.train_repeats, args.infer_repeats)
+        if args.onnx:
+            bench_onnx(name, args.infer_repeats)
+        else:
+            bench(name, args.device, args.train_repeats, args.infer_repeats)
 
 
 if __name__ == "__main__":

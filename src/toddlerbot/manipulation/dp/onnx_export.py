@@ -109,7 +109,8 @@ def _export(module: nn.Module, inputs: dict[str, torch.Tensor], output: str, pat
     atomic_write(path, write)
 
 
-def _session(path: Path):
+def session(path: Path):
+    """An onnxruntime session of an exported graph on the CPU, one thread (as the robot runs it)."""
     import onnxruntime as ort
 
     options = ort.SessionOptions()
@@ -127,7 +128,7 @@ def verify(policy: DiffusionPolicy, folder: Path, batch: int = 4, seed: int = 1)
     for name, module in modules.items():
         with torch.no_grad():
             expected = module(**inputs[name]).numpy()
-        got = _session(folder / name).run(None, {k: v.numpy() for k, v in inputs[name].items()})[0]
+        got = session(folder / name).run(None, {k: v.numpy() for k, v in inputs[name].items()})[0]
         if got.shape != expected.shape:
             raise ToddlerbotError(f"{folder / name}: output shape {got.shape}, torch gives {expected.shape}")
         report[name] = float(np.max(np.abs(got - expected)))
@@ -150,12 +151,17 @@ def export_onnx(checkpoint: str | Path, folder: str | Path) -> tuple[dict[str, P
                               f"([onnx] extra): {exc}") from None
     from toddlerbot.manipulation.dp.checkpoint import load_policy
 
-    policy = load_policy(checkpoint).cpu().eval()
+    return export_policy_onnx(load_policy(checkpoint), folder, Path(checkpoint).name)
+
+
+def export_policy_onnx(policy: DiffusionPolicy, folder: str | Path, source: str = "a DiffusionPolicy"
+                       ) -> tuple[dict[str, Path], dict[str, float]]:
+    """`export_onnx` of a network in memory (``source`` names it in the graphs' doc strings)."""
+    policy = policy.cpu().eval()
     folder = Path(folder)
     inputs = example_inputs(policy)
     encoder_inputs = dict(inputs[ENCODER_FILE])
     paths = {ENCODER_FILE: folder / ENCODER_FILE, UNET_FILE: folder / UNET_FILE}
-    source = Path(checkpoint).name
     _export(ObservationEncoder(policy), encoder_inputs, "cond", paths[ENCODER_FILE],
             _metadata(policy, "observation_encoder"), f"diffusion-policy observation encoder from {source}")
     _export(NoiseUnet(policy), inputs[UNET_FILE], "output", paths[UNET_FILE], _metadata(policy, "noise_unet"),
