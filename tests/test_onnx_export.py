@@ -322,3 +322,30 @@ def test_dp_export_cli_formats(tmp_path, monkeypatch, capsys):
     code, _, err = _cli(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "tflite", "--out",
                         tmp_path / "x")
     assert code == 2 and err.count("\n") == 1 and "--format 'tflite': expected one of pt, onnx" in err
+
+
+def _with_dtype(index: str, name: str, dtype: str) -> str:
+    raw = json.loads(index)
+    raw["arrays"][name]["dtype"] = dtype
+    return json.dumps(raw)
+
+
+@pytest.mark.parametrize(("change", "expected"), [
+    (lambda p: p.pop("toddlerbot.motor_names"), "metadata misses 'toddlerbot.motor_names'"),
+    (lambda p: p.update({"toddlerbot.home_motor_pos": "[1, 2]"}), "malformed ONNX policy metadata"),
+    (lambda p: p.update({"toddlerbot.policy": _with_dtype(p["toddlerbot.policy"], "obs_config", "|O")}),
+     "dtype object"),
+    (lambda p: p.update({"toddlerbot.motor_names": json.dumps(["a"] * 30)}), "trained for motors ('a', 'a', 'a')"),
+], ids=["missing", "wrong_shape", "object_dtype", "other_motors"])
+def test_tampered_onnx_metadata_is_a_one_line_error(shipped, tmp_path, change, expected):
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+    model = onnx.load(str(shipped[0].path))
+    props = {p.key: p.value for p in model.metadata_props}
+    change(props)
+    del model.metadata_props[:]
+    onnx.helper.set_model_props(model, props)
+    onnx.save(model, str(tmp_path / "tampered.onnx"))
+    with pytest.raises(ToddlerbotError) as info:
+        WalkRLPolicy(MuJoCoRobot(), tmp_path / "tampered.onnx")
+    assert expected in str(info.value) and "\n" not in str(info.value)

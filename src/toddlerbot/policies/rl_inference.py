@@ -221,6 +221,8 @@ def arrays_from_onnx_metadata(props: dict[str, str], path: Path) -> dict[str, np
         for name, spec in index["arrays"].items():
             raw = props[f"toddlerbot.{name}"]
             dtype = np.dtype(spec["dtype"])
+            if dtype.kind not in "Uifb":
+                raise ValueError(f"{name}: dtype {dtype} (expected text, integer, float or bool)")
             text = dtype.kind == "U" and not spec["shape"]
             arrays[name] = np.array(raw if text else json.loads(raw), dtype=dtype).reshape(spec["shape"])
         return arrays
