@@ -1,3 +1,8 @@
+import fcntl
+import os
+import tempfile
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pytest
@@ -7,6 +12,24 @@ from toddlerbot.actuation.model import actuator_arrays, motor_torque
 from toddlerbot.robot.builder import build_model
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
+
+
+@pytest.fixture(autouse=True)
+def _realtime_runs_alone(request):
+    """With pytest-xdist's workers (the default, `pyproject.toml`), a test marked `realtime` (an emulator or a
+    browser that must keep wall-clock time) holds an exclusive lock and every other test a shared one, so no
+    simulation on another worker competes with it for the cores."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if run is None:
+        yield
+        return
+    exclusive = request.node.get_closest_marker("realtime") is not None
+    with open(Path(tempfile.gettempdir()) / f"toddlerbot-tests-{run}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 @pytest.fixture(scope="session")

@@ -24,6 +24,8 @@ from toddlerbot.manipulation.dp.config import TINY  # noqa: E402
 from toddlerbot.manipulation.dp.train import TrainSchedule, train  # noqa: E402
 from toddlerbot.runtime.log import RunLog  # noqa: E402
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 SRC = Path(__file__).resolve().parents[1] / "src"
 ENV = dict(os.environ, PYTHONPATH=f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
 LOW, HIGH = GRIPPER.motor_range.T

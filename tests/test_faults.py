@@ -18,6 +18,8 @@ import pytest
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.log import RunLog
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 DESC = RobotDescription.load()
 SRC = Path(__file__).resolve().parents[1] / "src"
 

@@ -22,6 +22,8 @@ from toddlerbot.hardware.real_robot import RealRobot, StartupCheckError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 SPEC = load_spec()
 DESC = RobotDescription(SPEC)
 

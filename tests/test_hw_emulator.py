@@ -9,6 +9,8 @@ from toddlerbot.hardware.control_table import ENTRIES
 from toddlerbot.hardware.emulator import Faults, FaultSpecError
 from toddlerbot.robot.spec import load_spec
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 SPEC = load_spec()
 PH = sdk.PacketHandler(2.0)
 OK = sdk.COMM_SUCCESS

@@ -19,6 +19,8 @@ from toddlerbot.hardware.control_table import ENTRIES, encode
 from toddlerbot.hardware.emulator import EmulatedBus, Faults, FaultSpecError
 from toddlerbot.robot.description import RobotDescription
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 DESC = RobotDescription.load()
 BUS = EmulatedBus(DESC)
 

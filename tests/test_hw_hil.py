@@ -20,6 +20,8 @@ from toddlerbot.robot.spec import load_spec
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 port_handler = pytest.importorskip("dynamixel_sdk.port_handler")
 SRC = Path(__file__).resolve().parents[1] / "src"
 

@@ -22,6 +22,8 @@ from toddlerbot.hardware.emulator import EmulatedBus, Faults
 from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS
 from toddlerbot.robot.description import RobotDescription
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 DESC = RobotDescription.load()
 SRC = Path(__file__).resolve().parents[1] / "src"
 ENV = dict(os.environ, PYTHONPATH=f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
@@ -155,6 +157,7 @@ try:  # a third-party import that catches too much (measured: 1 of 30 start-up S
 except KeyboardInterrupt:
     pass
 from toddlerbot.cli.main import main
+
 sys.argv = ["toddlerbot", "hw", "run", "--port", sys.argv[1], "--calibration", sys.argv[2], "--latency-ms", "50",
             "--imu", "none", "--policy", "stand", "--seconds", "30"]
 main()

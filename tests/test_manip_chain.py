@@ -200,6 +200,7 @@ def test_holding_l1_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_tele
     np.testing.assert_allclose(robot.last_targets[arms], teleop_targets[arms], atol=1e-9)
 
 
+@pytest.mark.realtime
 def test_a_chain_runs_on_a_real_robot_against_the_emulator(tmp_path):
     pytest.importorskip("dynamixel_sdk")
     from hw_support import emulated

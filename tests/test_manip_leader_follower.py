@@ -21,6 +21,8 @@ from toddlerbot.manipulation.link import LinkError, LinkMessage, LinkPublisher, 
 from toddlerbot.manipulation.tasks import follower_gains
 from toddlerbot.robot.description import RobotDescription
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 DESCRIPTION = RobotDescription.load(variant="gripper")
 SPEC = DESCRIPTION.spec
 

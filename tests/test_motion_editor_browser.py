@@ -18,6 +18,8 @@ from browser_support import browser_page, chromium_available, labelled, running_
 from toddlerbot.policies.motions import load_motion
 from toddlerbot.robot.description import RobotDescription
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 if not chromium_available():
     if os.environ.get("CI"):
         raise RuntimeError("CI needs Debian's chromium (.ci/run installs it) for the motion editor's browser test")

@@ -65,6 +65,7 @@ def test_a_simulated_log_replays_exactly_and_walking_reports_table7(tmp_path: Pa
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 def test_hw_run_log_from_the_hil_emulator_agrees_with_the_simulator(tmp_path: Path) -> None:
     cal, log_file = tmp_path / "emulated.yaml", tmp_path / "hil.npz"
     emulator = subprocess.Popen([sys.executable, "-m", "toddlerbot.cli.main", "hw", "emulate", "--hil",

@@ -17,6 +17,8 @@ from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate
 from toddlerbot.sysid.manifest import load_manifest
 
+pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
+
 
 def test_record_on_the_emulator_writes_fit_ready_logs(tmp_path: Path) -> None:
     out = tmp_path / "runs"
