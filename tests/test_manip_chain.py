@@ -86,6 +86,8 @@ def test_the_wagon_grip_holds_the_handle_with_margin_through_the_push(wagon_runs
      "skill a: pitch: expected float, got 'fast'"),
     ("scene: wagon\nskills: [{name: a, kind: scripted_grasp, target: h, arm_kp_scale: 5, until: {after: 1}}]\n",
      "skill a: arm_kp_scale: expected a number in [1, 3], got 5.0"),
+    ("scene: pick\nskills: [{name: a, kind: dp, checkpoint: pick, threads: 0, until: {after: 1}}]\n",
+     "skill a: threads: expected a positive number of threads, got 0"),
 ])
 def test_bad_chain_files_get_one_line_errors_naming_file_skill_and_field(tmp_path, body, message):
     path = _chain_file(tmp_path, body)
@@ -140,6 +142,34 @@ def test_upright_is_the_imu_tilted_less_than_max_tilt_in_sim_and_on_hardware():
     assert upright(2.0, yaw)  # heading is not tilt
 
 
+def test_lifted_is_a_body_risen_at_least_at_least_since_the_chain_started_in_sim_only():
+    import mujoco
+
+    from toddlerbot.manipulation.chaining.predicates import LiftedParams, check_available
+    from toddlerbot.manipulation.chaining.probe import SceneProbe
+
+    model = scene_model(DESCRIPTION, "pick")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    obs = robot.reset()
+    probe = SceneProbe(model, robot.data)
+    probe.mark()  # as the runner does when the chain starts
+    adr = model.joint("cube").qposadr[0]
+    rest = robot.data.qpos[adr : adr + 3].copy()
+    params = LiftedParams(body="cube", at_least=0.03)
+
+    def lifted(dx: float, dz: float) -> bool:
+        robot.data.qpos[adr : adr + 3] = rest + np.array([dx, 0.0, dz])
+        mujoco.mj_forward(model, robot.data)
+        return holds("lifted", params, Context(robot, obs, obs.motor_pos, probe))
+
+    assert not lifted(0.0, 0.0) and not lifted(0.1, 0.0)  # at rest, or pushed along the table
+    assert not lifted(0.0, 0.029) and not lifted(0.0, -0.05)  # not high enough, or fallen off the table
+    assert lifted(0.0, 0.031) and lifted(0.05, 0.1)
+    assert probe.rise("cube") == pytest.approx(0.1, abs=1e-9)
+    with pytest.raises(PredicateError, match="predicate 'lifted' needs the simulator"):
+        check_available("lifted", on_hardware=True, where="c.yaml: skill pick: until")
+
+
 def _with_pos(obs, pos):
     from dataclasses import replace
 
@@ -161,43 +191,131 @@ def test_a_sim_only_predicate_on_hardware_is_a_one_line_error(tmp_path):
     assert "grasped" in text  # names the predicates that do work on hardware
 
 
-def test_holding_l1_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_teleop():
+def test_holding_l2_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_teleop():
     from toddlerbot.manipulation.chaining.probe import SceneProbe
     from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
-    from toddlerbot.manipulation.gamepad import TeleopCommand
+    from toddlerbot.manipulation.gamepad import GamepadMapper, GamepadState, KeyboardMapper, TeleopCommand, load_mapping
     from toddlerbot.manipulation.teleop import TeleopSession
     from toddlerbot.sim.scenes import grasp_site
 
-    class Script:
-        """L1 held for the first `held` polls, then nothing."""
+    pad = load_mapping()
+    assert KeyboardMapper(pad).command({"3"}).skills == frozenset({"skill_l2"})  # keyboard: 3 is L2
+
+    class Trigger:
+        """The controller's L2 trigger (axis 2, rest -1) pulled for the first `held` polls, then released."""
 
         def __init__(self, held: int) -> None:
-            self.held, self.polls = held, 0
+            self.held, self.polls, self.mapper = held, 0, GamepadMapper(pad)
 
         def poll(self) -> TeleopCommand:
             self.polls += 1
-            return TeleopCommand(skills=frozenset({"skill_l1"}) if self.polls <= self.held else frozenset())
+            l2 = 0.9 if self.polls <= self.held else -1.0
+            return self.mapper.command(GamepadState([0.0, 0.0, l2, 0.0, 0.0, -1.0], [0] * 15, [(0, 0)]))
 
+    chain = load_chain("wagon", GROUPS)
+    assert chain.button == "l2"
     model = scene_model(DESCRIPTION, "wagon")
     robot = MuJoCoRobot(DESCRIPTION, model=model)
     logs: list[str] = []
-    hook = ChainHook([load_chain("wagon", GROUPS)], robot, model, SceneProbe(model, robot.data), log=logs.append)
-    session = TeleopSession(robot, Script(held=100), skill_hook=hook, log=logs.append)
+    hook = ChainHook([chain], robot, model, SceneProbe(model, robot.data), log=logs.append)
+    source = Trigger(held=100)
+    session = TeleopSession(robot, source, skill_hook=hook, log=logs.append)
     session.reset()
     teleop_targets = session.arm_targets.copy()
     site = robot.data.site(grasp_site("right"))
     start = site.xpos.copy()
     handle = robot.data.geom("wagon_handle").xpos.copy()
-    for _ in range(100):  # 2 s of L1: the grasp skill's approach (1.5 s) and part of its reach
+    for _ in range(100):  # 2 s of L2: the grasp skill's approach (1.5 s) and part of its reach
         session.step()
+        assert session.last_command.skills == frozenset({"skill_l2"})
     arms = DESCRIPTION.groups["arm"]
-    assert logs == ["chain wagon: started (l1)"] and hook.runner.status.skill == "grasp"
+    assert logs == ["chain wagon: started (l2)"] and hook.runner.status.skill == "grasp"
     assert np.abs(robot.last_targets[arms] - teleop_targets[arms]).max() > 0.3  # the chain drives the arms
     assert site.xpos[0] - start[0] > 0.04  # right grasp point moved forward towards the handle...
     assert abs(site.xpos[2] - handle[2]) < 0.04  # ...to about its height
     for _ in range(5):  # released: teleop's held arm targets again
         session.step()
+        assert session.last_command.skills == frozenset()
     np.testing.assert_allclose(robot.last_targets[arms], teleop_targets[arms], atol=1e-9)
+
+
+def test_holding_l1_in_teleop_on_the_pick_task_runs_the_dp_pick_chain_and_releasing_returns_to_teleop():
+    pytest.importorskip("torch")
+    from toddlerbot.cli.teleop import _chain_hook, _robot
+    from toddlerbot.manipulation.gamepad import KeyboardMapper, TeleopCommand, load_mapping
+    from toddlerbot.manipulation.teleop import TeleopSession
+
+    class Keys:
+        """Keyboard: nothing for `idle` polls, then "1" (L1) for `held` polls, then nothing."""
+
+        def __init__(self, idle: int, held: int) -> None:
+            self.idle, self.held, self.polls, self.mapper = idle, held, 0, KeyboardMapper(load_mapping())
+
+        def poll(self) -> TeleopCommand:
+            self.polls += 1
+            return self.mapper.command({"1"} if self.idle < self.polls <= self.idle + self.held else set())
+
+    robot, camera, walks = _robot("sim", "pick", None, None, 1000, "bno08x")  # `teleop --task pick --seed 1000`
+    hook = _chain_hook(None, "sim", "pick", robot, camera)  # the shipped chains of the pick scene
+    assert not walks and {b: c.name for b, c in hook.bound.items()} == {"l1": "pick"}
+    logs: list[str] = []
+    hook.log = logs.append
+    session = TeleopSession(robot, Keys(idle=10, held=100), skill_hook=hook, log=logs.append)
+    session.reset()
+    teleop_targets = session.arm_targets.copy()
+    d = robot.description
+    arms, neck = d.groups["arm"], d.motor_names.index("neck_pitch_drive")
+    start_distance = robot.task.grasp_distance()
+    for _ in range(10):  # teleop holds the task's start pose, the head looking down at the table
+        session.step()
+    assert robot.last_targets[neck] == pytest.approx(robot.task.config.neck_pitch, abs=1e-9)
+    moved = 0.0
+    for _ in range(100):  # 2 s of L1: the policy reaches for the cube
+        session.step()
+        moved = max(moved, float(np.abs(robot.last_targets[arms] - teleop_targets[arms]).max()))
+        assert robot.last_targets[neck] == pytest.approx(robot.task.config.neck_pitch, abs=1e-9)
+    skill = hook.runner.skills[0]
+    assert logs == ["chain pick: started (l1)"] and hook.runner.status.skill == "pick"
+    assert skill.by == "dp (pick.pt)"
+    status = skill.live.status
+    # chunks asked for every 25 steps, each used from 15 steps later: 4 in 100 steps (measured 4, arm 0.82 rad off
+    # teleop's targets, grasp point 0.101 m -> 0.012 m from the cube)
+    assert status.chunks_used >= 3 and status.failures == 0 and status.camera_misses == 0
+    assert moved > 0.3  # the policy's chunks, not teleop's hold, drove the arm...
+    assert robot.task.grasp_distance() < start_distance - 0.05  # ...to the cube
+    for _ in range(5):  # released: teleop's held arm targets again
+        session.step()
+    np.testing.assert_allclose(robot.last_targets[arms], teleop_targets[arms], atol=1e-9)
+
+
+def test_a_chain_that_cannot_start_in_teleop_is_one_log_line_and_teleop_goes_on(tmp_path):
+    from toddlerbot.manipulation.chaining.probe import SceneProbe
+    from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
+    from toddlerbot.manipulation.gamepad import TeleopCommand
+    from toddlerbot.manipulation.teleop import TeleopSession
+
+    chain = load_chain(_chain_file(tmp_path, """\
+        scene: pick
+        button: r1
+        skills: [{name: reach, kind: dp, checkpoint: no_such_task, until: {after: 1}}]
+        """), GROUPS)
+
+    class R1:
+        def poll(self) -> TeleopCommand:
+            return TeleopCommand(skills=frozenset({"skill_r1"}))
+
+    model = scene_model(DESCRIPTION, "pick")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    logs: list[str] = []
+    hook = ChainHook([chain], robot, model, SceneProbe(model, robot.data), log=logs.append)
+    session = TeleopSession(robot, R1(), skill_hook=hook, log=logs.append)
+    session.reset()
+    arms = DESCRIPTION.groups["arm"]
+    for _ in range(3):  # held: refused once, not retried every step; teleop's targets go out
+        session.step()
+        np.testing.assert_allclose(robot.last_targets[arms], session.arm_targets[arms], atol=1e-9)
+    assert len(logs) == 1 and logs[0].startswith("chain c: cannot start: ") and "no_such_task" in logs[0]
+    assert "\n" not in logs[0]
 
 
 @pytest.mark.realtime
@@ -300,6 +418,23 @@ def test_a_dp_skill_drives_the_arms_with_a_shipped_checkpoint(tmp_path):
     assert runner.skills[0].live.status.chunks_used >= 2 and runner.skills[0].live.status.failures == 0
     assert moved > 0.05  # the policy's chunks, not a hold, drove the arms
     assert obs.time == pytest.approx(1.5, abs=0.021)
+
+
+def test_the_shipped_pick_chain_lifts_the_cube_with_the_dp_checkpoint_and_holds_it():
+    pytest.importorskip("torch")
+    from toddlerbot.manipulation.chaining.sim_run import run_in_sim
+
+    chain = load_chain("pick", GROUPS)
+    assert chain.button == "l1" and [s.kind for s in chain.skills] == ["dp", "hold"]
+    out = run_in_sim(chain, 1000, description=DESCRIPTION).as_json()  # `chain run pick --seed 1000 --json`
+    assert out["success"] and out["failure"] is None and out["checks"] == {"lifted": True, "grasped": True}
+    assert out["pick_by"] == "dp (pick.pt)" and out["driven_by"] == {"pick": "dp (pick.pt)", "hold": "hold"}
+    # the cube is 3 cm up at 3.88 s (`dp eval` on this seed: success, 1 s later, at 4.9 s); held for 1 s more
+    assert 3.0 <= out["switch_time_s"] <= 5.0
+    assert out["sim_seconds"] == pytest.approx(out["switch_time_s"] + 1, abs=0.03)
+    assert out["cube_lift_m"] >= 0.03  # measured 0.044 m
+    dp = out["dp"]["pick"]
+    assert dp["chunks_used"] >= 7 and dp["failures"] == 0 and dp["camera_misses"] == 0
 
 
 def test_on_hardware_the_grasp_aims_at_the_handle_where_the_scene_layout_puts_it():

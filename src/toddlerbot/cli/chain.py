@@ -18,9 +18,10 @@ app = typer.Typer(help="Skill chains: run a chain file's skills in order (docs/m
 
 @app.command()
 def run(
-    name: Annotated[str, typer.Argument(help="Shipped chain (wagon) or a chain file.")],
+    name: Annotated[str, typer.Argument(help="Shipped chain (wagon, pick) or a chain file.")],
     chain_file: Annotated[Path | None, typer.Option("--chain", help="Chain file to run instead of NAME's.")] = None,
-    seed: Annotated[int, typer.Option("--seed", help="Scene seed (sim: shifts the wagon a little).")] = 0,
+    seed: Annotated[int, typer.Option("--seed", help="Scene seed (sim: shifts the wagon a little; places the pick "
+                                      "task's cube as `dp eval --seed` does).")] = 0,
     json_output: Annotated[bool, typer.Option("--json", help="Print the outcome as JSON.")] = False,
     video: Annotated[Path | None, typer.Option("--video", help="MP4 of the run (sim): scene and head camera.")]
         = None,
@@ -30,8 +31,9 @@ def run(
     imu: ImuOption = "bno08x",
 ) -> None:
     """Run a chain to its end. Sim: success is the chain's success predicates (wagon: moved >= 0.5 m and the
-    handle still held). With --port and --calibration it runs on the real robot through the same interface.
-    Exit code 1 when the chain fails (a predicate, a skill or a switch), 2 on bad input."""
+    handle still held; pick: the cube lifted 3 cm and held). With --port and --calibration it runs on the real
+    robot through the same interface. Exit code 1 when the chain fails (a predicate, a skill or a switch), 2 on
+    bad input."""
     from toddlerbot.manipulation.chaining.spec import load_chain
     from toddlerbot.robot.description import RobotDescription
 
@@ -64,6 +66,8 @@ def _print(result, seed: int, video: Path | None) -> None:
         console.print(f"  {a} -> {b} at {t:.2f} s")
     for body, moved in result.displacement_m.items():
         console.print(f"  {body} moved {moved:.3f} m")
+    for body, rise in result.lift_m.items():
+        console.print(f"  {body} rose {rise:.3f} m")
     console.print(f"  checks {result.checks}; {result.sim_seconds:.1f} s simulated in {result.wall_seconds:.1f} s")
     if video is not None:
         console.print(f"wrote {video}")

@@ -49,7 +49,7 @@ def teleop(
     viewer: Annotated[bool, typer.Option("--viewer", help="Show the MuJoCo viewer (sim; needs a display).")] = False,
     chains: Annotated[list[str] | None, typer.Option("--chain", help="Skill chain (shipped name or file) run while "
                                                      "its button is held; default (sim): the shipped chains of "
-                                                     "the task's scene, e.g. wagon on L1.")] = None,
+                                                     "the task's scene, e.g. wagon on L2, pick on L1.")] = None,
 ) -> None:
     """Teleoperate: left stick walks, right stick turns, D-pad moves the waist, Y/A/X/B the neck, Menu marks
     episodes; with --input leader the arms follow the leader arms. Runs at 50 Hz in real time."""
@@ -81,7 +81,7 @@ def teleop(
     recorder = None
     if out is not None:
         recorder = EpisodeRecorder(f"teleop {task}", ManipulationSpace.of(robot.description), camera)
-    hook = _chain_hook(chains, backend, task, robot)
+    hook = _chain_hook(chains, backend, task, robot, camera)
     session = TeleopSession(robot, source, walker, recorder, leader, skill_hook=hook, log=console.print)
     _run(session, robot, source, seconds, viewer and backend == "sim")
     if recorder is not None:
@@ -120,7 +120,9 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
     return robot, camera.image, True
 
 
-def _chain_hook(names: list[str] | None, backend: str, task: str, robot):
+def _chain_hook(names: list[str] | None, backend: str, task: str, robot, camera=None):
+    """The skill hook running the chains `names` (default in sim: the shipped chains of the task's scene) on their
+    buttons; `camera` gives a `dp` skill its head-camera images."""
     from toddlerbot.manipulation.chaining.spec import SHIPPED_DIR, load_chain
 
     groups = tuple(robot.description.groups)
@@ -136,11 +138,13 @@ def _chain_hook(names: list[str] | None, backend: str, task: str, robot):
     if backend == "real":
         from toddlerbot.sim.scenes import scene_model
 
-        hook = ChainHook(chains, robot, scene_model(robot.description, chains[0].scene), log=console.print)
+        hook = ChainHook(chains, robot, scene_model(robot.description, chains[0].scene), head_image=camera,
+                         log=console.print)
     else:
         from toddlerbot.manipulation.chaining.probe import SceneProbe
 
-        hook = ChainHook(chains, robot, robot.model, SceneProbe(robot.model, robot.data), log=console.print)
+        hook = ChainHook(chains, robot, robot.model, SceneProbe(robot.model, robot.data), head_image=camera,
+                         log=console.print)
     for button, chain in hook.bound.items():
         console.print(f"hold {button.upper()} to run chain {chain.name}")
     return hook

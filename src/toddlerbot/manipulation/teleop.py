@@ -1,7 +1,7 @@
 """The teleoperation loop ("pupperteering", appendix 8.10): controller -> walking policy + upper body, on any `Robot`.
 
 Per control step: the input source gives a `TeleopCommand`; its walking command drives the walking policy
-(walk-zmp or walk-rl); the neck and waist follow the D-pad and Y/A/X/B as rates added to their home angles
+(walk-zmp or walk-rl); the neck and waist follow the D-pad and Y/A/X/B as rates added to their start angles
 (clamped to the joint ranges); the arms and grippers follow the leader (`ArmFollower`, rate-limited, holding when
 the leader is stale) or hold their pose; the upper body runs at the follower's reduced gains. Menu marks an
 episode's start and end when recording, and toggles teleoperation otherwise. A skill hook (skill chains) may take
@@ -110,6 +110,10 @@ class TeleopSession:
     def reset(self) -> Observation:
         self.obs = self.robot.reset()
         self.arm_targets = self.obs.motor_pos.copy()
+        # neck and waist rates add to the pose the robot starts in (the home pose, or e.g. the pick task's head
+        # looking down at the table, which its head-camera policy needs)
+        start = self.robot.last_targets if self.robot.last_targets is not None else self.obs.motor_pos
+        self._home = self.robot.transmission.motor_to_joint(np.asarray(start, dtype=float))
         if self.walker is not None:
             self.walker.reset(self.obs)
         return self.obs

@@ -52,6 +52,13 @@ class MovedParams:
 
 
 @dataclass(frozen=True)
+class LiftedParams:
+    body: str
+    at_least: float
+    """Height the body's origin rose since the chain started, m."""
+
+
+@dataclass(frozen=True)
 class UprightParams:
     max_tilt: float = FALL_TILT_RAD
     """Largest angle between the torso's (IMU's) z axis and the vertical, rad (default: the one fall threshold)."""
@@ -96,6 +103,10 @@ def _moved_sim(p: MovedParams, ctx: Context) -> bool:
     return ctx.probe.displacement(p.body) >= p.at_least  # type: ignore[union-attr]
 
 
+def _lifted_sim(p: LiftedParams, ctx: Context) -> bool:
+    return ctx.probe.rise(p.body) >= p.at_least  # type: ignore[union-attr]
+
+
 def _upright(p: UprightParams, ctx: Context) -> bool:
     return tilt(ctx.obs.imu_quat) <= p.max_tilt
 
@@ -103,6 +114,7 @@ def _upright(p: UprightParams, ctx: Context) -> bool:
 PREDICATES: dict[str, Predicate] = {
     "grasped": Predicate(GraspedParams, _grasped_sim, _grasped_hardware),
     "moved": Predicate(MovedParams, _moved_sim, None),
+    "lifted": Predicate(LiftedParams, _lifted_sim, None),
     "upright": Predicate(UprightParams, _upright, _upright),
 }
 

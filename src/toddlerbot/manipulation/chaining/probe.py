@@ -46,6 +46,11 @@ class SceneProbe:
         i = self._id(mujoco.mjtObj.mjOBJ_BODY, body)
         return float(np.linalg.norm(self.data.xpos[i, :2] - self._start[i, :2]))
 
+    def rise(self, body: str) -> float:
+        """How far a body's origin rose since `mark`, m (negative: it went down)."""
+        i = self._id(mujoco.mjtObj.mjOBJ_BODY, body)
+        return float(self.data.xpos[i, 2] - self._start[i, 2])
+
     def _pad_contacts(self, side: str, geom: str) -> Iterator[tuple[int, int]]:
         """(finger pad geom id, contact index) of each contact between `geom` and a pad of the `side` gripper."""
         target = self._id(mujoco.mjtObj.mjOBJ_GEOM, geom)

@@ -1,6 +1,7 @@
-"""`toddlerbot chain run` in simulation: the chain's scene, perturbed by the seed, run to its end; the outcome
-is the chain's own success predicates plus what each skill was driven by, the switch times, displacements and how
-firmly each hand held its bar through the last skill (the margin of a `grasped` success)."""
+"""`toddlerbot chain run` in simulation: the chain's scene, perturbed by the seed (the wagon shifted; in the pick
+scene the pick task's start for the seed, as `dp eval` resets it), run to its end; the outcome is the chain's own
+success predicates plus what each skill was driven by, the switch times, displacements and lifts, how firmly each
+hand held its bar through the last skill (the margin of a `grasped` success) and each dp skill's policy status."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 
-from toddlerbot.manipulation.chaining.predicates import GraspedParams, MovedParams
+from toddlerbot.manipulation.chaining.predicates import GraspedParams, LiftedParams, MovedParams
 from toddlerbot.manipulation.chaining.probe import SceneProbe
 from toddlerbot.manipulation.chaining.runner import ChainRunner
 from toddlerbot.manipulation.chaining.spec import ChainSpec
@@ -74,17 +75,22 @@ class SimChainResult:
     switches: list[tuple[str, str, float]]
     displacement_m: dict[str, float]
     """Body -> horizontal displacement since the start, for each `moved` success predicate."""
+    lift_m: dict[str, float]
+    """Body -> how far it rose since the start, at the end, for each `lifted` success predicate."""
     failure: str | None
     sim_seconds: float
     wall_seconds: float
     grip: dict[str, GripMargin] = field(default_factory=dict)
     """Side -> its grip on the bar of each `grasped` success predicate, over the last skill."""
     extra: dict = field(default_factory=dict)
+    """More JSON fields: ``dp``, skill name -> its policy's `LiveStatus` (chunks used, inference time), for each dp
+    skill that ran."""
 
     def as_json(self) -> dict:
         out = {"chain": self.chain, "seed": self.seed, "success": self.success,
                "switch_time_s": None if self.switch_time_s is None else round(self.switch_time_s, 3)}
         out.update({f"{body}_displacement_m": round(v, 4) for body, v in self.displacement_m.items()})
+        out.update({f"{body}_lift_m": round(v, 4) for body, v in self.lift_m.items()})
         first = next(iter(self.driven_by))
         out[f"{first}_by"] = self.driven_by[first]
         out.update(checks=self.checks, driven_by=self.driven_by, failure=self.failure,
@@ -93,6 +99,7 @@ class SimChainResult:
                    grip={side: {"min_force_n": round(g.min_force_n, 2), "slide_mm": round(1e3 * g.slide_m, 1),
                                 "to_end_mm": round(1e3 * g.to_end_m, 1)}
                          for side, g in self.grip.items() if g.start_m is not None})
+        out.update(self.extra)
         return out
 
 
@@ -100,17 +107,27 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
                description: RobotDescription | None = None,
                perturbation: StartPerturbation = StartPerturbation()) -> SimChainResult:
     description = description or RobotDescription.load(variant="gripper")
-    model = scene_model(description, chain.scene)
-    robot = MuJoCoRobot(description, model=model)
     rng = np.random.default_rng(seed)
     shift = np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
-    robot.initial_motor_offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
-    obs = robot.reset()
-    if chain.scene == "wagon":
-        shift_wagon(model, robot.data, shift + perturbation.wagon_shift)
-        mujoco.mj_forward(model, robot.data)
+    offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
+    if chain.scene == "pick":  # the pick task's start, as `dp eval` resets it: cube placed for the seed, arm ready
+        from toddlerbot.manipulation.tasks import PickTask, TaskRobot
+
+        task = PickTask(description)
+        robot = TaskRobot(task, seed)
+        model, start = task.model, task.ready_pose + offset
+        obs = task.reset(seed, start)
+    else:
+        model = scene_model(description, chain.scene)
+        robot = MuJoCoRobot(description, model=model)
+        robot.initial_motor_offset = offset
+        start = description.home_motor_pos + offset
+        obs = robot.reset()
+        if chain.scene == "wagon":
+            shift_wagon(model, robot.data, shift + perturbation.wagon_shift)
+            mujoco.mj_forward(model, robot.data)
     probe = SceneProbe(model, robot.data)
-    bars = [(side, p.target) for name, p in chain.success if isinstance(p, GraspedParams)
+    bars = [(side, p.target) for name, p in chain.success if isinstance(p, GraspedParams) and _is_bar(model, p.target)
             for side in (SIDES if p.hands in ("both", "either") else (p.hands,))]
     grip = {side: GripMargin() for side, _ in bars}
     camera = _head_camera(robot)
@@ -125,7 +142,7 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     limit = sum(s.until.after or s.timeout or UNBOUNDED_SKILL_S for s in chain.skills) + 1.0
     started = time.perf_counter()
     try:
-        runner.start(obs, description.home_motor_pos + robot.initial_motor_offset)
+        runner.start(obs, start)
         k = 0
         while obs.time < limit:
             command = runner.step(obs)
@@ -151,14 +168,25 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     if recorder is not None:
         recorder.close()
     status = runner.status
+    dp = {s.name: skill.live.status.to_dict() for s, skill in zip(chain.skills, runner.skills)
+          if getattr(skill, "live", None) is not None and skill.live.runner is not None}
     moved = [p.body for name, p in chain.success if isinstance(p, MovedParams)]
+    lifted = [p.body for name, p in chain.success if isinstance(p, LiftedParams)]
     return SimChainResult(
         chain.name, seed, status.failure is None and all(checks.values()), checks,
         {s.name: skill.by for s, skill in zip(chain.skills, runner.skills)},
         status.switches[0][2] if status.switches else None, status.switches,
-        {body: probe.displacement(body) for body in moved}, status.failure, float(obs.time),
-        time.perf_counter() - started, grip,
+        {body: probe.displacement(body) for body in moved}, {body: probe.rise(body) for body in lifted},
+        status.failure, float(obs.time),
+        time.perf_counter() - started, grip, {"dp": dp} if dp else {},
     )
+
+
+def _is_bar(model: mujoco.MjModel, geom: str) -> bool:
+    """Is `geom` a bar (capsule or cylinder), whose grip `GripMargin` can measure? (Not the pick task's cube.)"""
+    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    bars = (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER))
+    return i >= 0 and int(model.geom_type[i]) in bars
 
 
 def _head_camera(robot: MuJoCoRobot):

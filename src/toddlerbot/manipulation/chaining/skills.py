@@ -70,6 +70,13 @@ class DPParams:
     checkpoint: str
     """A shipped checkpoint's task name (``pick``) or a checkpoint file."""
     seed: int = 0
+    threads: int = 1
+    """torch CPU threads (the process's setting), 1 as in `dp eval`: on a busy 2-core machine two threads made
+    one inference 30-50 times slower than one."""
+
+    def __post_init__(self) -> None:
+        if self.threads < 1:
+            raise ValueError(f"threads: expected a positive number of threads, got {self.threads}")
 
 
 @dataclass(frozen=True)
@@ -186,9 +193,11 @@ class DPSkill(Skill):
     robot (the 50 Hz loop must not wait for it)."""
 
     def __init__(self, env: SkillEnv, p: DPParams) -> None:
+        from toddlerbot.manipulation.dp import require_torch
         from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
         from toddlerbot.manipulation.dp.live import load_live_policy
 
+        require_torch(p.threads)
         path = Path(p.checkpoint) if p.checkpoint.endswith(".pt") else shipped_checkpoint(p.checkpoint)
         self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated, seed=p.seed)
         self.by = f"dp ({path.name})"

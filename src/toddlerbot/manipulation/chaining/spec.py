@@ -2,7 +2,7 @@
 
     name: wagon                      # chain name (defaults to the file's stem)
     scene: wagon                     # sim scene it runs in (`toddlerbot.sim.scenes.SCENES`)
-    button: l1                       # optional: teleop button that runs it (l1, r1, l2, r2)
+    button: l2                       # optional: teleop button that runs it (l1, r1, l2, r2)
     success: {moved: {body: wagon, at_least: 0.5}, grasped: {target: wagon_handle}}   # optional, checked at the end
     skills:
       - name: grasp

@@ -47,7 +47,12 @@ class ChainHook:
             if self.runner is not None:
                 self.runner.close()
             chain = self.bound[button]
-            self.runner = ChainRunner(chain, self.robot, self.model, self.probe, self.head_image)
+            try:  # e.g. a dp skill without torch or without a camera: say so, keep teleoperating
+                self.runner = ChainRunner(chain, self.robot, self.model, self.probe, self.head_image)
+            except ToddlerbotError as exc:
+                self.runner = None
+                self.log(f"chain {chain.name}: cannot start: {exc}")
+                return None
             self.runner.start(obs, targets)
             self.log(f"chain {chain.name}: started ({button})")
         if self.runner is None or self.runner.status.done:
