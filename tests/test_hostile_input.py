@@ -146,7 +146,7 @@ WEIGHT_CASES = [
      "layer0_bias holds non-finite values"),
     ("zero_std", lambda d: d | {"obs_std": np.zeros_like(d["obs_std"])}, "obs_std must be positive"),
     ("wrong_shape", lambda d: d | {"layer2_kernel": d["layer2_kernel"][:, :7]},
-     "layer2 has kernel (256, 7) and bias (128,)"),
+     "layer2 has kernel (128, 7) and bias (64,)"),
     ("missing_layer", lambda d: {k: v for k, v in d.items() if k != "layer1_bias"}, "missing 'layer1_bias'"),
     ("bad_index", lambda d: d | {"leg_motor_index": d["leg_motor_index"] + 100}, "leg_motor_index must hold"),
     ("bad_json", lambda d: d | {"meta": np.array("{not json")}, "malformed exported policy"),

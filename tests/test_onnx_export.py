@@ -49,7 +49,7 @@ def test_shipped_policy_onnx_equals_numpy_on_random_and_recorded_observations(sh
     onnx_policy, numpy_policy, report = shipped
     assert report["n_random"] == 256 and report["n_recorded"] == 40
     assert report["random"] <= TOL and report["recorded"] <= TOL
-    assert numpy_policy.distribution == "tanh_normal"  # round 1's file: the action is tanh(mean)
+    assert numpy_policy.distribution == "normal"  # the CPU recipe's file: the action is clip(mean, -1, 1)
     rng_obs = random_observations(numpy_policy, 64, seed=11)
     diff, actions = _max_diff(onnx_policy, numpy_policy, rng_obs)
     assert diff <= TOL
@@ -59,14 +59,16 @@ def test_shipped_policy_onnx_equals_numpy_on_random_and_recorded_observations(sh
     diff, _ = _max_diff(onnx_policy, numpy_policy, recorded)
     assert diff <= TOL
     graph_ops = [n.op_type for n in onnx.load(str(onnx_policy.path)).graph.node]
-    assert graph_ops[-1] == "Tanh" and graph_ops.count("MatMul") == 4
+    assert graph_ops[-1] == "Clip" and graph_ops.count("MatMul") == 4
 
 
 def test_metadata_round_trip_is_exact(shipped):
     onnx_policy, numpy_policy, _ = shipped
     assert onnx_policy.format == "onnx" and numpy_policy.format == "npz"
     assert set(onnx_policy.metadata_arrays) == set(numpy_policy.metadata_arrays) == {
-        "home_motor_pos", "leg_motor_index", "leg_motors", "meta", "motor_names", "obs_config"}
+        "home_motor_pos", "leg_motor_index", "leg_motors", "meta", "motor_names", "obs_config", "action_std",
+        "distribution", "kp_stance_scale", "kp_swing_scale", "ref_contact", "ref_leg_motor_pos", "ref_period",
+        "ref_vx", "ref_vy", "ref_yaw"}  # the residual policy carries its gait reference and gain schedule
     for name, value in numpy_policy.metadata_arrays.items():
         other = onnx_policy.metadata_arrays[name]
         assert other.dtype == value.dtype and other.shape == value.shape

@@ -161,6 +161,8 @@ class HilPlant:
         """Torso (x, y) position, m, and yaw, rad, when a motor's torque first came on."""
         self.powered_end: tuple[np.ndarray, float] | None = None
         """The same at the last step any motor had torque on: with `powered_start`, what motion capture sees."""
+        self.powered_turn = 0.0
+        """Yaw turned while powered, rad, summed step by step (so turns past half a revolution count whole)."""
         self.imu_sample: tuple[float, ImuReading] = (0.0, self._read_imu())
         """(simulated time, IMU reading) after the latest physics batch (replaced whole: safe to read from
         another thread)."""
@@ -188,11 +190,11 @@ class HilPlant:
 
     def powered_motion(self) -> tuple[float, float, float] | None:
         """(dx, dy, yaw change) of the torso between the first and the last powered step (None if never
-        powered); the yaw change is unwrapped to (-pi, pi]."""
+        powered); the yaw change is unwrapped (summed over the steps)."""
         if self.powered_start is None or self.powered_end is None:
             return None
-        (start, yaw0), (end, yaw1) = self.powered_start, self.powered_end
-        return float(end[0] - start[0]), float(end[1] - start[1]), float((yaw1 - yaw0 + np.pi) % (2 * np.pi) - np.pi)
+        (start, _), (end, _) = self.powered_start, self.powered_end
+        return float(end[0] - start[0]), float(end[1] - start[1]), self.powered_turn
 
     def _read_imu(self) -> ImuReading:
         d = self.data.sensordata
@@ -255,9 +257,11 @@ class HilPlant:
             if cmd.torque_on.any():
                 self.powered_min_height = min(self.powered_min_height, self.torso_height())
                 self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
-                self.powered_end = self.torso_planar_pose()
+                previous, self.powered_end = self.powered_end, self.torso_planar_pose()
                 if self.powered_start is None:
                     self.powered_start = self.powered_end
+                else:
+                    self.powered_turn += float((self.powered_end[1] - previous[1] + np.pi) % (2 * np.pi) - np.pi)
             self.imu_sample = (self.sim_time, self._read_imu())
             with self._lock:
                 self._publish()
