@@ -62,6 +62,23 @@ def test_shipped_policy_onnx_equals_numpy_on_random_and_recorded_observations(sh
     assert graph_ops[-1] == "Clip" and graph_ops.count("MatMul") == 4
 
 
+def test_a_file_without_a_distribution_acts_with_tanh_of_the_mean_in_numpy_and_onnx(tmp_path):
+    """Round 1's files (tanh-Normal PPO) carry no `distribution` entry: their action is tanh(mean), not the clip."""
+    data = {k: v for k, v in np.load(DEFAULT_WEIGHTS, allow_pickle=False).items() if k != "distribution"}
+    np.savez(tmp_path / "round1.npz", **data)
+    clipped, tanh_policy = RLPolicyFile(DEFAULT_WEIGHTS), RLPolicyFile(tmp_path / "round1.npz")
+    assert tanh_policy.distribution == "tanh_normal"
+    observations = random_observations(clipped, 32, seed=5)
+    means = np.stack([clipped.action(o) for o in observations])
+    inside = np.abs(means) < 1.0  # where the clip is the mean itself
+    assert inside.mean() > 0.5
+    actions = np.stack([tanh_policy.action(o) for o in observations])
+    np.testing.assert_allclose(actions[inside], np.tanh(means[inside]), atol=1e-6)
+    path, report = export_onnx(tmp_path / "round1.npz", tmp_path / "round1.onnx", record_steps=0)
+    assert report["random"] <= TOL
+    assert [n.op_type for n in onnx.load(str(path)).graph.node][-1] == "Tanh"
+
+
 def test_metadata_round_trip_is_exact(shipped):
     onnx_policy, numpy_policy, _ = shipped
     assert onnx_policy.format == "onnx" and numpy_policy.format == "npz"
