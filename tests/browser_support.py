@@ -12,6 +12,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -48,6 +49,14 @@ def _external(url: str) -> bool:
     return not re.match(r"(https?|wss?)://(127\.0\.0\.1|localhost)[:/]|data:|blob:|about:", url)
 
 
+def _drain(stream, lines: list[str]) -> None:
+    try:
+        for line in stream:
+            lines.append(line)
+    except (ValueError, OSError):  # the stream was closed at the end
+        pass
+
+
 @contextmanager
 def running_editor(*args: str, timeout_s: float = 120.0):
     """`toddlerbot motion edit ARGS --port 0` in a subprocess; yields (url, process). Stopped with Ctrl-C (SIGINT)
@@ -65,6 +74,8 @@ def running_editor(*args: str, timeout_s: float = 120.0):
             lines.append(line)
             match = URL_LINE.search(line)
             url = match.group(1) if match else None
+        # keep reading what the editor prints: a full pipe would block its next print (and its Ctrl-C handling)
+        threading.Thread(target=_drain, args=(proc.stdout, lines), daemon=True).start()
         yield url, proc
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=30)
