@@ -78,33 +78,7 @@ def edit(
     except KeyboardInterrupt:
         console.print("motion editor stopped")
     finally:
-        _stop_within(editor.server.stop, STOP_TIMEOUT_S)
-
-
-STOP_TIMEOUT_S = 10.0
-"""How long Ctrl-C waits for the web server to close its connections before the process ends anyway."""
-
-
-def _stop_within(stop, timeout_s: float) -> None:
-    """Run ``stop`` but end the process after ``timeout_s`` if it or the server's threads have not finished: a
-    Ctrl-C left the editor running for 30 s+ in 1 of ~5 test runs (a browser connection that never closed), and
-    it must end the editor; nothing is left unsaved (saving is an explicit button)."""
-    import os
-    import sys
-    import threading
-
-    deadline = time.monotonic() + timeout_s
-    stopper = threading.Thread(target=stop, name="viser-stop", daemon=True)
-    stopper.start()
-    stopper.join(timeout_s)
-    for thread in threading.enumerate():  # the server's own worker threads keep the process alive too
-        if thread is not threading.main_thread() and not thread.daemon:
-            thread.join(max(0.0, deadline - time.monotonic()))
-    if any(t.is_alive() and (t is stopper or not t.daemon) for t in threading.enumerate()
-           if t is not threading.main_thread()):
-        console.print(f"the web server did not close within {timeout_s:.0f} s; exiting")
-        sys.stdout.flush()
-        os._exit(0)
+        editor.server.stop()
 
 
 def _check_host(host: str) -> None:
