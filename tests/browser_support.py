@@ -14,7 +14,7 @@ import subprocess
 import sys
 import threading
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
@@ -61,9 +61,14 @@ def _drain(stream, lines: list[str]) -> None:
 def running_editor(*args: str, timeout_s: float = 120.0):
     """`toddlerbot motion edit ARGS --port 0` in a subprocess; yields (url, process). Stopped with Ctrl-C (SIGINT)
     at the end; the exit code is left on the process for the caller to check."""
-    proc = subprocess.Popen([sys.executable, "-m", "toddlerbot.cli.main", "motion", "edit", *args, "--port", "0"],
+    # -X faulthandler: a SIGABRT from the test (below) makes the editor print every thread's stack before it dies
+    proc = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "toddlerbot.cli.main", "motion", "edit",
+                             *args, "--port", "0"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env={**os.environ, "COLUMNS": "200"})
+                            env={**os.environ, "COLUMNS": "200"},
+                            # Ctrl-C reaches it as in a terminal, also when pytest runs as a background job (CI):
+                            # a child of one inherits SIGINT ignored, and Python then never raises KeyboardInterrupt
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline, lines = time.monotonic() + timeout_s, []
         url = None
@@ -78,7 +83,15 @@ def running_editor(*args: str, timeout_s: float = 120.0):
         threading.Thread(target=_drain, args=(proc.stdout, lines), daemon=True).start()
         yield url, proc
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=30)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            with suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=10)
+            time.sleep(0.5)  # the drain thread reads the stacks
+            raise AssertionError("the editor was still running 30 s after Ctrl-C; its output and stacks:\n"
+                                 + "".join(lines[-200:])) from None
     finally:
         if proc.poll() is None:
             proc.kill()
