@@ -1,6 +1,7 @@
 """Velocity-tracking evaluation: the error definitions on synthetic runs, and `toddlerbot eval tracking` end to end."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -80,6 +81,8 @@ def test_cli_prints_json_and_saves_plot(tmp_path):
      "error: --policy: unknown policy 'dance'; expected one of stand, replay, walk-zmp, walk-rl"),
     (["--policy", "walk-zmp", "--commands", "0:0.1,0"],
      "error: --commands: malformed command '0:0.1,0'; expected 'time: vx,vy,yaw_rate' like '0:0.1,0,0' with time >= 0"),
+    (["--policy", "walk-rl", "--weights", "walk_rl_tpu"],  # neither a file nor a shipped policy's name
+     "error: walk_rl_tpu: exported policy not found (run `toddlerbot rl export`)"),
 ])
 def test_cli_rejects_unknown_policy_and_bad_commands(args, message, capsys, monkeypatch):
     import sys
@@ -92,3 +95,18 @@ def test_cli_rejects_unknown_policy_and_bad_commands(args, message, capsys, monk
     assert exc.value.code == 2  # a user error (1 would be a failed evaluation), before anything is simulated
     out, err = capsys.readouterr()
     assert err.strip() == message and out == ""
+
+
+def test_the_shipped_gpu_policy_by_name_walks_forward_then_turns(description):
+    """`--weights walk_rl_gpu` (no such file here) is the GPU run's file shipped beside walk_rl.npz; it walks and
+    turns without a fall (measured 0.107 m / 0.030 m/s / 0.026 rad/s on this schedule)."""
+    from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, resolve_weights
+
+    assert resolve_weights("walk_rl_gpu") == resolve_weights("walk_rl_gpu.npz") == DEFAULT_WEIGHTS.parent / \
+        "walk_rl_gpu.npz"
+    assert resolve_weights("walk_rl") == DEFAULT_WEIGHTS
+    assert resolve_weights("no_such_policy") == Path("no_such_policy")  # left as given: the loader's error names it
+    r = evaluate_policy(description, "walk-rl", "0:0.1,0,0; 3:0,0,0.3", seconds=6.0, weights="walk_rl_gpu")
+    assert r.falls == 0
+    assert r.position_m < 0.2 and r.lin_vel_mps < 0.05 and r.ang_vel_radps < 0.06
+

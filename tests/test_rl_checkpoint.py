@@ -88,4 +88,20 @@ def test_cli_resume_and_export_without_a_run_fail_with_one_line(tmp_path):
     result = runner.invoke(app, ["rl", "export", str(tmp_path)])
     assert result.exit_code != 0 and "config.json missing" in str(result.exception)
     result = runner.invoke(app, ["rl", "train", "--num-envs", "3", "--out", str(tmp_path / "x")])
-    assert result.exit_code != 0 and "multiple of num_envs (3)" in str(result.exception)
+    assert result.exit_code != 0 and "3 envs: expected a positive multiple of 4" in str(result.exception)
+    result = runner.invoke(app, ["rl", "train", "--warm-start", str(tmp_path), "--out", str(tmp_path / "y")])
+    assert result.exit_code != 0 and "no DAgger warm start there (warm_start.msgpack missing)" in str(result.exception)
+
+
+def test_num_envs_scales_the_batch_and_keeps_rollouts_per_update():
+    from toddlerbot.rl import config
+
+    gpu = config.with_num_envs(config.FULL, 4096)  # the GPU run of docs/rl.md: 128 envs x 32 minibatches
+    assert (gpu.num_envs, gpu.batch_size, gpu.num_minibatches) == (4096, 128, 32)
+    assert gpu.env_steps_per_update == 4096 * gpu.unroll_length  # one rollout of every env per update
+    cpu = config.with_num_envs(config.CPU, 64)
+    assert (cpu.batch_size, cpu.env_steps_per_update) == (16, 64 * 20)
+    smoke = config.with_num_envs(config.SMOKE, 3)  # 2 rollouts per env in 2 minibatches: any count
+    assert (smoke.batch_size, smoke.env_steps_per_update) == (3, 2 * 3 * 5)
+    with pytest.raises(ValueError, match="100 envs: expected a positive multiple of 32"):
+        config.with_num_envs(config.FULL, 100)

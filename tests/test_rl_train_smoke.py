@@ -152,3 +152,20 @@ def test_smoke_run_dashboards_hold_the_json_lines_records(smoke_run):
         [{**numbers(w), "step": step} for w, step in zip(warm, warm_steps)]
     assert [{k[4:]: v for k, v in d.items()} for d in logs if "ppo/step" in d] == \
         [{**numbers(e), "step": step} for e, step in zip(epochs, ppo_steps)]
+
+
+def test_a_run_starts_from_another_runs_warm_start_without_dagger(smoke_run, tmp_path):
+    """`--warm-start RUN` (the GPU run of docs/rl.md): the warm start is adopted as is, DAgger does not run again,
+    the environment and networks are the source's, and PPO trains from it."""
+    run = smoke_run[0]
+    second = tmp_path / "from_warm"
+    _cli("rl", "train", "--smoke", "--warm-start", str(run), "--out", str(second), "--epochs", "1", "--no-tensorboard",
+         cache=run.parent / "xla")  # the source's shapes: the compilation cache serves this run
+    assert (second / train.WARM_START).read_bytes() == (run / train.WARM_START).read_bytes()
+    assert (second / "imitation.jsonl").read_text() == (run / "imitation.jsonl").read_text()  # no new DAgger
+    mine, source = (json.loads((r / "config.json").read_text()) for r in (second, run))
+    assert mine["env"] == source["env"] and mine["imitation"] == source["imitation"]
+    assert mine["ppo"]["policy_hidden"] == source["ppo"]["policy_hidden"]
+    records = read_jsonl(second / "metrics.jsonl")
+    assert len(records) == 1 and records[0]["env_steps"] == config.SMOKE.num_timesteps // config.SMOKE.num_evals
+    assert np.isfinite(records[0]["policy_loss"])

@@ -176,8 +176,8 @@ def run(
         "0:0,0,0",
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")] = None,
     weights: Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy "
-                                                 "(.npz or .onnx from `toddlerbot rl export`; default: the shipped "
-                                                 "one).")] = None,
+                                                 "(.npz or .onnx from `toddlerbot rl export`), or a shipped one by "
+                                                 "name: walk_rl (default) or walk_rl_gpu.")] = None,
     checkpoint: Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
                                                     "`dp train` or `dp export`.")] = None,
     camera: Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "

@@ -61,6 +61,10 @@ def train(
     motor_params: Annotated[list[Path] | None, typer.Option(
         "--motor-params", help="Fitted actuator parameters (sysID params.json; repeat for several motor models): "
                                "the robot trains on them, domain randomisation scales around them.")] = None,
+    warm_start: Annotated[Path | None, typer.Option(
+        help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
+             "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
+    = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -92,9 +96,10 @@ def train(
         if not (resume / "config.json").is_file():
             raise ToddlerbotError(f"{resume}: no training run to resume (config.json missing)")
         if motor_params or solver_iterations is not None or ls_iterations is not None or backend != "auto" \
-                or imitation_iterations is not None:
+                or imitation_iterations is not None or warm_start is not None:
             raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/"
-                                  "--imitation-iterations: a resumed run keeps the settings it started with")
+                                  "--imitation-iterations/--warm-start: a resumed run keeps the settings it started "
+                                  "with")
         imitation_cfg = None
     else:
         run_dir = output_dir(out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S"), "--out")
@@ -103,7 +108,13 @@ def train(
         if backend not in ("auto", *config.PHYSICS_BACKENDS):
             raise ToddlerbotError(f"--backend {backend!r}: expected auto, {', '.join(config.PHYSICS_BACKENDS)}")
         backend = resolve_backend(backend)
-        env_cfg = config.smoke_env_config() if smoke else config.EnvConfig()
+        source = None
+        if warm_start is not None:
+            if motor_params or imitation_iterations is not None:
+                raise ToddlerbotError("--warm-start: the source run's warm start fixes its --motor-params and "
+                                      "--imitation-iterations")
+            source = training.warm_start_source(warm_start)
+        env_cfg = source.env if source else config.smoke_env_config() if smoke else config.EnvConfig()
         try:
             env_cfg = replace(
                 env_cfg, backend=backend,
@@ -119,6 +130,8 @@ def train(
         cpu = backend == "cpu"
         ppo_cfg = replace(config.SMOKE if smoke else config.CPU if cpu else config.FULL, seed=seed)
         imitation_cfg = config.SMOKE_IMITATION if smoke else config.CPU_IMITATION if cpu else config.ImitationConfig()
+        if source:
+            ppo_cfg, imitation_cfg = source.policy_of(ppo_cfg), source.imitation
         if imitation_iterations is not None:
             training_budget(None, imitation_iterations or None, "--imitation-iterations")
             imitation_cfg = replace(imitation_cfg, iterations=imitation_iterations)
@@ -126,9 +139,11 @@ def train(
             if timesteps is not None:
                 ppo_cfg = replace(ppo_cfg, num_timesteps=timesteps)
             if num_envs is not None:
-                ppo_cfg = replace(ppo_cfg, num_envs=num_envs)
+                ppo_cfg = config.with_num_envs(ppo_cfg, num_envs)
         except ValueError as exc:
             raise ToddlerbotError(f"--num-envs/--timesteps: {exc}") from exc
+        if source:
+            training.adopt_warm_start(source.run_dir, run_dir)
     console.print(f"run directory: {run_dir}")
     if smoke and resume is None:
         run_dir.mkdir(parents=True, exist_ok=True)

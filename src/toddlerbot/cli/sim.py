@@ -31,7 +31,8 @@ def run(
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around "
                                                "or a motion YAML file.")] = None,
     weights: Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz, "
-                                                 "or .onnx run by onnxruntime; default: the shipped .npz).")] = None,
+                                                 "or .onnx run by onnxruntime), or a shipped one by name: walk_rl "
+                                                 "(default, CPU-trained) or walk_rl_gpu.")] = None,
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")] = 10.0,
     control_hz: Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")] = 50.0,
     realtime: Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")] = False,

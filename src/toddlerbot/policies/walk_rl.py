@@ -12,7 +12,19 @@ from toddlerbot.policies.base import Action, Policy
 from toddlerbot.policies.rl_inference import RLController, RLPolicyFile
 from toddlerbot.robot.interface import Observation, Robot
 
-DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "walk_rl.npz"
+SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights"
+DEFAULT_WEIGHTS = SHIPPED_WEIGHTS / "walk_rl.npz"
+"""The CPU recipe's policy (docs/rl.md); ``walk_rl_gpu.npz`` beside it is the GPU run's."""
+
+
+def resolve_weights(weights: str | Path) -> Path:
+    """A policy file: a path, or the name of one shipped in the package (``walk_rl_gpu`` or ``walk_rl_gpu.npz``)
+    when no such file exists here."""
+    path = Path(weights)
+    if path.is_file() or path.parent != Path("."):
+        return path
+    shipped = SHIPPED_WEIGHTS / (path.name if path.suffix else f"{path.name}.npz")
+    return shipped if shipped.is_file() else path
 
 
 class WalkRLPolicy(Policy):
@@ -21,7 +33,7 @@ class WalkRLPolicy(Policy):
 
     def __init__(self, robot: Robot, weights: str | Path = DEFAULT_WEIGHTS) -> None:
         super().__init__(robot)
-        policy = RLPolicyFile(weights)
+        policy = RLPolicyFile(resolve_weights(weights))
         if tuple(policy.motor_names) != tuple(robot.motor_names):
             raise ToddlerbotError(f"{policy.path}: trained for motors {policy.motor_names[:3]}..., but the robot has "
                                   f"{robot.motor_names[:3]}... ({len(robot.motor_names)} motors)")

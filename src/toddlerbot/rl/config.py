@@ -6,6 +6,7 @@ part of it (`ObsConfig`) so inference builds exactly the observations the policy
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 
 from toddlerbot.locomotion.config import WALK_REACH
@@ -191,7 +192,7 @@ class PPOConfig:
     max_grad_norm: float = 1.0
     reward_scaling: float = 1.0
     normalize_observations: bool = True
-    num_evals: int = 60
+    num_evals: int = 100
     """Evaluations (and checkpoints) spread over the run."""
     num_eval_envs: int = 0
     """Envs of the deterministic evaluation after every epoch; 0 skips it (saves one compilation)."""
@@ -228,6 +229,17 @@ class ImitationConfig:
     def __post_init__(self) -> None:
         if min(self.num_envs, self.steps, self.bc_steps, self.batch_size) < 1 or self.iterations < 0:
             raise ValueError("ImitationConfig: iterations >= 0 and positive envs, steps, bc_steps, batch_size")
+
+
+def with_num_envs(cfg: PPOConfig, num_envs: int) -> PPOConfig:
+    """``cfg`` with ``num_envs`` environments and the same number of rollouts of every env per update (the batch
+    scaled with the envs, the minibatches kept)."""
+    rollouts = cfg.batch_size * cfg.num_minibatches // cfg.num_envs
+    step = cfg.num_minibatches // math.gcd(cfg.num_minibatches, rollouts)
+    if num_envs < 1 or num_envs % step:
+        raise ValueError(f"{num_envs} envs: expected a positive multiple of {step} ({rollouts} rollout(s) of every "
+                         f"env per update in {cfg.num_minibatches} minibatches)")
+    return replace(cfg, num_envs=num_envs, batch_size=num_envs * rollouts // cfg.num_minibatches)
 
 
 FULL = PPOConfig()

@@ -22,7 +22,7 @@ import os
 import platform
 import time
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import flax
@@ -463,6 +463,38 @@ def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts:
     state = serialization.to_state_dict(jax.device_get(arrays))
     atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state, "history": json.dumps(warm.history)}))
     return warm, 0.0  # made in this call: its time is part of this call's wall time
+
+
+@dataclass(frozen=True)
+class WarmStartSource:
+    """A finished run whose DAgger warm start another run starts from (``rl train --warm-start``)."""
+
+    run_dir: Path
+    env: EnvConfig
+    ppo: PPOConfig
+    imitation: ImitationConfig
+
+    def policy_of(self, base: PPOConfig) -> PPOConfig:
+        """``base`` with the warm start's networks, exploration noise and observation normalisation."""
+        return replace(base, policy_hidden=self.ppo.policy_hidden, value_hidden=self.ppo.value_hidden,
+                       init_std=self.ppo.init_std, normalize_observations=self.ppo.normalize_observations)
+
+
+def warm_start_source(run_dir: Path) -> WarmStartSource:
+    """The run at ``run_dir`` as a warm start to train from (one-line errors for a folder without one)."""
+    if not (run_dir / WARM_START).is_file():
+        raise ToddlerbotError(f"--warm-start {run_dir}: no DAgger warm start there ({WARM_START} missing)")
+    env, ppo = load_config(run_dir)
+    return WarmStartSource(run_dir, env, ppo, load_imitation_config(run_dir))
+
+
+def adopt_warm_start(source_dir: Path, run_dir: Path) -> None:
+    """Copy the warm start and its records into ``run_dir``: `train` then starts PPO from it."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(run_dir / WARM_START, (source_dir / WARM_START).read_bytes())
+    records = source_dir / "imitation.jsonl"
+    if records.is_file():
+        atomic_write_text(run_dir / "imitation.jsonl", records.read_text(encoding="utf-8"))
 
 
 def _warm_start_env_steps(run_dir: Path) -> int:
