@@ -9,7 +9,7 @@ import toddlerbot
 
 PACKAGE = Path(toddlerbot.__file__).parent
 LAYER = {
-    "errors": 0, "files": 0, "yaml_input": 0, "interrupts": 0, "metrics": 0, "actuation": 0, "robot": 1,
+    "errors": 0, "files": 0, "yaml_input": 0, "interrupts": 0, "metrics": 0, "registry": 0, "actuation": 0, "robot": 1,
     "sysid": 2, "sim": 2, "hardware": 2, "locomotion": 2, "design": 2,
     "policies": 3, "runtime": 3,
     "rl": 4, "manipulation": 4, "motion_editor": 4, "cli": 4,

@@ -32,13 +32,13 @@ def tracking(
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
     (exit code 1 if the robot fell)."""
-    from toddlerbot.policies import POLICIES
+    from toddlerbot.policies import policy_names
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_velocity_tracking
 
-    if policy not in POLICIES:
-        raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(POLICIES)}")
+    if policy not in policy_names():
+        raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(policy_names())}")
     schedule_text = commands or DEFAULT_COMMANDS
     if seconds is None:
         seconds = DEFAULT_SECONDS if commands is None else CommandSchedule.parse(commands, "--commands").times[-1] + 5

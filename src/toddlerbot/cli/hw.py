@@ -12,10 +12,8 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.dp_live import RUN_POLICIES
-from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, output_file
+from toddlerbot.cli.options import ImuOption, check_run_policy, duration, open_robot_imu, output_file, run_policy_names
 from toddlerbot.cli.output import console, save_or_fallback
-from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import FALL_TILT_RAD
@@ -170,8 +168,8 @@ def calibrate(
 def run(
     port: PortOption,
     calibration: Annotated[Path, typer.Option("--calibration", help="Per-robot calibration file.")],
-    policy: Annotated[str, typer.Option("--policy", help="stand, replay, walk-zmp, walk-rl (as in `sim run`) or dp "
-                                        "(a diffusion policy: --checkpoint, --camera, --variant gripper).")] = "stand",
+    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())} (dp: a "
+                                        "diffusion policy: --checkpoint, --camera, --variant gripper).")] = "stand",
     command: Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")] =
         "0:0,0,0",
     motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")] = None,
@@ -211,8 +209,7 @@ def run(
     recorder, pol, video = LogRecorder(), None, None
     try:
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
-        if policy not in RUN_POLICIES:
-            raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
+        check_run_policy(policy)
         duration(seconds, "--seconds")
         # longer periods would leave the motors' 0.5 s Bus Watchdog waiting for the next goal
         duration(control_dt, "--dt", MAX_CONTROL_DT)

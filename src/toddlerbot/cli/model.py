@@ -12,14 +12,14 @@ from rich.table import Table
 from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
 from toddlerbot.files import atomic_write_text, json_text
-from toddlerbot.robot.builder import VARIANTS
+from toddlerbot.robot.description import variant_names
 
 SHAPES = ("visual", "collision")
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
 
 SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
-VariantOption = Annotated[str, typer.Option("--variant", help=f"One of: {', '.join(VARIANTS)}.")]
+VariantOption = Annotated[str, typer.Option("--variant", help=f"One of: {', '.join(variant_names())}.")]
 MotorParamsOption = Annotated[
     list[Path] | None,
     typer.Option("--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable); replaces that motor "
@@ -28,8 +28,8 @@ MotorParamsOption = Annotated[
 
 
 def _check_variant(variant: str) -> str:
-    if variant not in VARIANTS:
-        raise typer.BadParameter(f"{variant!r} is not one of {', '.join(VARIANTS)}", param_hint="--variant")
+    if variant not in variant_names():
+        raise typer.BadParameter(f"{variant!r} is not one of {', '.join(variant_names())}", param_hint="--variant")
     return variant
 
 

@@ -12,9 +12,23 @@ from typing import Annotated
 import typer
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies import policy_names
 
 MAX_RUN_SECONDS = 3600.0
 """Longest run a command accepts, s: an hour (the battery's run time; a simulated hour logs about 180,000 steps)."""
+
+
+def run_policy_names() -> tuple[str, ...]:
+    """What `sim run` and `hw run` accept: every registered policy and ``dp`` (a diffusion-policy checkpoint, which
+    the manipulation layer builds, above the policy registry)."""
+    return (*policy_names(), "dp")
+
+
+def check_run_policy(name: str) -> str:
+    """`name` if `sim run` and `hw run` accept it, else one line listing what they accept."""
+    if name not in run_policy_names():
+        raise ToddlerbotError(f"unknown policy {name!r}; expected one of {', '.join(run_policy_names())}")
+    return name
 
 
 ImuOption = Annotated[str, typer.Option("--imu", help="The IMU: bno08x (the robot's, over I2C), emulator (the "

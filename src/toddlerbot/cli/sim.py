@@ -7,8 +7,7 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.dp_live import RUN_POLICIES
-from toddlerbot.cli.options import duration, output_dir, output_file, positive
+from toddlerbot.cli.options import check_run_policy, duration, output_dir, output_file, positive, run_policy_names
 from toddlerbot.cli.output import console
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
@@ -21,7 +20,7 @@ app.command("compare")(compare_command)
 
 @app.command()
 def run(
-    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(RUN_POLICIES)}.")] = "walk-zmp",
+    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())}.")] = "walk-zmp",
     command: Annotated[str | None, typer.Option(
         "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
         "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")] = None,
@@ -65,8 +64,7 @@ def run(
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
     from toddlerbot.sim.render import Recorder, RenderError, has_display, show_visuals
 
-    if policy not in RUN_POLICIES:
-        raise ToddlerbotError(f"unknown policy {policy!r}; expected one of {', '.join(RUN_POLICIES)}")
+    check_run_policy(policy)
     if (task is not None or checkpoint is not None) and policy != "dp":
         raise ToddlerbotError("--task and --checkpoint are for --policy dp")
     if weights is not None and policy != "walk-rl":

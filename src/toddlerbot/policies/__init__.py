@@ -1,44 +1,80 @@
-"""Policies (observation + command -> motor targets) and the registry the CLI uses."""
+"""Policies (observation + command -> motor targets) and their registry, which the CLI offers."""
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Callable
 from pathlib import Path
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.base import Action, Policy
+from toddlerbot.registry import Registry
 from toddlerbot.robot.interface import Robot
 
-POLICIES = ("stand", "replay", "walk-zmp", "walk-rl")
 MAX_PREVIEW_TICKS = 2400
 """Longest ZMP preview walk-zmp plans with, ticks (its 1.2 s preview at 0.5 ms): a shorter control period would
 make planning the gait itself the run (at 1 ns: 1.2e9 ticks, minutes of CPU and gigabytes)."""
+POLICY_REGISTRY = Registry("policy", entry_point_group="toddlerbot.policies")
+"""Every policy `make_policy` builds and `sim run`, `hw run` and `eval tracking` offer: the built-in ones, those of
+installed packages (entry-point group ``toddlerbot.policies``) and those added with `register_policy`."""
 
-__all__ = ["POLICIES", "Action", "Policy", "make_policy"]
+__all__ = ["POLICIES", "POLICY_REGISTRY", "Action", "Policy", "make_policy", "policy_names", "register_policy"]
+
+
+def register_policy(name: str, factory: str | Callable[..., Policy] | None = None):
+    """Offer a policy by `name`: `factory` is a `Policy` subclass or a function of the robot (also of ``motion``
+    or ``weights`` if it names them) returning a policy, or ``"module:attribute"`` imported on first use. Without
+    `factory`, a decorator. A name already registered is refused."""
+    return POLICY_REGISTRY.register(name, factory)
+
+
+def policy_names() -> tuple[str, ...]:
+    """Every policy name `make_policy` accepts, the built-in ones first."""
+    return POLICY_REGISTRY.names()
 
 
 def make_policy(name: str, robot: Robot, motion: str | None = None, weights: str | Path | None = None) -> Policy:
-    """Build a policy by name; ``motion`` (a built-in name or a file) is required by ``replay``; ``weights`` is an
-    exported RL policy for ``walk-rl`` (default: the shipped one)."""
-    if name == "stand":
-        from toddlerbot.policies.stand import StandPolicy
+    """Build a registered policy by name; ``motion`` (a built-in name or a file) is required by ``replay``;
+    ``weights`` is an exported RL policy for ``walk-rl`` (default: the shipped one). A factory that names neither
+    option ignores it, as ``stand`` always has."""
+    factory = POLICY_REGISTRY.get(name)
+    options = {"motion": motion, "weights": weights}
+    return factory(robot, **{k: v for k, v in options.items() if v is not None and _accepts(factory, k)})
 
-        return StandPolicy(robot)
-    if name == "replay":
-        from toddlerbot.policies.motions import load_motion
-        from toddlerbot.policies.replay import ReplayPolicy
 
-        if motion is None:
-            raise ToddlerbotError("policy 'replay' needs --motion (squat, wave, look_around or a motion file)")
-        return ReplayPolicy(robot, load_motion(motion, robot.description))
-    if name == "walk-zmp":
-        from toddlerbot.policies.walk_zmp import WalkZMPPolicy
+def _accepts(factory: Callable, option: str) -> bool:
+    """Whether `factory` takes `option` by keyword (its signature names it, or takes ``**kwargs``)."""
+    parameters = inspect.signature(factory).parameters.values()
+    return any(p.name == option or p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters)
 
-        return WalkZMPPolicy(robot, _walk_config(robot.control_dt))
-    if name == "walk-rl":
-        from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy
 
-        return WalkRLPolicy(robot, weights or DEFAULT_WEIGHTS)
-    raise ToddlerbotError(f"unknown policy {name!r}; expected one of {', '.join(POLICIES)}")
+def _replay(robot: Robot, motion: str | None = None) -> Policy:
+    from toddlerbot.policies.motions import load_motion
+    from toddlerbot.policies.replay import ReplayPolicy
+
+    if motion is None:
+        raise ToddlerbotError("policy 'replay' needs --motion (squat, wave, look_around or a motion file)")
+    return ReplayPolicy(robot, load_motion(motion, robot.description))
+
+
+def _walk_zmp(robot: Robot) -> Policy:
+    from toddlerbot.policies.walk_zmp import WalkZMPPolicy
+
+    return WalkZMPPolicy(robot, _walk_config(robot.control_dt))
+
+
+def _walk_rl(robot: Robot, weights: str | Path | None = None) -> Policy:
+    from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy
+
+    return WalkRLPolicy(robot, weights or DEFAULT_WEIGHTS)
+
+
+_BUILT_IN = {"stand": "toddlerbot.policies.stand:StandPolicy", "replay": _replay, "walk-zmp": _walk_zmp,
+             "walk-rl": _walk_rl}
+for _name, _factory in _BUILT_IN.items():
+    POLICY_REGISTRY.register(_name, _factory)
+POLICIES = tuple(_BUILT_IN)
+"""The built-in policies (`policy_names()` adds the registered ones)."""
 
 
 def _walk_config(dt: float):

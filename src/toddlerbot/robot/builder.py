@@ -35,7 +35,6 @@ from toddlerbot.robot.transmission import TransmissionMap, build_transmission_ma
 from toddlerbot.robot.visuals import FINISHES, VISUAL_GROUP, visual_geoms
 
 Base = Literal["floating", "fixed"]
-VARIANTS = ("floating", "fixed", "gripper")
 FREEJOINT = "floating_base"
 IMU_SITE = "imu"
 

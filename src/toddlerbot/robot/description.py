@@ -11,7 +11,7 @@ module loads nothing.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -22,7 +22,8 @@ import numpy as np
 from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, MotorModel, default_catalogue
 from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays
 from toddlerbot.actuation.params_file import catalogue_with_params
-from toddlerbot.robot.builder import IMU_SITE, VARIANTS, Base, compile_robot, home_joint_pos
+from toddlerbot.registry import Registry
+from toddlerbot.robot.builder import IMU_SITE, Base, compile_robot, home_joint_pos
 from toddlerbot.robot.spec import MotorSpec, RobotSpec, load_spec
 from toddlerbot.robot.transmission import TransmissionMap, build_transmission_map
 
@@ -196,17 +197,49 @@ class RobotDescription:
         return self._models[key]
 
 
+VARIANT_REGISTRY = Registry("variant", entry_point_group="toddlerbot.variants")
+"""The model variants `--variant` offers (`toddlerbot model`, `design report`): each a function of the loaded
+description returning the description and base to build; installed packages add theirs through the entry-point group
+``toddlerbot.variants``, scripts with `register_variant`."""
+
+
+def register_variant(name: str, factory: str | Callable[[RobotDescription], tuple[RobotDescription, Base]]
+                     | None = None):
+    """Offer a model variant by `name`: `factory` maps the description loaded from ``--spec`` (and
+    ``--motor-params``) to ``(description, base)``, e.g. ``lambda d: (d.with_variant("backpack"), "floating")``,
+    or is ``"module:attribute"`` imported on first use. Without `factory`, a decorator. A name already registered
+    is refused."""
+    return VARIANT_REGISTRY.register(name, factory)
+
+
+def variant_names() -> tuple[str, ...]:
+    """Every model variant name `load_variant` accepts, the built-in ones first."""
+    return VARIANT_REGISTRY.names()
+
+
 def load_variant(
     variant: str, spec_path: str | Path | None = None, motor_params: Iterable[str | Path] = ()
 ) -> tuple[RobotDescription, Base]:
     """The description and base of a model variant name as the CLI spells it: ``floating``, ``fixed`` (the
-    packaged robot on either base) or ``gripper`` (the gripper variant, floating)."""
-    if variant not in VARIANTS:
-        raise ValueError(f"unknown variant {variant!r}; expected one of {', '.join(VARIANTS)}")
-    description = RobotDescription.load(spec_path, motor_params=motor_params)
-    if variant == "gripper":
-        return description.with_variant("gripper"), "floating"
-    return description, variant  # type: ignore[return-value]
+    packaged robot on either base), ``gripper`` (the gripper variant, floating) or a registered one."""
+    factory = VARIANT_REGISTRY.get(variant)
+    return factory(RobotDescription.load(spec_path, motor_params=motor_params))
+
+
+def _floating(description: RobotDescription) -> tuple[RobotDescription, Base]:
+    return description, "floating"
+
+
+def _fixed(description: RobotDescription) -> tuple[RobotDescription, Base]:
+    return description, "fixed"
+
+
+def _gripper(description: RobotDescription) -> tuple[RobotDescription, Base]:
+    return description.with_variant("gripper"), "floating"
+
+
+for _name, _factory in {"floating": _floating, "fixed": _fixed, "gripper": _gripper}.items():
+    VARIANT_REGISTRY.register(_name, _factory)
 
 
 def _frozen(values: Sequence | np.ndarray, dtype: type = float) -> np.ndarray:
