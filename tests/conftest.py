@@ -66,3 +66,16 @@ class MotorPD:
 @pytest.fixture(scope="session")
 def fixed_model(spec):
     return build_model(spec, "fixed")
+
+
+@pytest.fixture
+def restored_registries(monkeypatch):
+    """Policies and variants a test registers last only for that test (installed plugins are read first, so they are
+    kept and not read twice)."""
+    from toddlerbot.policies import POLICY_REGISTRY
+    from toddlerbot.robot.description import VARIANT_REGISTRY
+
+    for registry in (POLICY_REGISTRY, VARIANT_REGISTRY):
+        registry.names()
+        monkeypatch.setattr(registry, "_targets", dict(registry._targets))
+        monkeypatch.setattr(registry, "_resolved", dict(registry._resolved))

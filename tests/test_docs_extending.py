@@ -11,16 +11,13 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from toddlerbot.policies import POLICY_REGISTRY
-from toddlerbot.robot.description import VARIANT_REGISTRY
 from toddlerbot.runtime.log import RunLog
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "extending.md"
 
 
-def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, registries):
+def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, restored_registries):
     blocks = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), flags=re.S | re.M)
     assert len(blocks) == 6
     monkeypatch.chdir(tmp_path)  # the blocks write their example files to the current folder
@@ -28,15 +25,6 @@ def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, r
     for number, block in enumerate(blocks, 1):
         exec(compile(block, f"{DOC.name} python block {number}", "exec"), namespace)
     assert namespace["swing"] > 0.4 and namespace["extra_kg"] > 0.19
-
-
-@pytest.fixture
-def registries(monkeypatch):
-    """Names the guide registers last only for the test that registers them."""
-    for registry in (POLICY_REGISTRY, VARIANT_REGISTRY):
-        registry.names()  # installed plugins are read before the copy, so they are not read twice
-        monkeypatch.setattr(registry, "_targets", dict(registry._targets))
-        monkeypatch.setattr(registry, "_resolved", dict(registry._resolved))
 
 
 def _block(language: str, containing: str) -> str:

@@ -6,10 +6,10 @@ import sys
 import pytest
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies import POLICY_REGISTRY, make_policy, policy_names, register_policy
+from toddlerbot.policies import make_policy, policy_names, register_policy
 from toddlerbot.policies.stand import StandPolicy
 from toddlerbot.registry import Registry
-from toddlerbot.robot.description import VARIANT_REGISTRY, load_variant, register_variant, variant_names
+from toddlerbot.robot.description import load_variant, register_variant, variant_names
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -32,15 +32,6 @@ def scales_module(tmp_path, monkeypatch):
     monkeypatch.delitem(sys.modules, "reg_scales", raising=False)
     yield "reg_scales"
     sys.modules.pop("reg_scales", None)
-
-
-@pytest.fixture
-def restored(monkeypatch):
-    """Names registered in the global policy and variant registries last only for the test."""
-    for registry in (POLICY_REGISTRY, VARIANT_REGISTRY):
-        registry.names()  # read installed plugins before the copy
-        monkeypatch.setattr(registry, "_targets", dict(registry._targets))
-        monkeypatch.setattr(registry, "_resolved", dict(registry._resolved))
 
 
 def test_a_string_factory_is_imported_on_first_use_only(scales_module):
@@ -126,7 +117,7 @@ def test_an_entry_point_cannot_take_a_registered_name(scales_module, tmp_path):
                               "(to reg_builtin:triple)")
 
 
-def test_make_policy_builds_a_registered_policy_and_refuses_built_in_names(restored):
+def test_make_policy_builds_a_registered_policy_and_refuses_built_in_names(restored_registries):
     robot = MuJoCoRobot()
     built = []
 
@@ -151,7 +142,7 @@ def test_make_policy_builds_a_registered_policy_and_refuses_built_in_names(resto
     assert str(unknown.value) == "unknown policy 'dance'; expected one of stand, replay, walk-zmp, walk-rl, sway"
 
 
-def test_a_registered_variant_builds_its_base_and_spec_variant(restored):
+def test_a_registered_variant_builds_its_base_and_spec_variant(restored_registries):
     register_variant("gripper-fixed", lambda description: (description.with_variant("gripper"), "fixed"))
     assert variant_names() == ("floating", "fixed", "gripper", "gripper-fixed")
     floating, floating_base = load_variant("floating")
