@@ -203,8 +203,8 @@ class CPUState:
         parts = [_split(np.stack([getattr(d, name) for d in datas])) for name in ("qpos", "qvel", "qacc_warmstart")]
         return cls(*(x for part in parts for x in part))
 
-    def float64(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(qpos, qvel, qacc_warmstart) of env i of a host-side (numpy) batch."""
+    def float64(self, i) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(qpos, qvel, qacc_warmstart) of env(s) ``i`` (an index or an index array) of a host-side (numpy) batch."""
         return (_join(self.qpos[i], self.qpos_lo[i]), _join(self.qvel[i], self.qvel_lo[i]),
                 _join(self.qacc_warmstart[i], self.qacc_warmstart_lo[i]))
 
@@ -276,10 +276,11 @@ class CPUPhysics:
                     actuators: ActuatorArrays) -> tuple[CPUState, Frame]:
         models = [self._models[i] for i in idx]
         datas = [self._datas[i] for i in idx]
-        for i, m, d in zip(idx, models, datas, strict=True):
+        qpos, qvel, warmstart = state.float64(idx)  # the whole chunk at once: numpy calls cost per call
+        for j, (i, m, d) in enumerate(zip(idx, models, datas, strict=True)):
             for name in MODEL_FIELDS:
                 getattr(m, name)[:] = fields[name][i] if fields else self._nominal[name]
-            d.qpos[:], d.qvel[:], d.qacc_warmstart[:] = state.float64(i)
+            d.qpos[:], d.qvel[:], d.qacc_warmstart[:] = qpos[j], qvel[j], warmstart[j]
             d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
         torque = step_actuated(models, datas, self.addresses.motors, targets[idx],
                                ActuatorArrays(*(x[idx] for x in actuators)), self.n_substeps,

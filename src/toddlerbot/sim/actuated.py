@@ -46,15 +46,19 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     tau = np.zeros_like(targets)
     budget = has_friction_excess(params)
     frictionloss = [m.dof_frictionloss[motors.dof].copy() for m in models] if budget else []
+    if sensors_last_only:
+        for m in models:
+            m.opt.disableflags |= _NO_SENSOR
     for k in range(n_substeps):
-        q = np.stack([d.qpos[motors.qpos] for d in datas])
-        q_dot = np.stack([d.qvel[motors.dof] for d in datas])
+        # stack whole state vectors, then index once: one fancy index per robot costs more than the stack
+        q = np.stack([d.qpos for d in datas])[:, motors.qpos]
+        q_dot = np.stack([d.qvel for d in datas])[:, motors.dof]
         tau = motor_torque(targets, q, q_dot, params)
         excess = friction_excess(q_dot, tau, params) if budget else None
-        skip = sensors_last_only and k < n_substeps - 1
+        if sensors_last_only and k == n_substeps - 1:
+            for m in models:
+                m.opt.disableflags &= ~_NO_SENSOR
         for i, (m, d, row) in enumerate(zip(models, datas, tau, strict=True)):
-            if sensors_last_only:
-                m.opt.disableflags = m.opt.disableflags | _NO_SENSOR if skip else m.opt.disableflags & ~_NO_SENSOR
             d.ctrl[motors.actuator] = row
             if budget:
                 m.dof_frictionloss[motors.dof] = frictionloss[i] + excess[i]
