@@ -11,13 +11,15 @@ from toddlerbot.cli.options import duration, output_file
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
+from toddlerbot.policies import policy_names
 
 app = typer.Typer(help="Evaluate policies in simulation (appendix Table 7).", no_args_is_help=True)
 
 
 @app.command()
 def tracking(
-    policy: Annotated[str, typer.Option(help="A runtime policy, usually walk-rl or walk-zmp.")] = "walk-rl",
+    policy: Annotated[str, typer.Option(
+        help=f"One of: {', '.join(policy_names())} (usually walk-rl or walk-zmp).")] = "walk-rl",
     commands: Annotated[str | None, typer.Option(
         help="Command schedule in the runtime syntax, e.g. '0:0.1,0,0; 5:0,0,0.3' (default: the documented "
              "evaluation schedule).")] = None,
@@ -32,7 +34,6 @@ def tracking(
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
     (exit code 1 if the robot fell)."""
-    from toddlerbot.policies import policy_names
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_velocity_tracking
