@@ -5,6 +5,9 @@ the handle's end) and the wall time of one run (no video); then the success rate
 `--wagon-shift` perturb the start to show the margin.
 
 Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 20] [--pose-offset 0.01] [--wagon-shift 0.01,0]
+                                                    [--scripted-grasp]
+The grasp is the shipped wagon diffusion policy (`dp/checkpoints/wagon.pt`, torch: the [dp] extra) unless
+`--scripted-grasp` (the chain's script) is given.
 """
 
 from __future__ import annotations
@@ -25,11 +28,14 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--pose-offset", type=float, default=0.0, help="rad, each motor's start off home, at most")
     parser.add_argument("--wagon-shift", default="0,0", help="x,y m, added to the seed's wagon shift")
+    parser.add_argument("--scripted-grasp", action="store_true", help="grasp by the script, not the shipped policy")
     args = parser.parse_args()
     shift = tuple(float(v) for v in args.wagon_shift.split(","))
     perturbation = StartPerturbation(args.pose_offset, (shift[0], shift[1]))
     description = RobotDescription.load(variant="gripper")
     chain = load_chain("wagon", tuple(description.groups))
+    if args.scripted_grasp:
+        chain = chain.with_scripted_grasps()
     print(f"wagon chain, {perturbation}")
     print("seed  outcome                  moved m  switch s  grip N (L/R)   slide mm (L/R)  to end mm (L/R)  wall s")
     results = []
@@ -45,7 +51,8 @@ def main() -> None:
           f"{len(results)}; displacement {moved.min():.3f}-{moved.max():.3f} m (mean {moved.mean():.3f}); weakest "
           f"pad force {forces.min():.1f} N (median {np.median(forces):.1f}); handle slide at most "
           f"{1e3 * slides.max():.1f} mm; grasp point at least {1e3 * to_end.min():.0f} mm from the handle's end; "
-          f"wall {wall.min():.1f}-{wall.max():.1f} s per run (mean {wall.mean():.1f})")
+          f"wall {wall.min():.1f}-{wall.max():.1f} s per run (mean {wall.mean():.1f}); grasp by "
+          f"{', '.join(sorted({r.driven_by['grasp'] for r in results}))}")
 
 
 def _row(r: SimChainResult) -> str:

@@ -29,9 +29,12 @@ def run(
     calibration: Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
         = None,
     imu: ImuOption = "bno08x",
+    scripted_grasp: Annotated[bool, typer.Option("--scripted-grasp", help="Grasp by the script even where the "
+                                                 "grasp's diffusion policy is shipped (wagon: wagon.pt).")] = False,
 ) -> None:
-    """Run a chain to its end. Sim: success is the chain's success predicates (wagon: moved >= 0.5 m and the
-    handle still held; pick: the cube lifted 3 cm and held). With --port and --calibration it runs on the real
+    """Run a chain to its end; a grasp skill is driven by its task's shipped diffusion policy where there is one
+    (`--json` says which drove each skill). Sim: success is the chain's success predicates (wagon: moved >= 0.5 m
+    and the handle still held; pick: the cube lifted 3 cm and held). With --port and --calibration it runs on the real
     robot through the same interface. Exit code 1 when the chain fails (a predicate, a skill or a switch), 2 on
     bad input."""
     from toddlerbot.manipulation.chaining.spec import load_chain
@@ -39,6 +42,8 @@ def run(
 
     description = RobotDescription.load(variant="gripper")
     chain = load_chain(chain_file or name, tuple(description.groups))
+    if scripted_grasp:
+        chain = chain.with_scripted_grasps()
     if (port is None) != (calibration is None):
         raise ToddlerbotError("the real robot needs both --port and --calibration")
     if video is not None and port is None:

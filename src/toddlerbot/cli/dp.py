@@ -144,13 +144,15 @@ def export(
 
 @app.command("eval")
 def evaluate(
-    task: Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s).")] = "pick",
+    task: Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s) or wagon "
+                                      "(grasp the wagon handle with both hands).")] = "pick",
     checkpoint: Annotated[Path | None, typer.Option(help="Checkpoint to run (default: the one shipped for the "
                                                          "task, if any).")] = None,
     episodes: Annotated[int, typer.Option(min=1, max=10_000, help="Episodes (seeds --seed, --seed+1, ...).")] = 50,
     seed: Annotated[int, typer.Option(help="First scene seed (use seeds the demonstrations did not).")] = 1000,
-    seconds: Annotated[float, typer.Option(min=0.1, help="Simulated time limit per episode, s (at most 600).")]
-    = 8.0,
+    seconds: Annotated[float | None, typer.Option(min=0.1, help="Simulated time limit per episode, s (at most "
+                                                  "600; default: the task's, pick 8, wagon 6 as the chain's grasp "
+                                                  "timeout).")] = None,
     json_output: Annotated[bool, typer.Option("--json", help="Print JSON: success_rate, episodes, inference_ms.")]
     = False,
     video: Annotated[Path | None, typer.Option(help="MP4 of all episodes: scene camera and head camera, 10 fps.")]
@@ -170,14 +172,15 @@ def evaluate(
 
     if task not in TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS)}")
-    duration(seconds, "--seconds", MAX_EPISODE_SECONDS)
+    if seconds is not None:
+        duration(seconds, "--seconds", MAX_EPISODE_SECONDS)
     if video is not None:
         output_file(video, "--video")
     checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task)
     torch.set_num_threads(threads)
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{task} episodes", total=episodes)
-        result = run_evaluation(checkpoint, episodes, seed, seconds, video_path=video,
+        result = run_evaluation(checkpoint, episodes, seed, seconds, task, video_path=video,
                                 on_episode=lambda _: progress.advance(bar), device=device)
     summary = result.summary()
     if json_output:

@@ -42,6 +42,11 @@ class PickProgress:
                 f"{'succeeded' if self.succeeded else 'not succeeded'}")
 
 
+SIM_DP_TASKS = ("pick",)
+"""Tasks `sim run --policy dp` runs (the wagon grasp runs closed-loop in `dp eval --task wagon` and in
+`chain run wagon`)."""
+
+
 def sim_dp_policy(description, task: str, checkpoint: Path | None, seed: int, realtime: bool, control_dt: float,
                   threads: int):
     """(robot, policy, progress) for `sim run --policy dp`: the task's scene reset for ``seed``, the simulated head
@@ -49,10 +54,10 @@ def sim_dp_policy(description, task: str, checkpoint: Path | None, seed: int, re
     that runs faster or slower than the clock makes a worker's latency meaningless)."""
     from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
     from toddlerbot.manipulation.dp.live import load_live_policy
-    from toddlerbot.manipulation.tasks import TASKS, PickConfig, PickTask, TaskRobot
+    from toddlerbot.manipulation.tasks import PickConfig, PickTask, TaskRobot
 
-    if task not in TASKS:
-        raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS)}")
+    if task not in SIM_DP_TASKS:
+        raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(SIM_DP_TASKS)}")
     require_torch(threads)
     pick = PickTask(description, PickConfig(control_dt=control_dt))
     robot = TaskRobot(pick, seed)

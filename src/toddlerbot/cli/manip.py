@@ -16,7 +16,7 @@ app = typer.Typer(help="Manipulation: scripted demonstrations, datasets (LeRobot
 dataset_app = typer.Typer(help="Inspect and validate LeRobot v3.0 datasets.", no_args_is_help=True)
 app.add_typer(dataset_app, name="dataset")
 
-TASK_HELP = "Task: pick (lift the cube and hold it for 1 s)."
+TASK_HELP = "Task: pick (lift the cube and hold it for 1 s) or wagon (grasp the wagon handle with both hands)."
 
 
 def _check_task(task: str) -> None:
@@ -61,7 +61,7 @@ def demo(
             else:
                 progress.console.print(f"seed {episode_seed}: demonstration failed, not recorded")
 
-        report = record_demos(out, episodes, seed, video_path=video, overwrite=overwrite, on_episode=on_episode,
+        report = record_demos(out, episodes, seed, task, video_path=video, overwrite=overwrite, on_episode=on_episode,
                               snapshot_path=snapshot)
     if not report.succeeded_seeds:
         raise ToddlerbotError(f"no successful demonstration in seeds {seed}..{seed + len(report.failed_seeds) - 1}")
@@ -85,13 +85,12 @@ def demo_rate(
 
     from rich.progress import Progress
 
-    from toddlerbot.manipulation.demonstrator import ScriptedPicker
-    from toddlerbot.manipulation.record import run_demo
+    from toddlerbot.manipulation.record import DEMONSTRATORS, run_demo
     from toddlerbot.manipulation.tasks import make_task
 
     _check_task(task)
     sim_task = make_task(task)
-    demonstrator = ScriptedPicker(sim_task)
+    demonstrator = DEMONSTRATORS[task](sim_task)
     failed: list[int] = []
     started = time.perf_counter()
     with Progress(console=console, transient=True) as progress:

@@ -78,6 +78,11 @@ class ScriptedPicker:
         self._waypoints: list[np.ndarray] = []
         self._rotation = np.eye(3)
 
+    @property
+    def duration(self) -> float:
+        """Length of an episode, s."""
+        return self.config.duration
+
     def reset(self, task_obs: Observation, rng: np.random.Generator) -> None:
         """Plan the episode's waypoints from the cube's pose (call right after `PickTask.reset`)."""
         cfg = self.config

@@ -16,8 +16,13 @@ import numpy as np
 from toddlerbot.manipulation.demonstrator import DemoConfig, ScriptedPicker
 from toddlerbot.manipulation.episode import RawEpisode, resample
 from toddlerbot.manipulation.lerobot_writer import write_dataset
-from toddlerbot.manipulation.tasks import PickTask
+from toddlerbot.manipulation.tasks import PickTask, make_task
 from toddlerbot.manipulation.video import SideBySideVideo, write_png
+from toddlerbot.manipulation.wagon import ScriptedWagonGrasp
+
+DEMONSTRATORS: dict[str, Callable] = {"pick": lambda task: ScriptedPicker(task, DemoConfig()),
+                                      "wagon": ScriptedWagonGrasp}
+"""Task name -> its scripted demonstrator for a task instance (`reset(obs, rng)`, `act(obs)`, `duration`)."""
 
 DATASET_FPS = 10
 CAMERA_EVERY = 3
@@ -46,7 +51,7 @@ def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = Tru
     obs = task.reset(seed)
     demo.reset(obs, np.random.default_rng(seed))
     space = task.space
-    steps = round(demo.config.duration / task.robot.control_dt)
+    steps = round(demo.duration / task.robot.control_dt)
     times, states, actions, image_times, images = [], [], [], [], []
     for k in range(steps):
         if render and k % CAMERA_EVERY == 0:
@@ -69,7 +74,7 @@ def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = Tru
     )
 
 
-def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | None = None,
+def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | str = "pick",
                  video_path: str | Path | None = None, overwrite: bool = False,
                  on_episode: Callable[[int, bool], None] | None = None,
                  snapshot_path: str | Path | None = None) -> DemoReport:
@@ -80,9 +85,9 @@ def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | Non
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if snapshot_path is not None and video_path is None:
         raise ValueError("a snapshot needs a video (video_path)")
-    task = task or PickTask()
-    demo = ScriptedPicker(task, DemoConfig())
-    frames_per_episode = -(-round(demo.config.duration / task.robot.control_dt) // CAMERA_EVERY)
+    task = make_task(task) if isinstance(task, str) else task
+    demo = DEMONSTRATORS[task.name](task)
+    frames_per_episode = -(-round(demo.duration / task.robot.control_dt) // CAMERA_EVERY)
     snapshot_frame = int(0.2 * frames_per_episode)
     video = None
     if video_path is not None:

@@ -1,4 +1,5 @@
-"""Simulated manipulation tasks on the `Robot` interface: the ``pick`` task (lift a cube and hold it).
+"""Simulated manipulation tasks on the `Robot` interface: the ``pick`` task (lift a cube and hold it) here, the
+``wagon`` task (grasp the wagon handle with both hands) in `toddlerbot.manipulation.wagon`.
 
 A task owns a `MuJoCoRobot` on a scene model (`toddlerbot.sim.scenes`), resets it for a seed (cube pose
 randomised, arm in its ready pose, neck looking at the table), steps it with the follower's reduced upper-body
@@ -10,6 +11,7 @@ order) are the observation state, and the same motors' commanded targets are the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -31,7 +33,6 @@ from toddlerbot.sim.scenes import (
     scene_model,
 )
 
-TASKS = ("pick",)
 UPPER_BODY_GROUPS = ("neck", "waist", "arm")
 
 
@@ -126,6 +127,8 @@ class PickTask:
 
     name = "pick"
     instruction = "pick up the red cube"
+    episode_seconds = 8.0
+    """`dp eval`'s default limit per episode, s (simulated)."""
 
     def __init__(self, description: RobotDescription | None = None, config: PickConfig | None = None) -> None:
         self.config = config or PickConfig()
@@ -260,7 +263,17 @@ class TaskRobot:
         return self.task.step(motor_targets, kp)
 
 
-def make_task(name: str, description: RobotDescription | None = None) -> PickTask:
+def _wagon_task(description: RobotDescription | None = None):
+    from toddlerbot.manipulation.wagon import WagonTask  # built on the chain's skills, which import this module
+
+    return WagonTask(description)
+
+
+TASKS: dict[str, Callable] = {"pick": PickTask, "wagon": _wagon_task}
+"""Task name -> constructor (optional description)."""
+
+
+def make_task(name: str, description: RobotDescription | None = None):
     if name not in TASKS:
         raise ValueError(f"unknown task {name!r}; expected one of {', '.join(TASKS)}")
-    return PickTask(description)
+    return TASKS[name](description)

@@ -26,6 +26,12 @@ WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
 UNBOUNDED_SKILL_S = 60.0
 """Simulated time allowed to a skill with neither `after` nor `timeout` (a button it will never see in sim)."""
 VIDEO_CAMERA = "perspective"
+
+
+def wagon_shift(rng: np.random.Generator) -> np.ndarray:
+    """The seed's shift of the wagon (x, y), m: the first draws of the seed's generator (the wagon task draws it
+    the same way, so `manip demo --task wagon` and `chain run wagon` place the wagon alike for a seed)."""
+    return np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
 VIDEO_FPS = 25
 
 
@@ -108,7 +114,7 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
                perturbation: StartPerturbation = StartPerturbation()) -> SimChainResult:
     description = description or RobotDescription.load(variant="gripper")
     rng = np.random.default_rng(seed)
-    shift = np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
+    shift = wagon_shift(rng)
     offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
     if chain.scene == "pick":  # the pick task's start, as `dp eval` resets it: cube placed for the seed, arm ready
         from toddlerbot.manipulation.tasks import PickTask, TaskRobot

@@ -24,6 +24,7 @@ import numpy as np
 
 from toddlerbot.manipulation.demonstrator import min_jerk
 from toddlerbot.manipulation.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, GraspPointCorrection
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.sim.scenes import SIDES, grasp_site
 
@@ -91,6 +92,16 @@ class HoldParams:
     pass
 
 
+def grasp_gains(description: RobotDescription, p: GraspParams) -> np.ndarray:
+    """Firmware kp while grasping: the spec's, the grasping arms' scaled by `arm_kp_scale` (the wagon task
+    demonstrates and evaluates its policy at these gains too)."""
+    kp = description.default_kp.copy()
+    names = description.motor_names
+    for side in SIDES if p.hands == "both" else (p.hands,):
+        kp[[i for i in description.groups["arm"] if names[i].startswith(side)]] *= p.arm_kp_scale
+    return kp
+
+
 PARAMS: dict[str, type] = {"scripted_grasp": GraspParams, "dp": DPParams, "walk": WalkParams, "hold": HoldParams}
 
 
@@ -135,9 +146,7 @@ class ScriptedGrasp(Skill):
         sides = SIDES if p.hands == "both" else (p.hands,)
         self.iks = [ArmIK(d, env.model, side, site=grasp_site(side)) for side in sides]
         self.grippers = [d.motor_names.index(f"{side}_gripper_drive") for side in sides]
-        self.kp = d.default_kp.copy()
-        for ik in self.iks:
-            self.kp[ik.arm] *= p.arm_kp_scale
+        self.kp = grasp_gains(d, p)
         self._stiffness = d.actuator_arrays(self.kp).kp
 
     def _bar(self) -> np.ndarray:
@@ -192,14 +201,14 @@ class DPSkill(Skill):
     policy rate, the other motors held; inference inline in sim (as `dp eval`), on the worker thread on a real
     robot (the 50 Hz loop must not wait for it)."""
 
-    def __init__(self, env: SkillEnv, p: DPParams) -> None:
+    def __init__(self, env: SkillEnv, p: DPParams, kp: np.ndarray | None = None) -> None:
         from toddlerbot.manipulation.dp import require_torch
         from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
         from toddlerbot.manipulation.dp.live import load_live_policy
 
         require_torch(p.threads)
         path = Path(p.checkpoint) if p.checkpoint.endswith(".pt") else shipped_checkpoint(p.checkpoint)
-        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated, seed=p.seed)
+        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated, seed=p.seed, kp=kp)
         self.by = f"dp ({path.name})"
 
     def start(self, obs: Observation, targets: np.ndarray) -> None:
@@ -246,9 +255,12 @@ class HoldSkill(Skill):
 def make_skill(kind: str, params: object, env: SkillEnv) -> Skill:
     if kind == "scripted_grasp":
         task = params.checkpoint  # type: ignore[attr-defined]
-        if task is not None and (DP_CHECKPOINTS / f"{task}.pt").is_file():
-            return DPSkill(env, DPParams(task))
-        why = "no checkpoint named" if task is None else f"no checkpoint for task {task}"
+        shipped = task is not None and (DP_CHECKPOINTS / f"{task}.pt").is_file()
+        if shipped and env.head_image is not None:
+            # at the scripted grasp's gains: the wagon task demonstrates and trains the policy at them
+            return DPSkill(env, DPParams(task), grasp_gains(env.robot.description, params))  # type: ignore[arg-type]
+        why = ("no checkpoint named" if task is None else f"no head camera for {task}.pt" if shipped
+               else f"no checkpoint for task {task}")
         return ScriptedGrasp(env, params, why)  # type: ignore[arg-type]
     if kind == "dp":
         return DPSkill(env, params)  # type: ignore[arg-type]

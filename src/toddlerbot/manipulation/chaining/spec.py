@@ -69,6 +69,13 @@ class ChainSpec:
     success: tuple[tuple[str, object], ...] = ()
     """(predicate name, its parameters) that must all hold when the chain ends."""
 
+    def with_scripted_grasps(self) -> ChainSpec:
+        """The same chain with every ``scripted_grasp`` skill run by its script, even where its task's diffusion
+        policy is shipped (``checkpoint`` cleared)."""
+        skills = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=None))  # type: ignore
+                       if s.kind == "scripted_grasp" else s for s in self.skills)
+        return dataclasses.replace(self, skills=skills)
+
 
 def chain_path(name_or_path: str | Path) -> Path:
     """A shipped chain by name (``wagon``) or a chain file path."""

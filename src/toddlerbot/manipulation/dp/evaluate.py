@@ -5,7 +5,8 @@ a worker's wall-clock latency would mean nothing): 50 Hz control, observations a
 one the follower's arm and gripper motor angles and the head camera's 96x96 image, made exactly as the recorder
 makes a dataset row (`ManipulationSpace` indices, `HeadCamera.image`) and laid out by the same `channel_first` as
 the training windows. The policy drives the dataset's motors (arms and grippers); every other motor holds the
-task's start pose. Success is the task's own (`PickTask.succeeded`).
+task's start pose. Success is the task's own (`PickTask.succeeded`; the wagon task's is the wagon chain's
+``grasped`` check).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from toddlerbot.manipulation.dp.data import channel_first
 from toddlerbot.manipulation.dp.inference import PolicyInference
 from toddlerbot.manipulation.dp.policy import IMAGE, STATE
 from toddlerbot.manipulation.dp.runner import ChunkPolicyRunner
-from toddlerbot.manipulation.tasks import PickTask
+from toddlerbot.manipulation.tasks import PickTask, make_task
 
 if TYPE_CHECKING:  # PyAV (the manip extra) is needed only to write a video
     from toddlerbot.manipulation.video import SideBySideVideo
@@ -136,16 +137,18 @@ def run_episode(task: PickTask, infer: Callable[[dict[str, np.ndarray]], np.ndar
     return EpisodeResult(seed, task.succeeded, float(obs.time), runner.status.chunks_used, offset)
 
 
-def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float = 8.0, task: PickTask | None = None,
-             video_path: str | Path | None = None,
+def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float | None = None,
+             task: PickTask | str = "pick", video_path: str | Path | None = None,
              on_episode: Callable[[EpisodeResult], None] | None = None, device: str = "cpu") -> EvalResult:
-    """Success rate of ``checkpoint`` on the pick task over seeds ``seed .. seed + episodes - 1``; the network runs
-    on ``device`` (``cpu`` or e.g. ``cuda``)."""
+    """Success rate of ``checkpoint`` on ``task`` (a task or its name) over seeds ``seed .. seed + episodes - 1``,
+    at most ``seconds`` each (default: the task's `episode_seconds`); the network runs on ``device`` (``cpu`` or
+    e.g. ``cuda``)."""
     if episodes < 1:
         raise EvalError(f"--episodes must be >= 1, got {episodes}")
     policy = load_policy(checkpoint).to(device)
-    own_task = task is None
-    task = task or PickTask()
+    own_task = isinstance(task, str)
+    task = make_task(task) if isinstance(task, str) else task
+    seconds = task.episode_seconds if seconds is None else seconds
     check_fits(policy.config, task)
     infer = TimedInference(PolicyInference(policy, seed))
     result = EvalResult(task.name, str(checkpoint), seed)

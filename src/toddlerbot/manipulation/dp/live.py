@@ -153,10 +153,11 @@ class LiveDPPolicy(Policy):
 
 
 def load_live_policy(robot: Robot, checkpoint: str | Path, camera: Camera | None, synchronous: bool = False,
-                     seed: int = 0) -> LiveDPPolicy:
-    """A checkpoint (`dp train`/`dp export`) as a runtime policy on ``robot``; needs torch (the ``[dp]`` extra)."""
+                     seed: int = 0, kp: np.ndarray | None = None) -> LiveDPPolicy:
+    """A checkpoint (`dp train`/`dp export`) as a runtime policy on ``robot``, at firmware gains ``kp`` (default:
+    the follower gains); needs torch (the ``[dp]`` extra)."""
     require_torch()
     from toddlerbot.manipulation.dp.inference import PolicyInference
 
     inference = PolicyInference.from_checkpoint(checkpoint, seed)
-    return LiveDPPolicy(robot, inference, inference.policy.config, camera, str(checkpoint), synchronous)
+    return LiveDPPolicy(robot, inference, inference.policy.config, camera, str(checkpoint), synchronous, kp)

@@ -1,0 +1,137 @@
+"""The wagon grasp as a task: `manip demo --task wagon` (the chain's scripted grasp as demonstrator) and
+`dp eval --task wagon` with the shipped checkpoint (success: the wagon chain's `grasped` check)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("av")
+pytest.importorskip("pyarrow")
+
+from typer.testing import CliRunner  # noqa: E402
+
+from toddlerbot.cli.main import app  # noqa: E402
+from toddlerbot.errors import ToddlerbotError  # noqa: E402
+from toddlerbot.manipulation.dp import evaluate as dp_evaluate  # noqa: E402
+
+runner = CliRunner()
+HANDLE = "wagon_handle"
+
+
+@pytest.mark.slow
+def test_a_wagon_demonstration_closes_both_hands_on_the_handle_and_is_written(tmp_path):
+    from toddlerbot.manipulation.episode import RawEpisode
+    from toddlerbot.robot.description import RobotDescription
+
+    out = tmp_path / "ds"
+    result = runner.invoke(app, ["manip", "demo", "--task", "wagon", "--episodes", "1", "--seed", "4242",
+                                 "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "1 episodes (seeds 4242..4242, 0 failed" in result.output
+    info = json.loads((out / "meta/info.json").read_text())
+    # approach 1.5 + reach 1.5 + close 0.8 + hold 0.6 s = 4.4 s at 10 Hz
+    assert info["total_episodes"] == 1 and info["total_frames"] == 44 and info["fps"] == 10
+    assert info["features"]["observation.images.head"]["shape"][:2] == [96, 96]
+    raw = RawEpisode.load(next((out / "raw").glob("episode_*.npz")))
+    assert raw.success and raw.seed == 4242 and raw.task == "grasp the wagon handle with both hands"
+    description = RobotDescription.load(variant="gripper")
+    for side in ("left", "right"):
+        motor = description.motor_names.index(f"{side}_gripper_drive")
+        lo, hi = description.motor_range[motor]
+        closed = (raw.action[:, raw.names.index(f"{side}_gripper_drive")] - lo) / (hi - lo)
+        assert closed[0] < 0.05 and closed[-1] == pytest.approx(0.78, abs=1e-6)  # open -> the chain's 0.78
+
+
+@pytest.mark.slow
+def test_dp_eval_wagon_grasps_the_handle_with_the_shipped_checkpoint(monkeypatch):
+    grips = []
+    run_episode = dp_evaluate.run_episode
+
+    def spy(task, *args, **kwargs):
+        episode = run_episode(task, *args, **kwargs)
+        for _ in range(20):  # then, as the chain's settle skill, 0.4 s on the last targets: the pads finish squeezing
+            task.step(task.robot.last_targets)
+        grips.append({side: (task.probe.pad_forces(side, HANDLE), task.probe.bar_in_hand(side, HANDLE))
+                      for side in ("left", "right")})
+        return episode
+
+    monkeypatch.setattr(dp_evaluate, "run_episode", spy)
+    result = runner.invoke(app, ["dp", "eval", "--task", "wagon", "--episodes", "1", "--seed", "1000", "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["task"] == "wagon" and summary["checkpoint"].endswith("wagon.pt")
+    assert summary["success_rate"] == 1.0 and summary["failed_seeds"] == []
+    assert 0 < summary["inference_ms"] < 500  # 20-30 ms measured on one core; generous for a loaded CI machine
+    for forces, in_hand in grips[0].values():
+        # both pads press the handle (14.6-15.4 N measured on seed 1000), the handle within 4.3 mm of the grasp
+        # point and each hand 58 mm or more from the end of its straight part (the pads reach 18 mm either side)
+        assert forces.min() > 8.0
+        assert in_hand.to_end > 0.03 and np.linalg.norm(in_hand.offset) < 0.01
+
+
+def test_the_shipped_wagon_checkpoint_fits_the_wagon_task_and_is_small():
+    from toddlerbot.manipulation.dp.checkpoint import load_policy
+    from toddlerbot.manipulation.tasks import make_task
+
+    path = dp_evaluate.shipped_checkpoint("wagon")
+    assert path.stat().st_size < 8e6
+    config = load_policy(path).config
+    task = make_task("wagon")
+    dp_evaluate.check_fits(config, task)
+    spec = (config.image_size, config.policy_hz, config.horizon, config.latency_drop, config.n_action_steps,
+            config.train_timesteps, config.inference_steps)
+    assert spec == (96, 10, 16, 3, 5, 100, 3)  # pick's recipe
+    task.camera.close()
+
+
+@pytest.mark.parametrize("command", [["manip", "demo", "-o", "unused"], ["manip", "demo-rate"], ["dp", "eval"]])
+def test_an_unknown_task_is_a_one_line_error_naming_the_tasks(command, tmp_path):
+    result = runner.invoke(app, [*command, "--task", "wagn"])
+    assert isinstance(result.exception, ToddlerbotError)
+    message = str(result.exception)
+    assert "\n" not in message and "'wagn'" in message and message.endswith("expected one of pick, wagon")
+
+
+def test_the_wagon_chain_grasps_with_the_shipped_policy_at_the_scripted_grasps_gains_unless_told_otherwise():
+    from toddlerbot.manipulation.chaining.probe import SceneProbe
+    from toddlerbot.manipulation.chaining.runner import ChainRunner
+    from toddlerbot.manipulation.chaining.skills import grasp_gains
+    from toddlerbot.manipulation.chaining.spec import load_chain
+    from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+    from toddlerbot.sim.scenes import scene_model
+
+    description = RobotDescription.load(variant="gripper")
+    chain = load_chain("wagon", tuple(description.groups))
+    model = scene_model(description, "wagon")
+    robot = MuJoCoRobot(description, model=model)
+
+    def grasp_skill(spec):
+        return ChainRunner(spec, robot, model, SceneProbe(model, robot.data),
+                           lambda: np.zeros((96, 96, 3), np.uint8)).skills[0]
+
+    policy = grasp_skill(chain)
+    assert policy.by == "dp (wagon.pt)"
+    np.testing.assert_array_equal(policy.live.kp, grasp_gains(description, chain.skills[0].params))
+    arm = description.groups["arm"]
+    np.testing.assert_array_equal(policy.live.kp[arm], 2 * description.default_kp[arm])  # wagon.yaml: arm_kp_scale 2
+    policy.close()
+    assert grasp_skill(chain.with_scripted_grasps()).by == "scripted (no checkpoint named)"
+
+
+@pytest.mark.slow
+def test_chain_run_wagon_grasps_with_the_policy_and_pushes_the_wagon():
+    result = runner.invoke(app, ["chain", "run", "wagon", "--seed", "1000", "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.output)
+    assert out["success"] and out["grasp_by"] == "dp (wagon.pt)"
+    assert out["driven_by"] == {"grasp": "dp (wagon.pt)", "settle": "hold", "push": "walk-zmp"}
+    # measured: the grasp ends at 4.22 s, the wagon moves 0.687 m, the weaker pad holds 14.1 N through the push
+    assert 3.8 <= out["switch_time_s"] <= 6.0 and out["wagon_displacement_m"] >= 0.5
+    assert out["dp"]["grasp"]["failures"] == 0 and out["dp"]["grasp"]["chunks_used"] >= 8
+    for grip in out["grip"].values():
+        assert grip["min_force_n"] >= 10.0 and grip["slide_mm"] <= 8.0 and grip["to_end_mm"] >= 20.0
