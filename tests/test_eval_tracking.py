@@ -99,7 +99,7 @@ def test_cli_rejects_unknown_policy_and_bad_commands(args, message, capsys, monk
 
 def test_the_shipped_gpu_policy_by_name_walks_forward_then_turns(description):
     """`--weights walk_rl_gpu` (no such file here) is the GPU run's file shipped beside walk_rl.npz; it walks and
-    turns without a fall (measured 0.107 m / 0.030 m/s / 0.026 rad/s on this schedule)."""
+    turns without a fall (measured 0.111 m / 0.029 m/s / 0.031 rad/s on this schedule)."""
     from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, resolve_weights
 
     assert resolve_weights("walk_rl_gpu") == resolve_weights("walk_rl_gpu.npz") == DEFAULT_WEIGHTS.parent / \
