@@ -16,7 +16,7 @@ from toddlerbot.cli.options import ImuOption, check_run_policy, duration, open_r
 from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.files import json_text
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import FALL_TILT_RAD
+from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
 
@@ -182,7 +182,8 @@ def run(
                                                "(/dev/video0) or a video file (played at its frame rate).")] = None,
     threads: Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")] = 1,
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (at most an hour).")] = 5.0,
-    control_dt: Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")] = 0.02,
+    control_dt: Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")] \
+        = CONTROL_DT,
     log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
     imu: ImuOption = "bno08x",
     baud: BaudOption = 2_000_000,

@@ -12,6 +12,7 @@ from toddlerbot.cli.output import console
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text, json_text
+from toddlerbot.robot.interface import CONTROL_DT
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -33,7 +34,7 @@ def run(
                                                  "or .onnx run by onnxruntime), or a shipped one by name: walk_rl "
                                                  "(default, CPU-trained) or walk_rl_gpu.")] = None,
     seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")] = 10.0,
-    control_hz: Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")] = 50.0,
+    control_hz: Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")] = 1.0 / CONTROL_DT,
     realtime: Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")] = False,
     video: Annotated[Path | None, typer.Option("--video", help="Write an MP4 from the tracking camera.")] = None,
     snapshot: Annotated[Path | None, typer.Option("--snapshot", help="Write a PNG of the last frame.")] = None,

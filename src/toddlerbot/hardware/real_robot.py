@@ -29,7 +29,7 @@ from toddlerbot.hardware.driver import (
 )
 from toddlerbot.hardware.imu import Imu, StaticImu
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.interface import CONTROL_DT, Observation, Robot
 
 STARTUP_MARGIN = 0.25
 """How far (rad) outside its joint range a limp motor may read at start-up before the calibration or the
@@ -48,7 +48,7 @@ class RealRobot(Robot):
         description: RobotDescription,
         port: str,
         calibration: Calibration,
-        control_dt: float = 0.02,
+        control_dt: float = CONTROL_DT,
         baudrate: int = DEFAULT_BAUDRATE,
         imu: Imu | None = None,
         reset_duration: float = 2.0,

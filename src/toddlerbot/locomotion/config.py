@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from toddlerbot.robot.interface import CONTROL_DT
+
 AXES = ("vx", "vy", "yaw rate")
 UNITS = ("m/s", "m/s", "rad/s")
 
@@ -40,7 +42,7 @@ WALK_REACH = CommandReach(low=(-0.1, -0.08, -0.4), high=(0.15, 0.08, 0.4))
 
 @dataclass(frozen=True)
 class WalkConfig:
-    dt: float = 0.02
+    dt: float = CONTROL_DT
     """Generator time step, s (the control period: one reference per control tick)."""
     cycle_time: float = 0.6
     """Gait cycle (two steps), s. 0.6 s rather than 0.72: the faster cadence keeps the swing foot off the floor

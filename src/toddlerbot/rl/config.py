@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 from toddlerbot.locomotion.config import WALK_REACH
 from toddlerbot.policies.rl_inference import ObsConfig
+from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
 
 __all__ = ["ObsConfig"]
 
@@ -102,8 +103,8 @@ PHYSICS_BACKENDS = ("cpu", "mjx")
 
 @dataclass(frozen=True)
 class EnvConfig:
-    ctrl_dt: float = 0.02
-    """Control period, s (50 Hz)."""
+    ctrl_dt: float = CONTROL_DT
+    """Control period, s."""
     sim_dt: float = 0.004
     """MJX physics timestep, s (ctrl_dt / sim_dt substeps)."""
     solver_iterations: int = 4
@@ -132,7 +133,7 @@ class EnvConfig:
     scales around them."""
     min_torso_height: float = 0.2
     """m; the episode ends (fall) when the torso origin drops below this..."""
-    max_tilt: float = 1.0
+    max_tilt: float = FALL_TILT_RAD
     """...or the torso tilts more than this, rad."""
     obs: ObsConfig = field(default_factory=ObsConfig)
     command: CommandConfig = field(default_factory=CommandConfig)

@@ -106,6 +106,7 @@ def recorded_observations(npz_path: Path, steps: int = 50, command=(0.1, 0.0, 0.
     other motors than the default robot's."""
     from toddlerbot.policies.walk_rl import WalkRLPolicy
     from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.robot.interface import CONTROL_DT
     from toddlerbot.runtime.runner import run_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
@@ -113,7 +114,7 @@ def recorded_observations(npz_path: Path, steps: int = 50, command=(0.1, 0.0, 0.
     description = RobotDescription.load()
     if tuple(policy_file.motor_names) != tuple(description.motor_names):
         return np.zeros((0, len(policy_file.obs_mean)), np.float32)
-    robot = MuJoCoRobot(description, SimConfig(control_dt=policy_file.meta.get("ctrl_dt", 0.02)))
+    robot = MuJoCoRobot(description, SimConfig(control_dt=policy_file.meta.get("ctrl_dt", CONTROL_DT)))
     walk = WalkRLPolicy(robot, npz_path)
     recording = _Recording(walk.controller.policy)
     walk.controller.policy = recording

@@ -17,6 +17,9 @@ from toddlerbot.robot.safety import CommandGuard
 from toddlerbot.robot.spec import RobotSpec
 from toddlerbot.robot.transmission import TransmissionMap
 
+CONTROL_DT = 0.02
+"""The control period, s (50 Hz, appendix): the default of every backend, policy, training environment and command
+that runs a control loop."""
 FALL_TILT_RAD = 1.0
 """Torso tilt from upright (angle between its z axis and the world's), rad, beyond which a robot has fallen:
 the simulator's fall detector and the real robot's (from its IMU) use this one threshold."""

@@ -24,6 +24,7 @@ from scipy.spatial.transform import Rotation
 from toddlerbot.files import save_figure
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import CONTROL_DT
 
 DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.05,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,0,0.3; 20:0.1,0,0.2; 24:0,0,0"
 """The default evaluation schedule (runtime command syntax, 26 s), inside the trained command ranges: stand, walk
@@ -65,7 +66,7 @@ def heading(quat: np.ndarray) -> np.ndarray:
 def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray, base_quat: np.ndarray, fell: bool,
                     window_s: float = WalkConfig.cycle_time, settle_s: float = 1.0) -> TrackingResult:
     """Tracking errors of one logged run (see the module docstring); arrays are per control step."""
-    dt = float(np.median(np.diff(time))) if len(time) > 1 else 0.02
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else CONTROL_DT
     yaw = np.unwrap(heading(base_quat))
     # commanded path: integrate body-frame command along the commanded heading
     cmd_yaw = yaw[0] + np.concatenate([[0.0], np.cumsum(command[:-1, 2]) * dt])

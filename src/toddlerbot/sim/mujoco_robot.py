@@ -24,7 +24,7 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.builder import FREEJOINT
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import FALL_TILT_RAD, Observation, Robot
+from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, Robot
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
 
 MAX_JOINT_SPEED = 200.0
@@ -37,8 +37,8 @@ class SimulationError(ToddlerbotError):
 
 @dataclass(frozen=True)
 class SimConfig:
-    control_dt: float = 0.02
-    """Control period, s (50 Hz)."""
+    control_dt: float = CONTROL_DT
+    """Control period, s."""
     fall_tilt_rad: float = FALL_TILT_RAD
     """Torso tilt from upright (angle between torso z and world z) that counts as a fall."""
     fall_height_fraction: float = 0.6
