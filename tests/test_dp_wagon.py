@@ -47,7 +47,7 @@ def test_a_wagon_demonstration_closes_both_hands_on_the_handle_and_is_written(tm
 
 
 @pytest.mark.slow
-def test_dp_eval_wagon_grasps_the_handle_with_the_shipped_checkpoint(monkeypatch):
+def test_dp_eval_wagon_grasps_the_handle_with_the_shipped_checkpoint_on_most_seeds(monkeypatch):
     grips = []
     run_episode = dp_evaluate.run_episode
 
@@ -60,17 +60,20 @@ def test_dp_eval_wagon_grasps_the_handle_with_the_shipped_checkpoint(monkeypatch
         return episode
 
     monkeypatch.setattr(dp_evaluate, "run_episode", spy)
-    result = runner.invoke(app, ["dp", "eval", "--task", "wagon", "--episodes", "1", "--seed", "1000", "--json"])
-    assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)
+    # a rate, not one trajectory: the grasp depends on the sampler's noise (19/20 on seeds 1000-1019, 18/20 on
+    # 2000-2019; seeds 1000-1002 all succeed here)
+    result = runner.invoke(app, ["dp", "eval", "--task", "wagon", "--episodes", "3", "--seed", "1000", "--json"])
+    summary = json.loads(result.output[result.output.index("{"):])
     assert summary["task"] == "wagon" and summary["checkpoint"].endswith("wagon.pt")
-    assert summary["success_rate"] == 1.0 and summary["failed_seeds"] == []
-    assert 0 < summary["inference_ms"] < 500  # 20-30 ms measured on one core; generous for a loaded CI machine
-    for forces, in_hand in grips[0].values():
-        # both pads press the handle (14.6-15.4 N measured on seed 1000), the handle within 4.3 mm of the grasp
-        # point and each hand 58 mm or more from the end of its straight part (the pads reach 18 mm either side)
-        assert forces.min() > 8.0
-        assert in_hand.to_end > 0.03 and np.linalg.norm(in_hand.offset) < 0.01
+    assert summary["success_rate"] >= 2 / 3, summary["failed_seeds"]
+    assert 0 < summary["inference_ms"] < 500  # 20-35 ms measured on one core; generous for a loaded CI machine
+    succeeded = [g for seed, g in zip(range(1000, 1003), grips, strict=True) if seed not in summary["failed_seeds"]]
+    # a firm grip on at least one of them: both pads press the handle (14.6-15.4 N measured on seeds 1000 and
+    # 1001), the handle within 10 mm of the grasp point and each hand 30 mm or more from the end of its straight
+    # part; the check can also pass on a weak grip (seed 1002 here: 1.3 and 2.2 N), as the docs say
+    firm = [all(forces.min() > 8.0 and in_hand.to_end > 0.03 and np.linalg.norm(in_hand.offset) < 0.01
+                for forces, in_hand in grip.values()) for grip in succeeded]
+    assert any(firm), grips
 
 
 def test_the_shipped_wagon_checkpoint_fits_the_wagon_task_and_is_small():
@@ -96,7 +99,7 @@ def test_an_unknown_task_is_a_one_line_error_naming_the_tasks(command, tmp_path)
     assert "\n" not in message and "'wagn'" in message and message.endswith("expected one of pick, wagon")
 
 
-def test_the_wagon_chain_grasps_with_the_shipped_policy_at_the_scripted_grasps_gains_unless_told_otherwise():
+def test_the_wagon_chain_grasps_by_script_unless_told_to_use_the_shipped_policy_at_the_same_gains():
     from toddlerbot.manipulation.chaining.probe import SceneProbe
     from toddlerbot.manipulation.chaining.runner import ChainRunner
     from toddlerbot.manipulation.chaining.skills import grasp_gains
@@ -114,24 +117,27 @@ def test_the_wagon_chain_grasps_with_the_shipped_policy_at_the_scripted_grasps_g
         return ChainRunner(spec, robot, model, SceneProbe(model, robot.data),
                            lambda: np.zeros((96, 96, 3), np.uint8)).skills[0]
 
-    policy = grasp_skill(chain)
+    assert grasp_skill(chain).by == "scripted (no checkpoint named)"  # 20/20 chains; the policy's: 4/10
+    policy = grasp_skill(chain.with_dp_grasps())
     assert policy.by == "dp (wagon.pt)"
     np.testing.assert_array_equal(policy.live.kp, grasp_gains(description, chain.skills[0].params))
     arm = description.groups["arm"]
     np.testing.assert_array_equal(policy.live.kp[arm], 2 * description.default_kp[arm])  # wagon.yaml: arm_kp_scale 2
     policy.close()
-    assert grasp_skill(chain.with_scripted_grasps()).by == "scripted (no checkpoint named)"
 
 
 @pytest.mark.slow
-def test_chain_run_wagon_grasps_with_the_policy_and_pushes_the_wagon():
-    result = runner.invoke(app, ["chain", "run", "wagon", "--seed", "1000", "--json"])
-    assert result.exit_code == 0, result.output
+def test_chain_run_wagon_dp_grasp_is_driven_by_the_policy_and_reports_its_outcome():
+    """`--dp-grasp`: the policy drives the grasp (4/10 chains succeed, so one seed's outcome is not asserted, only
+    that the report is the chain's own checks; where it succeeds, the wagon moved 0.68 m with 14 N pads)."""
+    result = runner.invoke(app, ["chain", "run", "wagon", "--dp-grasp", "--seed", "1000", "--json"])
     out = json.loads(result.output)
-    assert out["success"] and out["grasp_by"] == "dp (wagon.pt)"
+    assert result.exit_code == (0 if out["success"] else 1)
+    assert out["grasp_by"] == "dp (wagon.pt)"
     assert out["driven_by"] == {"grasp": "dp (wagon.pt)", "settle": "hold", "push": "walk-zmp"}
-    # measured: the grasp ends at 4.22 s, the wagon moves 0.687 m, the weaker pad holds 14.1 N through the push
-    assert 3.8 <= out["switch_time_s"] <= 6.0 and out["wagon_displacement_m"] >= 0.5
     assert out["dp"]["grasp"]["failures"] == 0 and out["dp"]["grasp"]["chunks_used"] >= 8
-    for grip in out["grip"].values():
-        assert grip["min_force_n"] >= 10.0 and grip["slide_mm"] <= 8.0 and grip["to_end_mm"] >= 20.0
+    assert 3.8 <= out["switch_time_s"] <= 6.0  # the grasp ends by its check or its 6 s timeout
+    if out["success"]:
+        assert out["wagon_displacement_m"] >= 0.5
+        for grip in out["grip"].values():
+            assert grip["min_force_n"] >= 10.0 and grip["slide_mm"] <= 8.0 and grip["to_end_mm"] >= 20.0

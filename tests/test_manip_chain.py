@@ -32,7 +32,7 @@ WAGON_SEEDS = (0, 1, 2, 3)
 def wagon_runs():
     from toddlerbot.manipulation.chaining.sim_run import run_in_sim
 
-    chain = load_chain("wagon", GROUPS).with_scripted_grasps()  # the script's margins (the dp grasp: test_dp_wagon)
+    chain = load_chain("wagon", GROUPS)  # the scripted grasp (the dp grasp: test_dp_wagon)
     return [run_in_sim(chain, seed, description=DESCRIPTION).as_json() for seed in WAGON_SEEDS]
 
 
@@ -442,7 +442,7 @@ def test_on_hardware_the_grasp_aims_at_the_handle_where_the_scene_layout_puts_it
 
     model = scene_model(DESCRIPTION, "wagon")
     robot = MuJoCoRobot(DESCRIPTION, model=model)  # stands in for a RealRobot: no probe, so no sensed scene
-    runner = ChainRunner(load_chain("wagon", GROUPS), robot, model, probe=None)
+    runner = ChainRunner(load_chain("wagon", GROUPS).with_dp_grasps(), robot, model, probe=None)
     assert runner.skills[0].by == "scripted (no head camera for wagon.pt)"  # the shipped policy needs the camera
     layout = WagonLayout()
     np.testing.assert_allclose(runner.skills[0]._bar(), [layout.handle_x, 0.0, layout.handle_height], atol=1e-9)

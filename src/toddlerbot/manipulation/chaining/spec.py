@@ -69,11 +69,12 @@ class ChainSpec:
     success: tuple[tuple[str, object], ...] = ()
     """(predicate name, its parameters) that must all hold when the chain ends."""
 
-    def with_scripted_grasps(self) -> ChainSpec:
-        """The same chain with every ``scripted_grasp`` skill run by its script, even where its task's diffusion
-        policy is shipped (``checkpoint`` cleared)."""
-        skills = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=None))  # type: ignore
-                       if s.kind == "scripted_grasp" else s for s in self.skills)
+    def with_dp_grasps(self) -> ChainSpec:
+        """The same chain with every ``scripted_grasp`` skill that names no checkpoint driven by the scene's
+        shipped diffusion policy (``checkpoint`` = the scene, e.g. ``wagon.pt``) where there is one."""
+        skills = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=self.scene))  # type: ignore
+                       if s.kind == "scripted_grasp" and s.params.checkpoint is None else s  # type: ignore
+                       for s in self.skills)
         return dataclasses.replace(self, skills=skills)
 
 
