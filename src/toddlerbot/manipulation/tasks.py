@@ -21,7 +21,7 @@ import numpy as np
 from toddlerbot.manipulation.camera import HeadCamera
 from toddlerbot.manipulation.ik import ArmIK, top_down_rotation
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import Observation
+from toddlerbot.robot.interface import CONTROL_DT, Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 from toddlerbot.sim.scenes import (
     CUBE_BODY,
@@ -93,7 +93,7 @@ class PickConfig:
     ready_offset: tuple[float, float, float] = (0.0, -0.05, 0.10)
     """Start pose: grasp point at this offset from the cube region's centre on the table top (outside and above,
     so the gripper does not hide the cube from the head camera)."""
-    control_dt: float = 0.02
+    control_dt: float = CONTROL_DT
 
     def __post_init__(self) -> None:
         if self.arm not in ("left", "right"):

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toddlerbot.robot.interface import CONTROL_DT
+
 
 @dataclass(frozen=True)
 class ActionChunker:
@@ -23,8 +25,8 @@ class ActionChunker:
     """Actions executed (each for one policy period)."""
     policy_dt: float = 0.1
     """Period of the chunk's actions, s (10 Hz)."""
-    control_dt: float = 0.02
-    """Period of the control loop, s (50 Hz)."""
+    control_dt: float = CONTROL_DT
+    """Period of the control loop, s."""
 
     def __post_init__(self) -> None:
         ratio = self.policy_dt / self.control_dt
