@@ -7,11 +7,6 @@ from pathlib import Path
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.manipulation.dp import require_torch
-from toddlerbot.policies import POLICIES
-
-RUN_POLICIES = (*POLICIES, "dp")
-"""What `sim run` and `hw run` accept: `dp` (a diffusion-policy checkpoint) lives in the manipulation layer, above
-`make_policy`'s registry."""
 
 
 @dataclass

@@ -18,7 +18,7 @@ POLICY_REGISTRY = Registry("policy", entry_point_group="toddlerbot.policies")
 """Every policy `make_policy` builds and `sim run`, `hw run` and `eval tracking` offer: the built-in ones, those of
 installed packages (entry-point group ``toddlerbot.policies``) and those added with `register_policy`."""
 
-__all__ = ["POLICIES", "POLICY_REGISTRY", "Action", "Policy", "make_policy", "policy_names", "register_policy"]
+__all__ = ["POLICY_REGISTRY", "Action", "Policy", "make_policy", "policy_names", "register_policy"]
 
 
 def register_policy(name: str, factory: str | Callable[..., Policy] | None = None):
@@ -73,8 +73,6 @@ _BUILT_IN = {"stand": "toddlerbot.policies.stand:StandPolicy", "replay": _replay
              "walk-rl": _walk_rl}
 for _name, _factory in _BUILT_IN.items():
     POLICY_REGISTRY.register(_name, _factory)
-POLICIES = tuple(_BUILT_IN)
-"""The built-in policies (`policy_names()` adds the registered ones)."""
 
 
 def _walk_config(dt: float):
