@@ -171,7 +171,7 @@ def evaluate(
     from toddlerbot.manipulation.tasks import TASKS
 
     if task not in TASKS:
-        raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS)}")
+        raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS.names())}")
     if seconds is not None:
         duration(seconds, "--seconds", MAX_EPISODE_SECONDS)
     if video is not None:

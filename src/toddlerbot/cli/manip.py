@@ -23,7 +23,7 @@ def _check_task(task: str) -> None:
     from toddlerbot.manipulation.tasks import TASKS
 
     if task not in TASKS:
-        raise ToddlerbotError(f"unknown task {task!r}; expected one of {', '.join(TASKS)}")
+        raise ToddlerbotError(f"unknown task {task!r}; expected one of {', '.join(TASKS.names())}")
 
 
 @app.command()

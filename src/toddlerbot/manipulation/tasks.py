@@ -11,7 +11,6 @@ order) are the observation state, and the same motors' commanded targets are the
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -20,6 +19,7 @@ import numpy as np
 
 from toddlerbot.manipulation.camera import HeadCamera
 from toddlerbot.manipulation.ik import ArmIK, top_down_rotation
+from toddlerbot.registry import Registry
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
@@ -263,17 +263,12 @@ class TaskRobot:
         return self.task.step(motor_targets, kp)
 
 
-def _wagon_task(description: RobotDescription | None = None):
-    from toddlerbot.manipulation.wagon import WagonTask  # built on the chain's skills, which import this module
-
-    return WagonTask(description)
-
-
-TASKS: dict[str, Callable] = {"pick": PickTask, "wagon": _wagon_task}
-"""Task name -> constructor (optional description)."""
+TASKS = Registry("task")
+"""Task name -> constructor (optional description); the wagon task is imported on first use (it is built on the
+chain's skills, which import this module)."""
+TASKS.register("pick", PickTask)
+TASKS.register("wagon", "toddlerbot.manipulation.wagon:WagonTask")
 
 
 def make_task(name: str, description: RobotDescription | None = None):
-    if name not in TASKS:
-        raise ValueError(f"unknown task {name!r}; expected one of {', '.join(TASKS)}")
-    return TASKS[name](description)
+    return TASKS.get(name)(description)

@@ -26,13 +26,13 @@ WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
 UNBOUNDED_SKILL_S = 60.0
 """Simulated time allowed to a skill with neither `after` nor `timeout` (a button it will never see in sim)."""
 VIDEO_CAMERA = "perspective"
+VIDEO_FPS = 25
 
 
 def wagon_shift(rng: np.random.Generator) -> np.ndarray:
     """The seed's shift of the wagon (x, y), m: the first draws of the seed's generator (the wagon task draws it
     the same way, so `manip demo --task wagon` and `chain run wagon` place the wagon alike for a seed)."""
     return np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
-VIDEO_FPS = 25
 
 
 @dataclass(frozen=True)
