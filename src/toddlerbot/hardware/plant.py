@@ -2,8 +2,10 @@
 
 * `SimplePlant`: every motor is an independent inertia driven by the actuator model
   (`toddlerbot.actuation.model.motor_torque`) with the gains in its control table (via `actuator_arrays`).
-* `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor; the same
-  actuator model runs every 1 ms physics step, paced to wall-clock time in a background thread.
+* `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor, stepped through
+  the simulator's actuated plant (`toddlerbot.sim.actuated.step_actuated`: the actuator model every 1 ms physics
+  step, with each motor's torque enable and current limit), paced to wall-clock time in a background thread. It
+  has `GroundTruth` (the torso's true pose), which the emulator reports.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from functools import lru_cache
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays, motor_torque
+from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays
 from toddlerbot.hardware.control_table import (
     MODE_CURRENT_BASED_POSITION,
     pulses_to_rad,
@@ -28,6 +30,10 @@ from toddlerbot.hardware.control_table import (
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
 from toddlerbot.hardware.imu import ImuReading
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import FALL_TILT_RAD, GroundTruth
+from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoTruth
+from toddlerbot.sim.motor_drive import MotorDrive
 
 LOAD_INERTIA = 0.002
 """Load inertia added to the armature of each motor in `SimplePlant`, kg*m^2."""
@@ -75,9 +81,9 @@ class SimplePlant:
         if steps:
             dt = min(elapsed / steps, 0.005)
             cmd = commands(self.motors, self.params)
+            drive = cmd.drive()
             for _ in range(steps):
-                tau = np.where(cmd.torque_on, motor_torque(cmd.q_target, self.q, self.qd, cmd.arrays), 0.0)
-                tau = np.clip(tau, -cmd.tau_limit, cmd.tau_limit)
+                tau = drive.torque(cmd.q_target, self.q, self.qd)
                 passive = self.damping * self.qd + self.friction * np.tanh(self.qd / 0.01)
                 self.qd += dt * (tau - passive) / self.inertia
                 self.q += dt * self.qd
@@ -93,6 +99,10 @@ class Commands:
     q_target: np.ndarray
     arrays: ActuatorArrays
     tau_limit: np.ndarray
+
+    def drive(self) -> MotorDrive:
+        """The actuator model with these gains, each motor's torque enable and its current limit."""
+        return MotorDrive(self.arrays, self.torque_on, self.tau_limit)
 
 
 def commands(motors: list[EmulatedMotor], params: list) -> Commands:
@@ -130,7 +140,7 @@ def publish(motors: list[EmulatedMotor], q: np.ndarray, qd: np.ndarray, tau: np.
         m.set("moving", int(abs(qd[i]) > 0.02))
 
 
-class HilPlant:
+class HilPlant(GroundTruth):
     """The whole robot in MuJoCo (floating base, floor), motors driven by the actuator model every physics step.
 
     The simulation holds still (robot hanging on its stand) until the first motor's torque is enabled, then
@@ -146,10 +156,11 @@ class HilPlant:
         self.data = mujoco.MjData(self.model)
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
         mujoco.mj_forward(self.model, self.data)
-        joints = self.model.actuator_trnid[:, 0]
-        self.qadr = self.model.jnt_qposadr[joints]
-        self.vadr = self.model.jnt_dofadr[joints]
-        self.torso = self.model.body(description.handles.torso).id
+        self._motors = MotorAddresses.of(self.model, [mo.name for mo in motors])
+        self.qadr, self.vadr = self._motors.qpos, self._motors.dof
+        self._truth = TorsoTruth(self.model, self.data, description.handles.torso)
+        self.standing_height = self.torso_height()
+        """Torso height at the home pose, m: the reference of the fall test."""
         self._imu = [self.model.sensor(name) for name in ("imu_quat", "imu_gyro", "imu_accel")]
         self.sim_time = 0.0
         self.wall_time = 0.0
@@ -175,18 +186,28 @@ class HilPlant:
     def realtime_factor(self) -> float:
         return self.sim_time / self.wall_time if self.wall_time > 0 else 1.0
 
+    # -- GroundTruth (read between physics batches; the physics thread replaces the state in place) -----------
+    @property
+    def base_pos(self) -> np.ndarray:
+        return self._truth.base_pos()
+
+    @property
+    def base_quat(self) -> np.ndarray:
+        return self._truth.base_quat()
+
     def torso_height(self) -> float:
-        """Height of the torso frame above the floor, m."""
-        return float(self.data.xpos[self.torso][2])
+        return self._truth.height_and_uprightness()[0]
 
     def torso_uprightness(self) -> float:
-        """z component of the torso's up axis in the world (1 = upright, 0 = lying)."""
-        return float(self.data.xmat[self.torso][8])
+        return self._truth.height_and_uprightness()[1]
+
+    @property
+    def fallen(self) -> bool:
+        return self._truth.fallen(self.standing_height, FALL_TILT_RAD, FALL_HEIGHT_FRACTION)
 
     def torso_planar_pose(self) -> tuple[np.ndarray, float]:
         """Torso (x, y) position, m, and heading (yaw of its x axis), rad."""
-        xmat = self.data.xmat[self.torso]
-        return self.data.xpos[self.torso][:2].copy(), float(np.arctan2(xmat[3], xmat[0]))
+        return self._truth.planar_pose()
 
     def powered_motion(self) -> tuple[float, float, float] | None:
         """(dx, dy, yaw change) of the torso between the first and the last powered step (None if never
@@ -202,7 +223,8 @@ class HilPlant:
         return ImuReading(quat=quat, ang_vel=gyro, lin_acc=accel)
 
     def _publish(self) -> None:
-        publish(self.motors, self.data.qpos[self.qadr], self.data.qvel[self.vadr], self.data.ctrl.copy())
+        publish(self.motors, self.data.qpos[self.qadr], self.data.qvel[self.vadr],
+                self.data.ctrl[self._motors.actuator])
 
     def start(self, lock: threading.Lock) -> None:
         self._lock = lock
@@ -248,12 +270,9 @@ class HilPlant:
             assert self._lock is not None
             with self._lock:
                 cmd = commands(self.motors, self.params)
-            for _ in range(min(int(behind / dt), 10)):
-                q, qd = d.qpos[self.qadr], d.qvel[self.vadr]
-                tau = np.where(cmd.torque_on, motor_torque(cmd.q_target, q, qd, cmd.arrays), 0.0)
-                d.ctrl[:] = np.clip(tau, -cmd.tau_limit, cmd.tau_limit)
-                mujoco.mj_step(m, d)
-                self.sim_time += dt
+            n = min(int(behind / dt), 10)
+            step_actuated([m], [d], self._motors, cmd.q_target[None], cmd.drive(), n)
+            self.sim_time += n * dt
             if cmd.torque_on.any():
                 self.powered_min_height = min(self.powered_min_height, self.torso_height())
                 self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())

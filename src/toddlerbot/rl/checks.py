@@ -22,6 +22,7 @@ import numpy as np
 from toddlerbot.rl.env import WalkEnv
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.motor_drive import MotorDrive
 
 
 @dataclass(frozen=True)
@@ -88,10 +89,10 @@ def stand_cpu(model: mujoco.MjModel, description: RobotDescription, seconds: flo
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
     motors = MotorAddresses.of(model, description.motor_names)
-    home, act = np.asarray(description.home_motor_pos)[None], description.actuator_arrays()
+    home, drive = np.asarray(description.home_motor_pos)[None], MotorDrive(description.actuator_arrays())
     heights, samples = [], []
     for k in range(round(seconds / model.opt.timestep)):
-        step_actuated([model], [data], motors, home, act, 1)
+        step_actuated([model], [data], motors, home, drive, 1)
         if not np.all(np.isfinite(data.qpos)) or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
             return k * model.opt.timestep, np.array(heights), np.array(samples)
         heights.append(data.qpos[2])

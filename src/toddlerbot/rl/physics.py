@@ -33,6 +33,7 @@ from mujoco import mjx
 from toddlerbot.actuation.model import ActuatorArrays, friction_excess, motor_torque
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.motor_drive import MotorDrive
 
 MODEL_FIELDS = ("geom_friction", "dof_damping", "dof_armature", "dof_frictionloss", "body_mass", "body_inertia")
 """Model parameters domain randomisation changes per env (`toddlerbot.rl.randomization.model_fields`)."""
@@ -283,7 +284,7 @@ class CPUPhysics:
             d.qpos[:], d.qvel[:], d.qacc_warmstart[:] = qpos[j], qvel[j], warmstart[j]
             d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
         torque = step_actuated(models, datas, self.addresses.motors, targets[idx],
-                               ActuatorArrays(*(x[idx] for x in actuators)), self.n_substeps,
+                               MotorDrive(ActuatorArrays(*(x[idx] for x in actuators))), self.n_substeps,
                                sensors_last_only=True)
         for d in datas:
             if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo reset the diverged data: end it

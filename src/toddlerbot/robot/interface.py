@@ -54,6 +54,35 @@ class Observation:
     """(left, right) booleans; all False where the backend cannot sense contact."""
 
 
+class GroundTruth(ABC):
+    """The capability of knowing the torso's true pose in the world, beyond what the sensors report: simulations
+    (`toddlerbot.sim.mujoco_robot.MuJoCoRobot`, the hardware-in-the-loop plant behind the Dynamixel emulator).
+    The runner logs it for robots that have it and NaN for the others (the real robot)."""
+
+    @property
+    @abstractmethod
+    def base_pos(self) -> np.ndarray:
+        """Torso (floating base) position in the world, m."""
+
+    @property
+    @abstractmethod
+    def base_quat(self) -> np.ndarray:
+        """Torso orientation in the world, quaternion w, x, y, z."""
+
+    @abstractmethod
+    def torso_height(self) -> float:
+        """Height of the torso frame above the floor, m."""
+
+    @abstractmethod
+    def torso_uprightness(self) -> float:
+        """z component of the torso's up axis in the world (1 = upright, 0 = lying)."""
+
+    @property
+    @abstractmethod
+    def fallen(self) -> bool:
+        """The torso tilts beyond its fall threshold or has sunk below a fraction of its standing height."""
+
+
 class Robot(ABC):
     """A robot a policy can drive: read observations, command motor position targets.
 

@@ -2,7 +2,8 @@
 
 ``realtime=True`` locks each step to wall-clock time (sleeping off the remainder of the control period; a real
 robot's backend blocks on its bus instead). The run stops early when the policy is done, or when the robot falls
-(`Robot.fallen`: the IMU tilt, or the simulator's ground truth) unless ``stop_on_fall`` is False.
+(`Robot.fallen`: the IMU tilt, or the simulator's ground truth) unless ``stop_on_fall`` is False. The torso's
+true pose is logged for robots with `GroundTruth` (simulators) and NaN for the others.
 
 A command the robot's guard refuses (`UnsafeCommandError`) or a policy that raises stops the run at once: the
 error propagates (a policy's own exception wrapped in `PolicyError`, which names the policy and the time) and
@@ -19,7 +20,7 @@ import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.base import Policy
-from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.interface import GroundTruth, Observation, Robot
 from toddlerbot.runtime.log import LogRecorder, RunLog
 
 NAN3, NAN4 = np.full(3, np.nan), np.full(4, np.nan)
@@ -56,7 +57,7 @@ def run_policy(
     policy.reset(obs)
     n_steps = round(seconds / robot.control_dt)
     fall_time = None
-    has_ground_truth = hasattr(robot, "base_pos")
+    truth = robot if isinstance(robot, GroundTruth) else None
     next_deadline = time.perf_counter()
     kp, kd = robot.default_kp, robot.default_kd  # gains stay in effect until a policy sends others
     for _ in range(n_steps):
@@ -69,8 +70,8 @@ def run_policy(
         except Exception as exc:  # a policy bug must stop the robot with a clear message, not a traceback
             raise PolicyError(f"policy {policy.name} failed at t={obs.time:.3f} s: {type(exc).__name__}: {exc}"
                               ) from exc
-        base_pos = robot.base_pos if has_ground_truth else NAN3
-        base_quat = robot.base_quat if has_ground_truth else NAN4
+        base_pos = truth.base_pos if truth is not None else NAN3
+        base_quat = truth.base_quat if truth is not None else NAN4
         new_obs = robot.step(action.motor_targets, action.kp, action.kd)
         kp = kp if action.kp is None else action.kp
         kd = kd if action.kd is None else action.kd

@@ -1,9 +1,12 @@
 """The actuated plant: MuJoCo physics with the actuator model in the loop, for one robot or a batch of robots.
 
-Every physics substep the actuator model (`toddlerbot.actuation.model.motor_torque`, numpy) turns each robot's
+`step_actuated` is the one physics substep loop with motors: every substep a `MotorDrive` (the actuator model,
+`toddlerbot.actuation.model.motor_torque`, plus the firmware's torque enable and torque limit) turns each robot's
 motor targets into motor torques, vectorised over the batch, and ``mujoco.mj_step`` advances each robot (it
-releases the GIL, so callers may step disjoint batches on several threads). `MuJoCoRobot` steps a batch of one;
-the RL environment's CPU backend (`toddlerbot.rl.physics`) steps chunks of its batch on a thread pool.
+releases the GIL, so callers may step disjoint batches on several threads). Everything that simulates motors in
+MuJoCo steps through it: `toddlerbot.sim.mujoco_robot.MuJoCoRobot` (a batch of one), the RL environment's CPU
+backend (`toddlerbot.rl.physics`, chunks of its batch on a thread pool), the hardware-in-the-loop plant behind
+the Dynamixel emulator (`toddlerbot.hardware.plant.HilPlant`) and the sysID ``robot_joint`` rig.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.model import ActuatorArrays, friction_excess, has_friction_excess, motor_torque
+from toddlerbot.sim.motor_drive import MotorDrive
 
 
 @dataclass(frozen=True)
@@ -35,34 +38,41 @@ class MotorAddresses:
 
 
 def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjData], motors: MotorAddresses,
-                  targets: np.ndarray, params: ActuatorArrays, n_substeps: int,
+                  targets: np.ndarray, drive: MotorDrive, n_substeps: int,
                   sensors_last_only: bool = False) -> np.ndarray:
     """Advance each robot ``n_substeps`` physics steps holding its motor targets (``targets`` (batch, n_motors),
-    rad); ``params`` holds (n_motors,) arrays shared by the batch or (batch, n_motors) arrays, one row per robot.
-    Returns the motor torques of the last substep, (batch, n_motors) N*m. A fitted load-dependent friction
+    rad) with the drive's parameters ((n_motors,) arrays shared by the batch or (batch, n_motors), one row per
+    robot). Returns the motor torques of the last substep, (batch, n_motors) N*m. A fitted load-dependent friction
     (`toddlerbot.actuation.model.friction_excess`) raises the motor joints' frictionloss every substep and is
     taken off again on return. ``sensors_last_only``: MuJoCo's sensors are evaluated in the last substep only (the
-    dynamics do not read them; this toggles the models' sensor flag, so only for models no other thread steps)."""
-    tau = np.zeros_like(targets)
-    budget = has_friction_excess(params)
+    dynamics do not read them, so the state is the same; this toggles the models' sensor flag, so only for models
+    no other thread steps)."""
+    if n_substeps < 1:
+        raise ValueError(f"n_substeps must be >= 1, got {n_substeps}")
+    # MjData's arrays are views of memory that never moves: take them once, not every substep
+    qpos, qvel, ctrl = [d.qpos for d in datas], [d.qvel for d in datas], [d.ctrl for d in datas]
+    one = len(datas) == 1
+    budget = drive.has_friction_excess
     frictionloss = [m.dof_frictionloss[motors.dof].copy() for m in models] if budget else []
     if sensors_last_only:
         for m in models:
             m.opt.disableflags |= _NO_SENSOR
+    step = mujoco.mj_step
     for k in range(n_substeps):
-        # stack whole state vectors, then index once: one fancy index per robot costs more than the stack
-        q = np.stack([d.qpos for d in datas])[:, motors.qpos]
-        q_dot = np.stack([d.qvel for d in datas])[:, motors.dof]
-        tau = motor_torque(targets, q, q_dot, params)
-        excess = friction_excess(q_dot, tau, params) if budget else None
+        if one:
+            q, q_dot = qpos[0][motors.qpos][None], qvel[0][motors.dof][None]
+        else:  # stack whole state vectors, then index once: one fancy index per robot costs more than the stack
+            q, q_dot = np.stack(qpos)[:, motors.qpos], np.stack(qvel)[:, motors.dof]
+        tau = drive.torque(targets, q, q_dot)
+        excess = drive.friction_excess(q_dot, tau) if budget else None
         if sensors_last_only and k == n_substeps - 1:
             for m in models:
                 m.opt.disableflags &= ~_NO_SENSOR
-        for i, (m, d, row) in enumerate(zip(models, datas, tau, strict=True)):
-            d.ctrl[motors.actuator] = row
+        for i, (m, d) in enumerate(zip(models, datas, strict=True)):
+            ctrl[i][motors.actuator] = tau[i]
             if budget:
                 m.dof_frictionloss[motors.dof] = frictionloss[i] + excess[i]
-            mujoco.mj_step(m, d)
+            step(m, d)
     for m, own in zip(models, frictionloss, strict=False):
         m.dof_frictionloss[motors.dof] = own
     return tau

@@ -12,6 +12,8 @@ Safety in the loop:
 * non-finite or runaway state raises `SimulationError` naming the simulated time;
 * a fall detector (`MuJoCoRobot.fallen`): torso tilted beyond ``fall_tilt_rad`` or its height below
   ``fall_height_fraction`` of the standing height.
+
+The robot has `GroundTruth` (`toddlerbot.sim.ground_truth.TorsoTruth`): the torso's true pose in the world.
 """
 
 from __future__ import annotations
@@ -22,10 +24,11 @@ import mujoco
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.robot.builder import FREEJOINT
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, Robot
+from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, GroundTruth, Observation, Robot
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoTruth
+from toddlerbot.sim.motor_drive import MotorDrive
 
 MAX_JOINT_SPEED = 200.0
 """rad/s; any faster and the simulation has blown up."""
@@ -41,7 +44,7 @@ class SimConfig:
     """Control period, s."""
     fall_tilt_rad: float = FALL_TILT_RAD
     """Torso tilt from upright (angle between torso z and world z) that counts as a fall."""
-    fall_height_fraction: float = 0.6
+    fall_height_fraction: float = FALL_HEIGHT_FRACTION
     """Torso height below this fraction of its standing height counts as a fall."""
 
     def __post_init__(self) -> None:
@@ -49,7 +52,7 @@ class SimConfig:
             raise ValueError(f"control_dt must be > 0 s, got {self.control_dt}")
 
 
-class MuJoCoRobot(Robot):
+class MuJoCoRobot(Robot, GroundTruth):
     """The floating-base robot on a floor, stepped with the actuator model."""
 
     def __init__(
@@ -78,8 +81,7 @@ class MuJoCoRobot(Robot):
         handles = description.handles
         self._foot_geoms = np.array([m.geom(g).id for g in handles.feet_geoms])
         self._floor = m.geom("floor").id
-        self._torso = m.body(handles.torso).id
-        self._base_qadr = m.joint(FREEJOINT).qposadr[0]
+        self._truth = TorsoTruth(m, self.data, handles.torso)
         self._home_key = m.key("home").id
         self._targets = np.zeros(len(self.motor_names))
         self._torque = np.zeros(len(self.motor_names))
@@ -87,7 +89,7 @@ class MuJoCoRobot(Robot):
         """Motor angles added to the home keyframe at `reset`, rad (a perturbation; zero by default)."""
         self.set_gains(self.default_kp, self.default_kd)
         self.reset()
-        self.standing_height = float(self.data.xpos[self._torso, 2])
+        self.standing_height = self.torso_height()
 
     # -- Robot interface -------------------------------------------------------------------------------------
     def reset(self) -> Observation:
@@ -120,7 +122,9 @@ class MuJoCoRobot(Robot):
         if kp is not None or kd is not None:
             self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
         self._targets = motor_targets
-        self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._params,
+        if self._drive.params is not self._params:
+            self._drive = MotorDrive(self._params)
+        self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive,
                                      self.n_substeps)[0]
         self._check_stable()
         return self.observe()
@@ -129,6 +133,7 @@ class MuJoCoRobot(Robot):
     def set_gains(self, kp: np.ndarray, kd: np.ndarray) -> None:
         """Firmware gains (Dynamixel units) used by the actuator model from now on."""
         self._params = self.description.actuator_arrays(kp, kd)
+        self._drive = MotorDrive(self._params)
 
     def foot_contact(self) -> np.ndarray:
         """(left, right): does each foot's collision geom touch the floor?"""
@@ -143,15 +148,20 @@ class MuJoCoRobot(Robot):
         """Add a horizontal velocity (dvx, dvy), m/s, world frame, to the torso: a kick."""
         self.data.qvel[0:2] += np.asarray(velocity_change, dtype=float)
 
+    # -- GroundTruth -----------------------------------------------------------------------------------------
     @property
     def base_pos(self) -> np.ndarray:
-        """Torso (floating base) position in the world, m."""
-        return self.data.qpos[self._base_qadr : self._base_qadr + 3].copy()
+        return self._truth.base_pos()
 
     @property
     def base_quat(self) -> np.ndarray:
-        """Torso orientation in the world, quaternion w, x, y, z."""
-        return self.data.qpos[self._base_qadr + 3 : self._base_qadr + 7].copy()
+        return self._truth.base_quat()
+
+    def torso_height(self) -> float:
+        return self._truth.height_and_uprightness()[0]
+
+    def torso_uprightness(self) -> float:
+        return self._truth.height_and_uprightness()[1]
 
     @property
     def base_lin_vel(self) -> np.ndarray:
@@ -165,12 +175,7 @@ class MuJoCoRobot(Robot):
 
     @property
     def fallen(self) -> bool:
-        torso_z_axis_z = self.data.xmat[self._torso, 8]
-        height = self.data.xpos[self._torso, 2]
-        return bool(
-            torso_z_axis_z < np.cos(self.config.fall_tilt_rad)
-            or height < self.config.fall_height_fraction * self.standing_height
-        )
+        return self._truth.fallen(self.standing_height, self.config.fall_tilt_rad, self.config.fall_height_fraction)
 
     def _check_stable(self) -> None:
         d = self.data

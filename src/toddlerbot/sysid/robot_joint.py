@@ -4,7 +4,8 @@ The rig motor follows the replayed goal positions with the candidate parameters 
 and friction loss are set in the MuJoCo model, the friction loss raised every step by the model's load-dependent
 budget, `toddlerbot.actuation.model.friction_excess`), at the run's supply voltage and applying no torque while it
 was off; every other motor holds its home position with the description's parameters and the spec's firmware
-gains.
+gains. The model steps through the simulator's actuated plant (`toddlerbot.sim.actuated.step_actuated`), one
+physics step at a time as the goal changes every step.
 Candidates are simulated one after another (slower than the vectorised one-degree-of-freedom rigs).
 """
 
@@ -14,8 +15,10 @@ import mujoco
 import numpy as np
 
 from toddlerbot.actuation.catalogue import MotorModel
-from toddlerbot.actuation.model import actuator_arrays, at_voltage, friction_excess, motor_torque
+from toddlerbot.actuation.model import actuator_arrays, at_voltage
 from toddlerbot.actuation.motor_params import MotorParams
+from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.motor_drive import MotorDrive
 from toddlerbot.sysid.batch import Replay, RunBatch
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.params import Candidates
@@ -40,8 +43,9 @@ def simulate_robot_joint(batch: RunBatch, rig: RobotJointRig, candidates: Candid
     base_model = description.model(base="fixed", scene=False)
     names = description.motor_names
     rig_index = names.index(rig.joint)
-    qadr = np.array([base_model.joint(name).qposadr[0] for name in names])
-    vadr = np.array([base_model.joint(name).dofadr[0] for name in names])
+    motors = MotorAddresses.of(base_model, names)
+    qadr, vadr = motors.qpos, motors.dof
+    rig_off = np.arange(len(names)) != rig_index  # the torque enable with the rig motor off
     home = base_model.key("home").qpos.copy()
     out = [np.empty((len(candidates), len(batch.measured))) for _ in range(3 if full else 1)]
     for c in range(len(candidates)):
@@ -54,6 +58,7 @@ def simulate_robot_joint(batch: RunBatch, rig: RobotJointRig, candidates: Candid
             scale = np.ones(len(names))
             scale[rig_index] = batch.voltage_ratio[r]
             p = at_voltage(actuator_arrays(params, kp, kd), scale)
+            powered, unpowered = MotorDrive(p), MotorDrive(p, torque_on=rig_off)
             data = mujoco.MjData(model)
             data.qpos[:] = home
             data.qpos[qadr[rig_index]] = batch.q0[r]
@@ -62,15 +67,10 @@ def simulate_robot_joint(batch: RunBatch, rig: RobotJointRig, candidates: Candid
             record = np.empty((len(batch.goal), 3))
             for k in range(len(batch.goal)):
                 target[rig_index] = batch.goal[k, r]
-                q_dot = data.qvel[vadr]
-                tau = motor_torque(target, data.qpos[qadr], q_dot, p)
-                if not batch.torque_on[k, r]:
-                    tau[rig_index] = 0.0
-                record[k] = data.qpos[qadr[rig_index]], q_dot[rig_index], tau[rig_index]
-                model.dof_frictionloss[vadr[rig_index]] = cand.frictionloss + friction_excess(
-                    q_dot, tau, p)[rig_index]
-                data.ctrl[:] = tau
-                mujoco.mj_step(model, data)
+                q, q_dot = data.qpos[qadr[rig_index]], data.qvel[vadr[rig_index]]
+                drive = powered if batch.torque_on[k, r] else unpowered
+                tau = step_actuated([model], [data], motors, target[None], drive, 1)
+                record[k] = q, q_dot, tau[0, rig_index]
             mask = batch.sample_run == r
             for i, values in enumerate(out):
                 values[c, mask] = record[batch.sample_step[mask], i]

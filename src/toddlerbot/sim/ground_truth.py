@@ -1,0 +1,47 @@
+"""The torso's true pose in a MuJoCo simulation of the floating robot: what the `GroundTruth` backends
+(`toddlerbot.sim.mujoco_robot.MuJoCoRobot`, `toddlerbot.hardware.plant.HilPlant`) report, computed here once.
+
+Height and uprightness are read from the torso body's frame as the last ``mj_step`` left it (computed before its
+integration); position and orientation from the free joint's state after it.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from toddlerbot.robot.builder import FREEJOINT
+
+FALL_HEIGHT_FRACTION = 0.6
+"""Torso height below this fraction of its standing height counts as a fall."""
+
+
+class TorsoTruth:
+    """The torso body ``torso`` (the description's handle) of ``data``, a MuJoCo model of the floating robot."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, torso: str) -> None:
+        self._data = data
+        self._body = model.body(torso).id
+        self._base = model.joint(FREEJOINT).qposadr[0]
+
+    def height_and_uprightness(self) -> tuple[float, float]:
+        """(height of the torso frame above the floor, m; z component of its up axis in the world, 1 = upright)."""
+        return float(self._data.xpos[self._body, 2]), float(self._data.xmat[self._body, 8])
+
+    def fallen(self, standing_height: float, fall_tilt_rad: float, height_fraction: float) -> bool:
+        """Tilted beyond ``fall_tilt_rad`` from upright or lower than ``height_fraction`` x ``standing_height``."""
+        height, uprightness = self.height_and_uprightness()
+        return bool(uprightness < np.cos(fall_tilt_rad) or height < height_fraction * standing_height)
+
+    def base_pos(self) -> np.ndarray:
+        """Torso position in the world, m (the free joint's)."""
+        return self._data.qpos[self._base : self._base + 3].copy()
+
+    def base_quat(self) -> np.ndarray:
+        """Torso orientation in the world, quaternion w, x, y, z (the free joint's)."""
+        return self._data.qpos[self._base + 3 : self._base + 7].copy()
+
+    def planar_pose(self) -> tuple[np.ndarray, float]:
+        """Torso frame (x, y) position, m, and heading (yaw of its x axis), rad."""
+        xmat = self._data.xmat[self._body]
+        return self._data.xpos[self._body, :2].copy(), float(np.arctan2(xmat[3], xmat[0]))
