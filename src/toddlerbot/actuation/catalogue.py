@@ -18,63 +18,28 @@ from typing import ClassVar
 import yaml
 
 from toddlerbot.actuation.dc_motor import DCMotorParams
-from toddlerbot.actuation.motor_params import MotorParams, check_fields
+from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.actuation.motor_params import MotorParams
+from toddlerbot.actuation.parameters import APPENDIX, check_parameters, parameter_class
 from toddlerbot.errors import SpecError
 from toddlerbot.yaml_input import read_yaml
 
 DEFAULT_CATALOGUE = resources.files("toddlerbot.actuation") / "motors.yaml"
-ACTUATOR_MAX = {"damping": 10.0, "armature": 1.0, "frictionloss": 100.0, "tau_max": 1000.0, "q_dot_tau_max": 1000.0,
-                "q_dot_max": 1000.0, "tau_q_dot_max": 1000.0, "kd_min": 100.0, "tau_brake": 1000.0,
-                "kp_scale": 1e5, "stiction": 100.0, "stribeck_velocity": 1000.0, "load_friction": 1.0}
-"""Plausible upper bound of each actuator parameter (units as in `ActuatorParams`): finite is not enough (tau_max
-1e300 is finite); each lies orders of magnitude above the system-ID search bounds and any Dynamixel's figure."""
 MOTOR_RANGES = {"stall_torque_nm": (1e-3, 1000.0), "mass_kg": (1e-3, 100.0), "rated_voltage": (1.0, 100.0)}
 """Plausible (low, high) of a motor model's datasheet figures, N*m, kg, V."""
 
 
-@dataclass(frozen=True)
-class ActuatorParams:
-    """Parameters of the appendix's actuator model (Eq. 8-10), in joint units of the motor's output shaft."""
+class _AppendixModel:
+    """Parameters of the appendix's actuator model (Eq. 8-10), in joint units of the motor's output shaft: the
+    ``appendix`` rows of `toddlerbot.actuation.parameters.PARAMETERS` (the extended friction terms default to the
+    9-parameter model)."""
 
-    model: ClassVar[str] = "appendix"
-
-    damping: float
-    """Passive viscous resistance, N*m*s/rad."""
-    armature: float
-    """Reflected rotor inertia, kg*m^2."""
-    frictionloss: float
-    """Coulomb friction, N*m."""
-    tau_max: float
-    """Acceleration torque limit at low speed, N*m."""
-    q_dot_tau_max: float
-    """Speed up to which tau_max is available, rad/s."""
-    q_dot_max: float
-    """Speed at which the acceleration limit has fallen to tau_q_dot_max, rad/s."""
-    tau_q_dot_max: float
-    """Acceleration torque limit at q_dot_max and beyond, N*m."""
-    kd_min: float
-    """Damping added by the powered motor's controller, N*m*s/rad."""
-    tau_brake: float
-    """Braking torque limit, N*m."""
-    kp_scale: float
-    """Dynamixel position P gain divided by the physical stiffness in N*m/rad."""
-    stiction: float = 0.0
-    """Extended model: static friction in excess of the Coulomb ``frictionloss`` at zero speed, N*m (0: none)."""
-    stribeck_velocity: float = 0.1
-    """Extended model: speed over which the excess static friction decays (exp(-(q_dot/v)^2)), rad/s."""
-    load_friction: float = 0.0
-    """Extended model: Coulomb friction per N*m of transmitted motor torque (1 - efficiency), 1 (0: none)."""
+    model: ClassVar[str] = APPENDIX
 
     def __post_init__(self) -> None:
-        check_fields(self, ACTUATOR_MAX)
+        check_parameters(self)
         if self.q_dot_max <= self.q_dot_tau_max:
             raise ValueError(f"q_dot_max ({self.q_dot_max}) must exceed q_dot_tau_max ({self.q_dot_tau_max})")
-        if self.kp_scale <= 0:
-            raise ValueError(f"kp_scale must be > 0, got {self.kp_scale}")
-        if self.stribeck_velocity <= 0:
-            raise ValueError(f"stribeck_velocity must be > 0, got {self.stribeck_velocity}")
-        if self.load_friction >= 1:
-            raise ValueError(f"load_friction must be < 1 (share of the transmitted torque), got {self.load_friction}")
 
     def replace(self, **changes: float) -> ActuatorParams:
         return dataclasses.replace(self, **changes)
@@ -86,11 +51,14 @@ class ActuatorParams:
     @staticmethod
     def fields_to_arrays(f: Mapping, kp_dynamixel, kd_dynamixel) -> dict:
         """`ActuatorArrays` entries from field values (floats, or arrays of candidates in a fit; constants stay
-        scalars and broadcast): physical gains from kp_scale, no back-EMF after the limit, a linear PWM."""
-        same = ("kd_min", "tau_max", "q_dot_tau_max", "q_dot_max", "tau_q_dot_max", "tau_brake", "stiction",
-                "stribeck_velocity", "load_friction")
-        return {**{name: f[name] for name in same}, "kp": kp_dynamixel / f["kp_scale"],
-                "kd": kd_dynamixel / f["kp_scale"], "back_emf_damping": 0.0, "pwm_exponent": 1.0}
+        scalars and broadcast): the parameters of the same name, physical gains from kp_scale, no back-EMF after
+        the limit, a linear PWM."""
+        same = {name: f[name] for name in ActuatorArrays._fields if name in f}
+        return {**same, "kp": kp_dynamixel / f["kp_scale"], "kd": kd_dynamixel / f["kp_scale"],
+                "back_emf_damping": 0.0, "pwm_exponent": 1.0}
+
+
+ActuatorParams = parameter_class("ActuatorParams", _AppendixModel)
 
 
 MOTOR_MODELS: dict[str, type[ActuatorParams] | type[DCMotorParams]] = {

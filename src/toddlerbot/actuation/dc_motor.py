@@ -17,47 +17,20 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import ClassVar
 
-from toddlerbot.actuation.motor_params import check_fields
-
-DC_MOTOR_MAX = {"damping": 10.0, "armature": 1.0, "frictionloss": 100.0, "stall_torque": 1000.0,
-                "no_load_speed": 1000.0, "pwm_per_rad": 10.0, "pwm_exponent": 3.0, "load_friction": 1.0}
-"""Plausible upper bound of each field (units as in `DCMotorParams`), orders of magnitude above the system-ID search
-bounds and any Dynamixel's figure."""
+from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.actuation.parameters import DC_MOTOR, check_parameters, parameter_class
 
 
-@dataclass(frozen=True)
-class DCMotorParams:
-    """Parameters of the DC-motor model, in joint units of the motor's output shaft."""
+class _DCMotorModel:
+    """Parameters of the DC-motor model, in joint units of the motor's output shaft: the ``dc_motor`` rows of
+    `toddlerbot.actuation.parameters.PARAMETERS`."""
 
-    model: ClassVar[str] = "dc_motor"
-
-    damping: float
-    """Passive viscous resistance, N*m*s/rad (powered or not)."""
-    armature: float
-    """Reflected rotor inertia, kg*m^2."""
-    frictionloss: float
-    """Coulomb friction at no load, N*m."""
-    stall_torque: float
-    """Torque at full PWM duty and rest, at the rated voltage, N*m (k_t V / R)."""
-    no_load_speed: float
-    """Speed at which the back-EMF cancels the full supply, at the rated voltage, rad/s (V / k_e)."""
-    pwm_per_rad: float
-    """PWM duty (1 = 100 %) per rad of position error per unit of firmware kp, 1/rad."""
-    pwm_exponent: float = 1.0
-    """The drive torque grows as duty^pwm_exponent, 1 (1: proportional to the duty)."""
-    load_friction: float = 0.0
-    """Coulomb friction per N*m of motor torque (1 - gearbox efficiency), 1."""
+    model: ClassVar[str] = DC_MOTOR
 
     def __post_init__(self) -> None:
-        check_fields(self, DC_MOTOR_MAX)
-        for name in ("stall_torque", "no_load_speed", "pwm_per_rad", "pwm_exponent"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if self.load_friction >= 1:
-            raise ValueError(f"load_friction must be < 1 (share of the transmitted torque), got {self.load_friction}")
+        check_parameters(self)
 
     @property
     def tau_max(self) -> float:
@@ -90,18 +63,20 @@ class DCMotorParams:
 
     @staticmethod
     def fields_to_arrays(f: Mapping, kp_dynamixel, kd_dynamixel) -> dict:
-        """`ActuatorArrays` entries from field values (floats, or arrays of candidates in a fit; constants
-        stay scalars and broadcast): PD on the duty
-        (the firmware's D gain taken in the units of kp), a flat limit at the stall torque, the back-EMF after it,
-        load-dependent friction only."""
+        """`ActuatorArrays` entries from field values (floats, or arrays of candidates in a fit; constants stay
+        scalars and broadcast): the parameters of the same name, PD on the duty (the firmware's D gain taken in the
+        units of kp), a flat limit at the stall torque, the back-EMF after it, load-dependent friction only."""
+        same = {name: f[name] for name in ActuatorArrays._fields if name in f}
         per_unit = f["pwm_per_rad"] * f["stall_torque"]
         return {
-            "kp": kp_dynamixel * per_unit, "kd": kd_dynamixel * per_unit, "kd_min": 0.0,
+            **same, "kp": kp_dynamixel * per_unit, "kd": kd_dynamixel * per_unit, "kd_min": 0.0,
             "tau_max": f["stall_torque"], "q_dot_tau_max": 0.0, "q_dot_max": f["no_load_speed"],
             "tau_q_dot_max": f["stall_torque"], "tau_brake": f["stall_torque"],
-            "back_emf_damping": f["stall_torque"] / f["no_load_speed"], "pwm_exponent": f["pwm_exponent"],
-            "stiction": 0.0, "stribeck_velocity": 1.0, "load_friction": f["load_friction"],
+            "back_emf_damping": f["stall_torque"] / f["no_load_speed"], "stiction": 0.0, "stribeck_velocity": 1.0,
         }
 
     def replace(self, **changes: float) -> DCMotorParams:
         return dataclasses.replace(self, **changes)
+
+
+DCMotorParams = parameter_class("DCMotorParams", _DCMotorModel)

@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import MotorParams
+from toddlerbot.actuation.motor_params import MotorParams
 
 
 class ActuatorArrays(NamedTuple):

@@ -1,9 +1,7 @@
-"""What every actuator-model parameter set provides (`MotorParams`), and the check they share."""
+"""What every actuator-model parameter set provides (`MotorParams`)."""
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from typing import Protocol
 
 
@@ -38,13 +36,3 @@ class MotorParams(Protocol):
     def replace(self, **changes: float) -> MotorParams:
         """A copy with some fields changed (validated again)."""
 
-
-def check_fields(params: object, maxima: dict[str, float]) -> None:
-    """Raise ValueError naming the first dataclass field that is not a finite number in [0, its plausible maximum]
-    (finite is not enough: tau_max 1e300 is finite)."""
-    for field in dataclasses.fields(params):
-        value = getattr(params, field.name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise ValueError(f"{field.name} must be a finite number >= 0, got {value!r}")
-        if value > maxima[field.name]:
-            raise ValueError(f"{field.name} must be at most {maxima[field.name]:g}, got {value:g}")

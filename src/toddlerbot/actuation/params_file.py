@@ -7,14 +7,13 @@ catalogue's value when the catalogue has the same model for the motor; a file wi
 
 from __future__ import annotations
 
-import dataclasses
 import json
-import math
 from collections.abc import Iterable
 from pathlib import Path
 
-from toddlerbot.actuation.catalogue import MOTOR_MODELS, Catalogue, default_catalogue, motor_params
+from toddlerbot.actuation.catalogue import Catalogue, default_catalogue, motor_params, params_dict
 from toddlerbot.actuation.motor_params import MotorParams
+from toddlerbot.actuation.parameters import APPENDIX
 from toddlerbot.errors import ParamsError, SpecError
 
 MAX_PARAMS_BYTES = 1 << 20
@@ -41,24 +40,14 @@ def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[s
         name = catalogue[str(raw["motor"])].name
     except SpecError:
         raise ParamsError(f"{path}: unknown motor model {raw['motor']!r}") from None
-    fields = dict(raw["actuator"])
-    model = fields.pop("model", "appendix")
-    if not isinstance(model, str) or model not in MOTOR_MODELS:
-        raise ParamsError(f"{path}: unknown actuator model {model!r}; expected one of {', '.join(MOTOR_MODELS)}")
-    known = {f.name for f in dataclasses.fields(MOTOR_MODELS[model])}
-    unknown = sorted(set(fields) - known)
-    if unknown:
-        raise ParamsError(
-            f"{path}: unknown {model} field(s) {', '.join(unknown)}; expected {', '.join(sorted(known))}"
-        )
-    for field, value in fields.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ParamsError(f"{path}: actuator.{field} must be a finite number, got {value!r}")
+    fields = raw["actuator"]
     base = catalogue[name].actuator
+    # a partial file of the model the catalogue has for the motor keeps the catalogue's other fields
+    kept = params_dict(base) if fields.get("model", APPENDIX) == base.model else {}
     try:
-        params = base.replace(**fields) if base.model == model else motor_params({"model": model, **fields}, "actuator")
+        params = motor_params({**kept, **fields}, "actuator")
     except (TypeError, ValueError) as exc:
-        raise ParamsError(f"{path}: {exc}") from None
+        raise ParamsError(f"{path}: {exc} (motor {name})") from None
     return name, params
 
 

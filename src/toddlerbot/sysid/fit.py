@@ -10,9 +10,10 @@ damping against friction loss): on the XL330-M288 kp-100 logs, fits from the cat
 values reach the same parameters with it (1.93 deg on kp 400 from both) and different ones without (1.97 and
 2.38 deg).
 
-CMA-ES (the ``cma`` package) searches the unit cube mapped onto `toddlerbot.sysid.params.SEARCH` (log-scaled for
-the positive, multi-decade parameters), the first run starting from the catalogue's values for the motor (converted
-to the fitted model where the catalogue has the other one, `toddlerbot.sysid.params.start_params`). Each generation
+CMA-ES (the ``cma`` package) searches the unit cube mapped onto the parameters' fit bounds
+(`toddlerbot.actuation.parameters.PARAMETERS`; log-scaled for the positive, multi-decade parameters), the first run
+starting from the catalogue's values for the motor (converted to the fitted model where the catalogue has the other
+one, `toddlerbot.sysid.params.start_params`). Each generation
 is evaluated as one vectorised simulation of all candidates x all runs. A run that stagnates (its best loss improves
 by less than ``STAGNATION_TOL`` over ``patience`` generations) or that meets one of cma's own stopping criteria
 (e.g. flat fitness) is restarted with twice the population (IPOP), from the middle of the search cube, until the

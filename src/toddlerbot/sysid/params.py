@@ -1,4 +1,5 @@
-"""What a fit searches: the fitted models, each parameter's search range, candidate matrices, ``params.json``.
+"""What a fit searches: the fitted models, the unit cube over the parameters' fit bounds (from
+`toddlerbot.actuation.parameters.PARAMETERS`), candidate matrices, ``params.json``.
 
 A ``params.json`` (written by ``toddlerbot sysid fit``) holds ``{"motor": <catalogue name>, "actuator": {"model":
 name, every field of that model}, "fitted": [names], "fit": {...provenance, uncertainty...}}``.
@@ -21,12 +22,13 @@ from toddlerbot.actuation.catalogue import ActuatorParams, params_dict
 from toddlerbot.actuation.dc_motor import DCMotorParams
 from toddlerbot.actuation.model import ActuatorArrays
 from toddlerbot.actuation.motor_params import MotorParams
+from toddlerbot.actuation.parameters import PARAMETERS
 from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
 
 
 class SearchRange(NamedTuple):
-    """Where the fit looks for one parameter."""
+    """Where the fit looks for one parameter (of `PARAMETERS`)."""
 
     low: float
     high: float
@@ -35,29 +37,12 @@ class SearchRange(NamedTuple):
     unit: str
 
 
-SEARCH: dict[str, SearchRange] = {
-    "damping": SearchRange(1e-4, 0.05, True, "N*m*s/rad"),
-    "frictionloss": SearchRange(1e-3, 0.3, True, "N*m"),
-    "armature": SearchRange(2e-4, 0.03, True, "kg*m^2"),
-    "tau_max": SearchRange(0.05, 6.0, True, "N*m"),
-    "q_dot_tau_max": SearchRange(0.0, 8.0, False, "rad/s"),
-    "tau_q_dot_max": SearchRange(0.0, 1.0, False, "x tau_max"),  # a FRACTION of tau_max (the limit falls)
-    "q_dot_max": SearchRange(0.2, 20.0, False, "rad/s above q_dot_tau_max"),  # the span, so q_dot_max > knee
-    "kd_min": SearchRange(0.01, 2.0, True, "N*m*s/rad"),
-    "tau_brake": SearchRange(0.05, 10.0, True, "N*m"),
-    "kp_scale": SearchRange(15.0, 1000.0, True, "firmware kp per N*m/rad"),  # 173.8 / stall over the X series
-    "stiction": SearchRange(1e-4, 0.3, True, "N*m"),
-    "stribeck_velocity": SearchRange(0.01, 3.0, True, "rad/s"),
-    "load_friction": SearchRange(0.0, 0.8, False, "N*m per N*m"),
-    "stall_torque": SearchRange(0.05, 10.0, True, "N*m at the rated voltage"),
-    "no_load_speed": SearchRange(1.0, 100.0, True, "rad/s at the rated voltage"),
-    "pwm_per_rad": SearchRange(2e-4, 0.05, True, "duty per rad per firmware kp"),
-    "pwm_exponent": SearchRange(0.5, 1.5, False, "1"),
-}
-"""Search range of every fitted parameter (q_dot_max and tau_q_dot_max: of the span / fraction they are searched
-as, see `SEARCHED_AS`)."""
+SEARCH: dict[str, SearchRange] = {p.name: SearchRange(p.lower, p.upper, p.log, p.unit) for p in PARAMETERS.values()}
+"""Search range of every parameter: its fit bounds in `PARAMETERS` (q_dot_max and tau_q_dot_max: of the span /
+fraction they are searched as, see `SEARCHED_AS`)."""
 
-SEARCHED_AS = {"q_dot_max": " above q_dot_tau_max", "tau_q_dot_max": " x tau_max"}
+SEARCHED_AS = {p.name: f" above {p.span_above}" if p.span_above else f" x {p.fraction_of}"
+               for p in PARAMETERS.values() if p.span_above or p.fraction_of}
 """How the ranges of the parameters not searched directly apply."""
 
 BOUND_MARGIN = 0.01
@@ -141,7 +126,7 @@ def appendix_like(p: DCMotorParams) -> ActuatorParams:
 
 def at_bounds(u: np.ndarray, names: Sequence[str]) -> dict[str, str]:
     """Parameters of a unit-cube point within `BOUND_MARGIN` of a bound: name -> ``"lower"`` / ``"upper"``
-    (for q_dot_max and tau_q_dot_max the bound is on the searched span / fraction, see `SEARCH`)."""
+    (for q_dot_max and tau_q_dot_max the bound is on the searched span / fraction, see `searched_value`)."""
     out = {}
     for name, x in zip(names, np.asarray(u, dtype=float), strict=True):
         if x <= BOUND_MARGIN:
@@ -152,11 +137,13 @@ def at_bounds(u: np.ndarray, names: Sequence[str]) -> dict[str, str]:
 
 
 def searched_value(name: str, params: MotorParams) -> float:
-    """The value the optimiser sees for ``name`` (span for q_dot_max, fraction of tau_max for tau_q_dot_max)."""
-    if name == "q_dot_max":
-        return params.q_dot_max - params.q_dot_tau_max
-    if name == "tau_q_dot_max":
-        return params.tau_q_dot_max / params.tau_max
+    """The value the optimiser sees for ``name``: its value, or its span or fraction (`ParameterDef.span_above`,
+    `ParameterDef.fraction_of`)."""
+    p = PARAMETERS[name]
+    if p.span_above:
+        return getattr(params, name) - getattr(params, p.span_above)
+    if p.fraction_of:
+        return getattr(params, name) / getattr(params, p.fraction_of)
     return getattr(params, name)
 
 
@@ -206,10 +193,12 @@ def from_unit(u: np.ndarray, names: Sequence[str], base: MotorParams) -> Candida
     for i, name in enumerate(names):
         lo, hi, log, _ = SEARCH[name]
         out[name] = lo * (hi / lo) ** u[:, i] if log else lo + u[:, i] * (hi - lo)
-    if "q_dot_max" in names:
-        out["q_dot_max"] = out["q_dot_max"] + out["q_dot_tau_max"]
-    if "tau_q_dot_max" in names:
-        out["tau_q_dot_max"] = out["tau_q_dot_max"] * out["tau_max"]
+    for name in names:  # spans and fractions back to values, once every searched value is in
+        p = PARAMETERS[name]
+        if p.span_above:
+            out[name] = out[name] + out[p.span_above]
+        elif p.fraction_of:
+            out[name] = out[name] * out[p.fraction_of]
     return Candidates(type(base), out)
 
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from toddlerbot.actuation.model import actuator_arrays, at_voltage, motor_torque
 from toddlerbot.actuation.motor_params import MotorParams
+from toddlerbot.hardware.control_table import RAD_PER_PULSE
 from toddlerbot.sysid.excitation import Excitation
 from toddlerbot.sysid.logs import MotorLog, write_log
 from toddlerbot.sysid.manifest import write_manifest
@@ -42,10 +43,6 @@ def write_runs(folder: str | Path, motor: str, rig: Rig, runs: list[MotorLog], w
                   torque_enable=run.torque_enable, voltage=run.voltage if with_position else None)
     logs = [{"file": run.file.name, "kp": run.kp, "kd": run.kd} for run in runs]
     return write_manifest(folder / "manifest.json", motor, rig, logs)
-
-
-ENCODER_COUNTS = 4096
-"""Counts per revolution of the X-series absolute encoder (e-Manual: 12 bit)."""
 
 
 def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: MotorParams, voltage: float,
@@ -89,12 +86,11 @@ def synthesize_richer(excitations: list[Excitation], rig: SimpleRig, params: Mot
         v = np.sign(v_free) * np.maximum(np.abs(v_free) - dt * budget / implicit, 0.0)
         q = q + dt * v
     rng = np.random.default_rng(seed)
-    count = 2.0 * np.pi / ENCODER_COUNTS
     runs = []
     for i, e in enumerate(excitations):
         sampled = e.time - e.time[0] - rng.uniform(0.0, latency, len(e.time))
         at = np.clip(np.round(sampled / dt).astype(int), 0, n_steps - 1)
-        measured = np.round((q_rec[at, i] + rng.normal(0.0, noise_std, len(at))) / count) * count
+        measured = np.round((q_rec[at, i] + rng.normal(0.0, noise_std, len(at))) / RAD_PER_PULSE) * RAD_PER_PULSE
         runs.append(MotorLog(file=Path(f"{e.name}.csv"), time=e.time, goal_position=e.goal_position, position=measured,
                            kp=float(e.kp), kd=0.0, torque_enable=e.torque_enable,
                            voltage=np.round(volt_rec[at, i], 1)))
