@@ -252,9 +252,23 @@ class HilPlant(GroundTruth):
     def _at_rest(self) -> bool:
         return float(np.abs(self.data.qvel).max(initial=0.0)) < REST_SPEED
 
+    def advance(self, cmd: Commands, n_steps: int) -> None:
+        """One batch of ``n_steps`` physics steps holding the control tables' commands ``cmd``, then the powered
+        motion's bookkeeping and the IMU sample (the physics thread's work between two reads of the tables)."""
+        step_actuated([self.model], [self.data], self._motors, cmd.q_target[None], cmd.drive(), n_steps)
+        self.sim_time += n_steps * self.model.opt.timestep
+        if cmd.torque_on.any():
+            self.powered_min_height = min(self.powered_min_height, self.torso_height())
+            self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
+            previous, self.powered_end = self.powered_end, self.torso_planar_pose()
+            if self.powered_start is None:
+                self.powered_start = self.powered_end
+            else:
+                self.powered_turn += float((self.powered_end[1] - previous[1] + np.pi) % (2 * np.pi) - np.pi)
+        self.imu_sample = (self.sim_time, self._read_imu())
+
     def _run(self) -> None:
-        m, d = self.model, self.data
-        dt = m.opt.timestep
+        dt = self.model.opt.timestep
         self._wait_for_torque()
         t0 = time.perf_counter()
         lost = 0.0  # wall-clock time the simulation gave up on (host too slow)
@@ -270,18 +284,7 @@ class HilPlant(GroundTruth):
             assert self._lock is not None
             with self._lock:
                 cmd = commands(self.motors, self.params)
-            n = min(int(behind / dt), 10)
-            step_actuated([m], [d], self._motors, cmd.q_target[None], cmd.drive(), n)
-            self.sim_time += n * dt
-            if cmd.torque_on.any():
-                self.powered_min_height = min(self.powered_min_height, self.torso_height())
-                self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
-                previous, self.powered_end = self.powered_end, self.torso_planar_pose()
-                if self.powered_start is None:
-                    self.powered_start = self.powered_end
-                else:
-                    self.powered_turn += float((self.powered_end[1] - previous[1] + np.pi) % (2 * np.pi) - np.pi)
-            self.imu_sample = (self.sim_time, self._read_imu())
+            self.advance(cmd, min(int(behind / dt), 10))
             with self._lock:
                 self._publish()
             if cmd.torque_on.any():
