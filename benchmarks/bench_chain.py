@@ -17,9 +17,9 @@ import platform
 
 import numpy as np
 
-from toddlerbot.manipulation.chaining.sim_run import SimChainResult, StartPerturbation, run_in_sim
-from toddlerbot.manipulation.chaining.spec import load_chain
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.skills.sim_run import SimChainResult, StartPerturbation, run_in_sim
+from toddlerbot.skills.spec import load_chain
 
 
 def main() -> None:

@@ -19,8 +19,8 @@ import time
 import numpy as np
 import torch
 
-from toddlerbot.manipulation.dp.config import PRESETS
-from toddlerbot.manipulation.dp.policy import DiffusionPolicy
+from toddlerbot.dp.config import PRESETS
+from toddlerbot.dp.policy import DiffusionPolicy
 
 DIM = 16
 
@@ -84,7 +84,7 @@ def bench_onnx(name: str, repeats: int) -> None:
     `dp export --format onnx` graphs), one thread each, timed alternately; the sampler's arithmetic is left out."""
     import tempfile
 
-    from toddlerbot.manipulation.dp.onnx_export import (
+    from toddlerbot.dp.onnx_export import (
         ENCODER_FILE,
         UNET_FILE,
         example_inputs,

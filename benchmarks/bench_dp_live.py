@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from toddlerbot.dp.inference import PolicyInference
+from toddlerbot.dp.live import LiveDPPolicy
+from toddlerbot.dp.shipped import shipped_checkpoint
 from toddlerbot.hardware.calibration import load_calibration
 from toddlerbot.hardware.real_robot import RealRobot
-from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
-from toddlerbot.manipulation.dp.inference import PolicyInference
-from toddlerbot.manipulation.dp.live import LiveDPPolicy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy

@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from toddlerbot.manipulation.demonstrator import ScriptedPicker
-from toddlerbot.manipulation.episode import resample
-from toddlerbot.manipulation.lerobot_reader import load_dataset
-from toddlerbot.manipulation.lerobot_writer import write_dataset
-from toddlerbot.manipulation.record import DATASET_FPS, run_demo
-from toddlerbot.manipulation.tasks import PickTask
+from toddlerbot.datasets.episode import resample
+from toddlerbot.datasets.lerobot_reader import load_dataset
+from toddlerbot.datasets.lerobot_writer import write_dataset
+from toddlerbot.tasks.demonstrator import ScriptedPicker
+from toddlerbot.tasks.pick import PickTask
+from toddlerbot.tasks.record import DATASET_FPS, run_demo
 
 
 def _per_call_ms(fn, n: int) -> float:

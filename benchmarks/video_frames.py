@@ -23,8 +23,8 @@ from pathlib import Path
 import av
 import numpy as np
 
-from toddlerbot.manipulation.video import SCENE_SIZE
 from toddlerbot.sim.render import write_png
+from toddlerbot.tasks.video import SCENE_SIZE
 
 
 def read_frames(path: str | Path) -> tuple[list[np.ndarray], float]:

@@ -7,10 +7,10 @@ from pathlib import Path
 import av
 import numpy as np
 
-from toddlerbot.manipulation.dp.config import DPConfig
-from toddlerbot.manipulation.tasks import ManipulationSpace
+from toddlerbot.dp.config import DPConfig
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.tasks.space import ManipulationSpace
 
 GRIPPER = RobotDescription.load(variant="gripper")
 SPACE = ManipulationSpace.of(GRIPPER)

@@ -9,13 +9,16 @@ import toddlerbot
 
 PACKAGE = Path(toddlerbot.__file__).parent
 LAYER = {
-    "errors": 0, "files": 0, "yaml_input": 0, "interrupts": 0, "metrics": 0, "registry": 0, "actuation": 0, "robot": 1,
+    "errors": 0, "files": 0, "yaml_input": 0, "interrupts": 0, "metrics": 0, "registry": 0, "actuation": 0,
+    "datasets": 0, "robot": 1,
     "sysid": 2, "sim": 2, "hardware": 2, "locomotion": 2, "design": 2,
-    "policies": 3, "runtime": 3,
-    "rl": 4, "manipulation": 4, "motion_editor": 4, "cli": 4,
+    "policies": 3, "runtime": 3, "tasks": 3,
+    "rl": 4, "teleop": 4, "dp": 4, "motion_editor": 4,
+    "skills": 5,
+    "cli": 6,
 }
 HEAVY = {"jax", "jaxlib", "flax", "brax", "optax", "orbax", "torch", "onnx"}
-HEAVY_ALLOWED = {"rl", "manipulation"}
+HEAVY_ALLOWED = {"rl", "dp"}
 LAZY_HEAVY_ALLOWED = {"cli"}
 """The CLI may import heavy frameworks inside the commands that need them, never at module level."""
 

@@ -10,9 +10,9 @@ from typer.testing import CliRunner  # noqa: E402
 
 from dp_support import SyntheticWindows  # noqa: E402
 from toddlerbot.cli.main import app  # noqa: E402
-from toddlerbot.manipulation.dp import data  # noqa: E402
-from toddlerbot.manipulation.dp.checkpoint import CheckpointError, load_policy, load_training_state  # noqa: E402
-from toddlerbot.manipulation.dp.data import DatasetError  # noqa: E402
+from toddlerbot.dp import data  # noqa: E402
+from toddlerbot.dp.checkpoint import CheckpointError, load_policy, load_training_state  # noqa: E402
+from toddlerbot.dp.data import DatasetError  # noqa: E402
 
 runner = CliRunner()
 

@@ -4,8 +4,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from toddlerbot.manipulation.dp.encoders import ResNet18Encoder, SmallCNNEncoder  # noqa: E402
-from toddlerbot.manipulation.dp.imagenet import (  # noqa: E402
+from toddlerbot.dp.encoders import ResNet18Encoder, SmallCNNEncoder  # noqa: E402
+from toddlerbot.dp.imagenet import (  # noqa: E402
     PretrainedWeightsError,
     load_imagenet_weights,
     torchvision_key,

@@ -13,14 +13,14 @@ from typer.testing import CliRunner
 
 from dp_live_support import CONFIG, GRIPPER, SPACE, InstantRobot, write_video
 from toddlerbot.cli.main import app
-from toddlerbot.manipulation.camera import resize_and_crop
-from toddlerbot.manipulation.dp.chunker import ActionChunker
-from toddlerbot.manipulation.dp.data import channel_first
-from toddlerbot.manipulation.dp.live import LiveDPPolicy, LivePolicyError
-from toddlerbot.manipulation.video_camera import CameraError, VideoCamera
+from toddlerbot.dp.chunker import ActionChunker
+from toddlerbot.dp.data import channel_first
+from toddlerbot.dp.live import LiveDPPolicy, LivePolicyError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
+from toddlerbot.tasks.camera import resize_and_crop
+from toddlerbot.tasks.video_camera import CameraError, VideoCamera
 
 HOME = GRIPPER.home_motor_pos[SPACE.indices]
 IMAGE = np.full((96, 96, 3), 128, np.uint8)

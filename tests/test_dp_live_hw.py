@@ -18,10 +18,10 @@ torch = pytest.importorskip("torch")
 from dp_live_support import GRIPPER, SPACE, write_video  # noqa: E402
 from dp_support import SyntheticWindows  # noqa: E402
 from hw_support import emulated  # noqa: E402
+from toddlerbot.dp.config import TINY  # noqa: E402
+from toddlerbot.dp.train import TrainSchedule, train  # noqa: E402
 from toddlerbot.hardware.calibration import Calibration, save_calibration, spec_label  # noqa: E402
 from toddlerbot.hardware.control_table import RAD_PER_PULSE, pulses_to_rad  # noqa: E402
-from toddlerbot.manipulation.dp.config import TINY  # noqa: E402
-from toddlerbot.manipulation.dp.train import TrainSchedule, train  # noqa: E402
 from toddlerbot.runtime.log import RunLog  # noqa: E402
 
 pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)

@@ -7,13 +7,13 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from toddlerbot.manipulation.dp.normalize import (  # noqa: E402
+from toddlerbot.dp.normalize import (  # noqa: E402
     ImageFormatError,
     MinMaxNormalizer,
     crop_images,
     images_to_unit,
 )
-from toddlerbot.manipulation.dp.scheduler import NoiseSchedule  # noqa: E402
+from toddlerbot.dp.scheduler import NoiseSchedule  # noqa: E402
 
 torch.set_num_threads(1)
 

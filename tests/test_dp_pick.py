@@ -14,9 +14,10 @@ pytest.importorskip("pyarrow")
 from typer.testing import CliRunner  # noqa: E402
 
 from toddlerbot.cli.main import app  # noqa: E402
-from toddlerbot.manipulation.dp import evaluate as dp_evaluate  # noqa: E402
-from toddlerbot.manipulation.dp.checkpoint import load_policy  # noqa: E402
-from toddlerbot.manipulation.dp.data import open_window_dataset  # noqa: E402
+from toddlerbot.dp import evaluate as dp_evaluate  # noqa: E402
+from toddlerbot.dp import shipped  # noqa: E402
+from toddlerbot.dp.checkpoint import load_policy  # noqa: E402
+from toddlerbot.dp.data import open_window_dataset  # noqa: E402
 
 runner = CliRunner()
 TRAIN_STEPS = 100
@@ -83,9 +84,9 @@ def test_dp_eval_runs_the_trained_checkpoint_on_the_pick_task(pick_run, monkeypa
 
 
 def test_dp_eval_without_a_checkpoint_says_none_is_shipped(tmp_path, monkeypatch):
-    monkeypatch.setattr(dp_evaluate, "SHIPPED_DIR", tmp_path)
+    monkeypatch.setattr(shipped, "SHIPPED_DIR", tmp_path)
     result = runner.invoke(app, ["dp", "eval", "--task", "pick", "--episodes", "1"])
-    assert isinstance(result.exception, dp_evaluate.EvalError)
+    assert isinstance(result.exception, shipped.NoShippedCheckpointError)
     message = str(result.exception)
     assert "\n" not in message and "no trained checkpoint is shipped for task 'pick'" in message
     assert str(tmp_path / "pick.pt") in message
@@ -94,8 +95,8 @@ def test_dp_eval_without_a_checkpoint_says_none_is_shipped(tmp_path, monkeypatch
 def test_dp_eval_refuses_a_checkpoint_made_for_other_joints(tmp_path):
     from types import SimpleNamespace
 
-    from toddlerbot.manipulation.dp.checkpoint import new_training_state, save_checkpoint
-    from toddlerbot.manipulation.dp.config import TINY
+    from toddlerbot.dp.checkpoint import new_training_state, save_checkpoint
+    from toddlerbot.dp.config import TINY
 
     path = save_checkpoint(tmp_path / "other.pt", new_training_state(TINY.with_dims(3, 2)))
     result = runner.invoke(app, ["dp", "eval", "--checkpoint", str(path), "--episodes", "1"])
@@ -110,13 +111,13 @@ def test_dp_eval_refuses_a_checkpoint_made_for_other_joints(tmp_path):
 
 
 def test_dp_export_keeps_the_ema_network_and_drops_the_training_state(tmp_path):
-    from toddlerbot.manipulation.dp.checkpoint import (
+    from toddlerbot.dp.checkpoint import (
         CheckpointError,
         load_training_state,
         new_training_state,
         save_checkpoint,
     )
-    from toddlerbot.manipulation.dp.config import TINY
+    from toddlerbot.dp.config import TINY
 
     state = new_training_state(TINY.with_dims(3, 2))
     for p in state.ema.model.parameters():  # EMA weights that differ from the raw network's
@@ -135,10 +136,10 @@ def test_dp_export_keeps_the_ema_network_and_drops_the_training_state(tmp_path):
 def test_the_shipped_pick_policy_fits_the_pick_task():
     from types import SimpleNamespace
 
-    from toddlerbot.manipulation.tasks import ManipulationSpace
     from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.tasks.space import ManipulationSpace
 
-    path = dp_evaluate.shipped_checkpoint("pick")
+    path = shipped.shipped_checkpoint("pick")
     assert path.stat().st_size < 8e6  # small enough for the package
     config = load_policy(path).config
     space = ManipulationSpace.of(RobotDescription.load(variant="gripper"))

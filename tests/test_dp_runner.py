@@ -6,8 +6,8 @@ import time
 import numpy as np
 import pytest
 
-from toddlerbot.manipulation.dp.chunker import ActionChunker
-from toddlerbot.manipulation.dp.runner import ChunkPolicyRunner
+from toddlerbot.dp.chunker import ActionChunker
+from toddlerbot.dp.runner import ChunkPolicyRunner
 
 CHUNK = np.arange(16, dtype=float)[:, None] * np.array([1.0, -2.0])  # action i = (i, -2i)
 

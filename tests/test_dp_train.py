@@ -9,16 +9,16 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from dp_support import SyntheticWindows  # noqa: E402
-from toddlerbot.manipulation.dp.checkpoint import (  # noqa: E402
+from toddlerbot.dp.checkpoint import (  # noqa: E402
     CheckpointError,
     load_policy,
     load_training_state,
 )
-from toddlerbot.manipulation.dp.config import TINY, DPConfig, DPConfigError  # noqa: E402
-from toddlerbot.manipulation.dp.data import DatasetError, split_by_episode, value_ranges  # noqa: E402
-from toddlerbot.manipulation.dp.inference import PolicyInference  # noqa: E402
-from toddlerbot.manipulation.dp.policy import DiffusionPolicy  # noqa: E402
-from toddlerbot.manipulation.dp.train import TrainSchedule, train  # noqa: E402
+from toddlerbot.dp.config import TINY, DPConfig, DPConfigError  # noqa: E402
+from toddlerbot.dp.data import DatasetError, split_by_episode, value_ranges  # noqa: E402
+from toddlerbot.dp.inference import PolicyInference  # noqa: E402
+from toddlerbot.dp.policy import DiffusionPolicy  # noqa: E402
+from toddlerbot.dp.train import TrainSchedule, train  # noqa: E402
 
 torch.set_num_threads(1)
 

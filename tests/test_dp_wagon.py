@@ -15,8 +15,9 @@ pytest.importorskip("pyarrow")
 from typer.testing import CliRunner  # noqa: E402
 
 from toddlerbot.cli.main import app  # noqa: E402
+from toddlerbot.dp import evaluate as dp_evaluate  # noqa: E402
+from toddlerbot.dp import shipped  # noqa: E402
 from toddlerbot.errors import ToddlerbotError  # noqa: E402
-from toddlerbot.manipulation.dp import evaluate as dp_evaluate  # noqa: E402
 
 runner = CliRunner()
 HANDLE = "wagon_handle"
@@ -24,7 +25,7 @@ HANDLE = "wagon_handle"
 
 @pytest.mark.slow
 def test_a_wagon_demonstration_closes_both_hands_on_the_handle_and_is_written(tmp_path):
-    from toddlerbot.manipulation.episode import RawEpisode
+    from toddlerbot.datasets.episode import RawEpisode
     from toddlerbot.robot.description import RobotDescription
 
     out = tmp_path / "ds"
@@ -77,10 +78,10 @@ def test_dp_eval_wagon_grasps_the_handle_with_the_shipped_checkpoint_on_most_see
 
 
 def test_the_shipped_wagon_checkpoint_fits_the_wagon_task_and_is_small():
-    from toddlerbot.manipulation.dp.checkpoint import load_policy
-    from toddlerbot.manipulation.tasks import make_task
+    from toddlerbot.dp.checkpoint import load_policy
+    from toddlerbot.tasks import make_task
 
-    path = dp_evaluate.shipped_checkpoint("wagon")
+    path = shipped.shipped_checkpoint("wagon")
     assert path.stat().st_size < 8e6
     config = load_policy(path).config
     task = make_task("wagon")
@@ -100,13 +101,13 @@ def test_an_unknown_task_is_a_one_line_error_naming_the_tasks(command, tmp_path)
 
 
 def test_the_wagon_chain_grasps_by_script_unless_told_to_use_the_shipped_policy_at_the_same_gains():
-    from toddlerbot.manipulation.chaining.probe import SceneProbe
-    from toddlerbot.manipulation.chaining.runner import ChainRunner
-    from toddlerbot.manipulation.chaining.skills import grasp_gains
-    from toddlerbot.manipulation.chaining.spec import load_chain
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-    from toddlerbot.sim.scenes import scene_model
+    from toddlerbot.skills.library import grasp_gains
+    from toddlerbot.skills.runner import ChainRunner
+    from toddlerbot.skills.spec import load_chain
+    from toddlerbot.tasks.probe import SceneProbe
+    from toddlerbot.tasks.scenes import scene_model
 
     description = RobotDescription.load(variant="gripper")
     chain = load_chain("wagon", tuple(description.groups))

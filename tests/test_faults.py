@@ -97,9 +97,9 @@ def test_dying_leader_arm_stops_the_leader_and_the_follower_holds():
     from test_manip_leader_follower import _endpoint
     from toddlerbot.hardware.driver import BusLostError
     from toddlerbot.hardware.leader import LeaderArms
-    from toddlerbot.manipulation.follower import ArmFollower
-    from toddlerbot.manipulation.leader_follower import follow_leader, stream_leader
-    from toddlerbot.manipulation.link import LinkPublisher, LinkSubscriber
+    from toddlerbot.teleop.follower import ArmFollower
+    from toddlerbot.teleop.leader_follower import follow_leader, stream_leader
+    from toddlerbot.teleop.link import LinkPublisher, LinkSubscriber
 
     gripper = RobotDescription.load(variant="gripper")
     endpoint = _endpoint()
@@ -150,10 +150,10 @@ def test_unplugged_camera_makes_the_live_policy_hold_and_says_why(tmp_path, monk
 
     from dp_live_support import CONFIG, GRIPPER, SPACE, InstantRobot, write_video
     from test_dp_live import chunk
-    from toddlerbot.manipulation import video_camera
-    from toddlerbot.manipulation.dp.live import LiveDPPolicy
+    from toddlerbot.dp.live import LiveDPPolicy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
+    from toddlerbot.tasks import video_camera
 
     real_open = av.open
 

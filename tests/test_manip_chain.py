@@ -7,12 +7,12 @@ import textwrap
 import numpy as np
 import pytest
 
-from toddlerbot.manipulation.chaining.predicates import Context, GraspedParams, PredicateError, holds
-from toddlerbot.manipulation.chaining.runner import ChainRunner
-from toddlerbot.manipulation.chaining.spec import ChainFileError, load_chain
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-from toddlerbot.sim.scenes import scene_model
+from toddlerbot.skills.runner import ChainRunner
+from toddlerbot.skills.spec import ChainFileError, load_chain
+from toddlerbot.tasks.predicates import Context, GraspedParams, PredicateError, holds
+from toddlerbot.tasks.scenes import scene_model
 
 DESCRIPTION = RobotDescription.load(variant="gripper")
 GROUPS = tuple(DESCRIPTION.groups)
@@ -30,7 +30,7 @@ WAGON_SEEDS = (0, 1, 2, 3)
 
 @pytest.fixture(scope="module")
 def wagon_runs():
-    from toddlerbot.manipulation.chaining.sim_run import run_in_sim
+    from toddlerbot.skills.sim_run import run_in_sim
 
     chain = load_chain("wagon", GROUPS)  # the scripted grasp (the dp grasp: test_dp_wagon)
     return [run_in_sim(chain, seed, description=DESCRIPTION).as_json() for seed in WAGON_SEEDS]
@@ -126,7 +126,7 @@ def test_grasped_on_hardware_is_a_gripper_stalled_short_of_its_closed_target():
 def test_upright_is_the_imu_tilted_less_than_max_tilt_in_sim_and_on_hardware():
     from dataclasses import replace
 
-    from toddlerbot.manipulation.chaining.predicates import UprightParams
+    from toddlerbot.tasks.predicates import UprightParams
 
     robot = MuJoCoRobot(DESCRIPTION)
     obs = robot.reset()
@@ -145,8 +145,8 @@ def test_upright_is_the_imu_tilted_less_than_max_tilt_in_sim_and_on_hardware():
 def test_lifted_is_a_body_risen_at_least_at_least_since_the_chain_started_in_sim_only():
     import mujoco
 
-    from toddlerbot.manipulation.chaining.predicates import LiftedParams, check_available
-    from toddlerbot.manipulation.chaining.probe import SceneProbe
+    from toddlerbot.tasks.predicates import LiftedParams, check_available
+    from toddlerbot.tasks.probe import SceneProbe
 
     model = scene_model(DESCRIPTION, "pick")
     robot = MuJoCoRobot(DESCRIPTION, model=model)
@@ -192,11 +192,11 @@ def test_a_sim_only_predicate_on_hardware_is_a_one_line_error(tmp_path):
 
 
 def test_holding_l2_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_teleop():
-    from toddlerbot.manipulation.chaining.probe import SceneProbe
-    from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
-    from toddlerbot.manipulation.gamepad import GamepadMapper, GamepadState, KeyboardMapper, TeleopCommand, load_mapping
-    from toddlerbot.manipulation.teleop import TeleopSession
-    from toddlerbot.sim.scenes import grasp_site
+    from toddlerbot.skills.teleop_hook import ChainHook
+    from toddlerbot.tasks.probe import SceneProbe
+    from toddlerbot.tasks.scenes import grasp_site
+    from toddlerbot.teleop.gamepad import GamepadMapper, GamepadState, KeyboardMapper, TeleopCommand, load_mapping
+    from toddlerbot.teleop.session import TeleopSession
 
     pad = load_mapping()
     assert KeyboardMapper(pad).command({"3"}).skills == frozenset({"skill_l2"})  # keyboard: 3 is L2
@@ -242,8 +242,8 @@ def test_holding_l2_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_tele
 def test_holding_l1_in_teleop_on_the_pick_task_runs_the_dp_pick_chain_and_releasing_returns_to_teleop():
     pytest.importorskip("torch")
     from toddlerbot.cli.teleop import _chain_hook, _robot
-    from toddlerbot.manipulation.gamepad import KeyboardMapper, TeleopCommand, load_mapping
-    from toddlerbot.manipulation.teleop import TeleopSession
+    from toddlerbot.teleop.gamepad import KeyboardMapper, TeleopCommand, load_mapping
+    from toddlerbot.teleop.session import TeleopSession
 
     class Keys:
         """Keyboard: nothing for `idle` polls, then "1" (L1) for `held` polls, then nothing."""
@@ -289,10 +289,10 @@ def test_holding_l1_in_teleop_on_the_pick_task_runs_the_dp_pick_chain_and_releas
 
 
 def test_a_chain_that_cannot_start_in_teleop_is_one_log_line_and_teleop_goes_on(tmp_path):
-    from toddlerbot.manipulation.chaining.probe import SceneProbe
-    from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
-    from toddlerbot.manipulation.gamepad import TeleopCommand
-    from toddlerbot.manipulation.teleop import TeleopSession
+    from toddlerbot.skills.teleop_hook import ChainHook
+    from toddlerbot.tasks.probe import SceneProbe
+    from toddlerbot.teleop.gamepad import TeleopCommand
+    from toddlerbot.teleop.session import TeleopSession
 
     chain = load_chain(_chain_file(tmp_path, """\
         scene: pick
@@ -324,7 +324,7 @@ def test_a_chain_runs_on_a_real_robot_against_the_emulator(tmp_path):
     from hw_support import emulated
     from toddlerbot.hardware.calibration import Calibration, spec_label
     from toddlerbot.hardware.real_robot import RealRobot
-    from toddlerbot.manipulation.chaining.robot_run import run_on_robot
+    from toddlerbot.skills.robot_run import run_on_robot
 
     path = _chain_file(tmp_path, """\
         scene: wagon
@@ -391,8 +391,8 @@ def test_chain_run_reports_a_bad_chain_file_in_one_line(tmp_path):
 
 def test_a_dp_skill_drives_the_arms_with_a_shipped_checkpoint(tmp_path):
     pytest.importorskip("torch")
-    from toddlerbot.manipulation.camera import HeadCamera
-    from toddlerbot.manipulation.chaining.probe import SceneProbe
+    from toddlerbot.tasks.camera import HeadCamera
+    from toddlerbot.tasks.probe import SceneProbe
 
     chain = load_chain(_chain_file(tmp_path, """\
         scene: pick
@@ -422,7 +422,7 @@ def test_a_dp_skill_drives_the_arms_with_a_shipped_checkpoint(tmp_path):
 
 def test_the_shipped_pick_chain_lifts_the_cube_with_the_dp_checkpoint_and_holds_it():
     pytest.importorskip("torch")
-    from toddlerbot.manipulation.chaining.sim_run import run_in_sim
+    from toddlerbot.skills.sim_run import run_in_sim
 
     chain = load_chain("pick", GROUPS)
     assert chain.button == "l1" and [s.kind for s in chain.skills] == ["dp", "hold"]
@@ -438,7 +438,7 @@ def test_the_shipped_pick_chain_lifts_the_cube_with_the_dp_checkpoint_and_holds_
 
 
 def test_on_hardware_the_grasp_aims_at_the_handle_where_the_scene_layout_puts_it():
-    from toddlerbot.sim.scenes import WagonLayout
+    from toddlerbot.tasks.scenes import WagonLayout
 
     model = scene_model(DESCRIPTION, "wagon")
     robot = MuJoCoRobot(DESCRIPTION, model=model)  # stands in for a RealRobot: no probe, so no sensed scene

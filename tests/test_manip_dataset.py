@@ -12,10 +12,10 @@ pa = pytest.importorskip("pyarrow")
 av = pytest.importorskip("av")
 pq = pytest.importorskip("pyarrow.parquet")
 
-from toddlerbot.manipulation.dataset import DatasetError, WindowConfig, Windows  # noqa: E402
-from toddlerbot.manipulation.episode import EpisodeError, RawEpisode, resample  # noqa: E402
-from toddlerbot.manipulation.lerobot_reader import load_dataset  # noqa: E402
-from toddlerbot.manipulation.lerobot_writer import DATA_FILE, VIDEO_FILE, write_dataset  # noqa: E402
+from toddlerbot.datasets.dataset import DatasetError, WindowConfig, Windows  # noqa: E402
+from toddlerbot.datasets.episode import EpisodeError, RawEpisode, resample  # noqa: E402
+from toddlerbot.datasets.lerobot_reader import load_dataset  # noqa: E402
+from toddlerbot.datasets.lerobot_writer import DATA_FILE, VIDEO_FILE, write_dataset  # noqa: E402
 
 NAMES = ("a", "b")
 
@@ -160,8 +160,8 @@ def test_dataset_info_cli_prints_summary_and_one_line_errors(tmp_path):
 
 
 def test_decoded_copy_round_trips_and_trains_without_the_reader(tmp_path):
-    from toddlerbot.manipulation.dataset import load_decoded, save_decoded
-    from toddlerbot.manipulation.dp.data import open_window_dataset
+    from toddlerbot.datasets.dataset import load_decoded, save_decoded
+    from toddlerbot.dp.data import open_window_dataset
 
     root, _ = _dataset(tmp_path)
     ds = load_dataset(root)
@@ -177,7 +177,7 @@ def test_decoded_copy_round_trips_and_trains_without_the_reader(tmp_path):
 
 
 def test_decoded_copy_rejects_foreign_and_inconsistent_files(tmp_path):
-    from toddlerbot.manipulation.dataset import load_decoded, save_decoded
+    from toddlerbot.datasets.dataset import load_decoded, save_decoded
 
     root, _ = _dataset(tmp_path)
     ds = load_dataset(root)
@@ -197,7 +197,7 @@ def test_decoded_copy_rejects_foreign_and_inconsistent_files(tmp_path):
 
 def test_a_gathered_batch_equals_the_samples_cut_one_by_one(tmp_path):
     torch = pytest.importorskip("torch")
-    from toddlerbot.manipulation.dp.data import collate, gather, open_window_dataset, split_by_episode
+    from toddlerbot.dp.data import collate, gather, open_window_dataset, split_by_episode
 
     root, _ = _dataset(tmp_path)
     windows = open_window_dataset(root, 2, 4)
@@ -216,8 +216,8 @@ def test_dataset_decode_command_writes_the_copy_and_refuses_another_suffix(tmp_p
     from typer.testing import CliRunner
 
     from toddlerbot.cli.main import app
+    from toddlerbot.datasets.dataset import load_decoded
     from toddlerbot.errors import ToddlerbotError
-    from toddlerbot.manipulation.dataset import load_decoded
 
     root, _ = _dataset(tmp_path)
     result = CliRunner().invoke(app, ["manip", "dataset", "decode", str(root), "-o", str(tmp_path / "d.npz")])

@@ -15,8 +15,8 @@ pytest.importorskip("rerun")
 
 from rerun.chunk import RrdReader  # noqa: E402
 
-from toddlerbot.manipulation.episode import RawEpisode, resample  # noqa: E402
-from toddlerbot.manipulation.lerobot_writer import write_dataset  # noqa: E402
+from toddlerbot.datasets.episode import RawEpisode, resample  # noqa: E402
+from toddlerbot.datasets.lerobot_writer import write_dataset  # noqa: E402
 
 NAMES = ("left_shoulder_pitch", "left_gripper")
 

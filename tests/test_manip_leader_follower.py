@@ -15,11 +15,11 @@ from hw_support import emulated
 from toddlerbot.hardware.calibration import Calibration, spec_label
 from toddlerbot.hardware.leader import LeaderArms
 from toddlerbot.hardware.real_robot import RealRobot
-from toddlerbot.manipulation.follower import ArmFollower, FollowerConfig
-from toddlerbot.manipulation.leader_follower import FollowerLoop, stream_leader
-from toddlerbot.manipulation.link import LinkError, LinkMessage, LinkPublisher, LinkSubscriber
-from toddlerbot.manipulation.tasks import follower_gains
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.tasks.space import follower_gains
+from toddlerbot.teleop.follower import ArmFollower, FollowerConfig
+from toddlerbot.teleop.leader_follower import FollowerLoop, stream_leader
+from toddlerbot.teleop.link import LinkError, LinkMessage, LinkPublisher, LinkSubscriber
 
 pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from toddlerbot.manipulation.camera import resize_and_crop
-from toddlerbot.manipulation.demonstrator import ScriptedPicker
-from toddlerbot.manipulation.ik import ArmIK, top_down_rotation
-from toddlerbot.manipulation.tasks import PickTask, SuccessTracker, follower_gains
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.sim.scenes import grasp_site, scene_model
+from toddlerbot.tasks.camera import resize_and_crop
+from toddlerbot.tasks.demonstrator import ScriptedPicker
+from toddlerbot.tasks.ik import ArmIK, top_down_rotation
+from toddlerbot.tasks.pick import PickTask, SuccessTracker
+from toddlerbot.tasks.scenes import grasp_site, scene_model
+from toddlerbot.tasks.space import follower_gains
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +128,7 @@ def test_scripted_demonstrator_lifts_and_holds_the_cube(task):
 def test_wagon_handle_is_at_hand_height_and_the_wagon_rolls():
     import mujoco
 
-    from toddlerbot.sim.scenes import WAGON_BODY, WAGON_HANDLE_GEOM, WagonLayout
+    from toddlerbot.tasks.scenes import WAGON_BODY, WAGON_HANDLE_GEOM, WagonLayout
 
     model = scene_model(RobotDescription.load(variant="gripper"), "wagon")
     data = mujoco.MjData(model)
@@ -145,7 +146,7 @@ def test_wagon_handle_is_at_hand_height_and_the_wagon_rolls():
 
 def test_side_by_side_video_encodes_every_frame(task, tmp_path):
     av = pytest.importorskip("av")
-    from toddlerbot.manipulation.video import SideBySideVideo
+    from toddlerbot.tasks.video import SideBySideVideo
 
     task.reset(0)
     video = SideBySideVideo(task, tmp_path / "v.mp4", fps=10, keep={1})

@@ -13,21 +13,21 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 pygame = pytest.importorskip("pygame")
 
 from sdl_support import VirtualJoystick  # noqa: E402
-from toddlerbot.manipulation.gamepad import (  # noqa: E402
+from toddlerbot.teleop.gamepad import (  # noqa: E402
     GamepadMapper,
     GamepadState,
     MappingError,
     apply_dead_zone,
     load_mapping,
 )
-from toddlerbot.manipulation.sdl_input import JoystickInput, KeyboardInput  # noqa: E402
+from toddlerbot.teleop.sdl_input import JoystickInput, KeyboardInput  # noqa: E402
 
 MAPPING = load_mapping()
 
 
 @pytest.fixture(scope="module")
 def _virtual_joystick():
-    from toddlerbot.manipulation.sdl_input import open_sdl
+    from toddlerbot.teleop.sdl_input import open_sdl
 
     stick = VirtualJoystick(open_sdl())
     yield stick
@@ -115,14 +115,14 @@ def test_keyboard_gives_the_same_actions():
 
 @pytest.mark.slow
 def test_virtual_controller_walks_the_simulated_robot_and_records_an_episode(joystick, tmp_path):
-    from toddlerbot.manipulation.episode import resample
-    from toddlerbot.manipulation.lerobot_reader import load_dataset
-    from toddlerbot.manipulation.lerobot_writer import write_dataset
-    from toddlerbot.manipulation.tasks import ManipulationSpace
-    from toddlerbot.manipulation.teleop import EpisodeRecorder, TeleopSession
+    from toddlerbot.datasets.episode import resample
+    from toddlerbot.datasets.lerobot_reader import load_dataset
+    from toddlerbot.datasets.lerobot_writer import write_dataset
     from toddlerbot.policies import make_policy
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+    from toddlerbot.tasks.space import ManipulationSpace
+    from toddlerbot.teleop.session import EpisodeRecorder, TeleopSession
 
     description = RobotDescription.load(variant="gripper")
     robot = MuJoCoRobot(description)
@@ -162,11 +162,11 @@ def test_leader_arms_drive_the_simulated_pick_robot_and_staleness_is_reported():
     import socket
     import time
 
-    from toddlerbot.manipulation.follower import ArmFollower
-    from toddlerbot.manipulation.gamepad import TeleopCommand
-    from toddlerbot.manipulation.link import LinkPublisher, LinkSubscriber
-    from toddlerbot.manipulation.tasks import PickTask
-    from toddlerbot.manipulation.teleop import TeleopSession
+    from toddlerbot.tasks.pick import PickTask
+    from toddlerbot.teleop.follower import ArmFollower
+    from toddlerbot.teleop.gamepad import TeleopCommand
+    from toddlerbot.teleop.link import LinkPublisher, LinkSubscriber
+    from toddlerbot.teleop.session import TeleopSession
 
     class Idle:
         def poll(self) -> TeleopCommand:

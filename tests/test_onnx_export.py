@@ -287,8 +287,8 @@ def _dp_checkpoint(tmp_path, **changes):
     pytest.importorskip("torch")
     from dataclasses import replace
 
-    from toddlerbot.manipulation.dp.checkpoint import new_training_state, save_checkpoint
-    from toddlerbot.manipulation.dp.config import TINY
+    from toddlerbot.dp.checkpoint import new_training_state, save_checkpoint
+    from toddlerbot.dp.config import TINY
 
     cfg = replace(TINY, **changes).with_dims(5, 4, tuple(f"j{i}" for i in range(5)), tuple(f"a{i}" for i in range(4)))
     ranges = {"observation.state": (-np.ones(5), np.linspace(0.5, 2, 5)), "action": (np.zeros(4), np.arange(1, 5.0))}
@@ -299,9 +299,9 @@ def _dp_checkpoint(tmp_path, **changes):
 def test_dp_networks_in_onnx_equal_torch_and_sample_the_same_chunk(tmp_path, changes):
     import torch
 
-    from toddlerbot.manipulation.dp.checkpoint import load_policy
-    from toddlerbot.manipulation.dp.onnx_export import ENCODER_FILE, UNET_FILE, example_inputs, export_onnx
-    from toddlerbot.manipulation.dp.policy import IMAGE, STATE, normal_noise
+    from toddlerbot.dp.checkpoint import load_policy
+    from toddlerbot.dp.onnx_export import ENCODER_FILE, UNET_FILE, example_inputs, export_onnx
+    from toddlerbot.dp.policy import IMAGE, STATE, normal_noise
 
     checkpoint = _dp_checkpoint(tmp_path, **changes)
     paths, report = export_onnx(checkpoint, tmp_path / "onnx")

@@ -173,8 +173,8 @@ def test_head_camera_image_is_pixel_identical_to_the_model_without_visuals():
     pytest.importorskip("PIL")
     from unittest import mock
 
-    from toddlerbot.manipulation.tasks import PickTask
     from toddlerbot.robot import builder
+    from toddlerbot.tasks.pick import PickTask
 
     def head_images(task: PickTask) -> tuple[np.ndarray, np.ndarray]:
         task.reset(3)

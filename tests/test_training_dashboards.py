@@ -149,7 +149,7 @@ def _dp_train(tmp_path, monkeypatch, steps, *options):
 
     from dp_support import SyntheticWindows
     from toddlerbot.cli.main import app
-    from toddlerbot.manipulation.dp import data
+    from toddlerbot.dp import data
 
     monkeypatch.setattr(data, "open_window_dataset", lambda *_: SyntheticWindows(episodes=3, frames=5))
     run = tmp_path / "run"

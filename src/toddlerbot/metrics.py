@@ -11,7 +11,7 @@ and labels). Each sink receives the same record:
   ``wandb`` package, extra ``[wandb]``; offline mode writes ``<run>/wandb/`` for ``wandb sync``).
 
 Strings, booleans and ``None`` reach the JSON lines only. Nothing here needs JAX or PyTorch: ``rl`` (JAX) and
-``manipulation.dp`` (PyTorch) both use it.
+``dp`` (PyTorch) both use it.
 """
 
 from __future__ import annotations

@@ -37,8 +37,8 @@ def run(
     chain's success predicates (wagon: moved >= 0.5 m and the handle still held; pick: the cube lifted 3 cm and
     held). With --port and --calibration it runs on the real robot through the same interface. Exit code 1 when the
     chain fails (a predicate, a skill or a switch), 2 on bad input."""
-    from toddlerbot.manipulation.chaining.spec import load_chain
     from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.skills.spec import load_chain
 
     description = RobotDescription.load(variant="gripper")
     chain = load_chain(chain_file or name, tuple(description.groups))
@@ -51,7 +51,7 @@ def run(
     if port is not None:
         _run_real(chain, description, port, calibration, imu, json_output, video)  # type: ignore[arg-type]
         return
-    from toddlerbot.manipulation.chaining.sim_run import run_in_sim
+    from toddlerbot.skills.sim_run import run_in_sim
 
     result = run_in_sim(chain, seed, video, description)
     if json_output:
@@ -82,7 +82,7 @@ def _run_real(chain, description, port: str, calibration: Path, imu: str, json_o
               video: Path | None) -> None:
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.real_robot import RealRobot
-    from toddlerbot.manipulation.chaining.robot_run import run_on_robot
+    from toddlerbot.skills.robot_run import run_on_robot
 
     if video is not None:
         raise ToddlerbotError("--video records the simulator; it is not available on the real robot")

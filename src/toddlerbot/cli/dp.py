@@ -18,9 +18,9 @@ from toddlerbot.cli.options import (
     training_budget,
 )
 from toddlerbot.cli.output import console
+from toddlerbot.dp import require_torch
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
-from toddlerbot.manipulation.dp import require_torch
 
 app = typer.Typer(help="Diffusion policy from demonstrations (needs the \\[dp] extra: torch==2.13.0).",
                   no_args_is_help=True)
@@ -57,10 +57,10 @@ def train(
     require_torch()
     import torch
 
-    from toddlerbot.manipulation.dp.config import PRESETS
-    from toddlerbot.manipulation.dp.data import open_window_dataset
-    from toddlerbot.manipulation.dp.train import TrainSchedule
-    from toddlerbot.manipulation.dp.train import train as run_training
+    from toddlerbot.dp.config import PRESETS
+    from toddlerbot.dp.data import open_window_dataset
+    from toddlerbot.dp.train import TrainSchedule
+    from toddlerbot.dp.train import train as run_training
 
     if config not in PRESETS:
         raise ToddlerbotError(f"--config {config!r}: expected one of {', '.join(PRESET_NAMES)}")
@@ -94,7 +94,7 @@ def info(
     """Print a checkpoint's training step, size, last losses and configuration."""
     require_torch()
 
-    from toddlerbot.manipulation.dp.checkpoint import checkpoint_summary
+    from toddlerbot.dp.checkpoint import checkpoint_summary
 
     summary = checkpoint_summary(checkpoint)
     if json_output:
@@ -119,13 +119,13 @@ def export(
 ) -> None:
     """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy; or, with --format
     onnx, its per-inference networks as ONNX graphs (observation_encoder.onnx, noise_unet.onnx)."""
-    from toddlerbot.manipulation.dp.onnx_export import FORMATS
+    from toddlerbot.dp.onnx_export import FORMATS
 
     if export_format not in FORMATS:
         raise ToddlerbotError(f"--format {export_format!r}: expected one of {', '.join(FORMATS)}")
     require_torch()
     if export_format == "onnx":
-        from toddlerbot.manipulation.dp.onnx_export import export_onnx
+        from toddlerbot.dp.onnx_export import export_onnx
 
         output_dir(out, "--out")
         paths, report = export_onnx(checkpoint, out)
@@ -134,7 +134,7 @@ def export(
                           f"inputs, max abs difference {report[name]:.2g} (outputs up to "
                           f"{report[name + ' scale']:.2g})", soft_wrap=True)
         return
-    from toddlerbot.manipulation.dp.checkpoint import export_policy
+    from toddlerbot.dp.checkpoint import export_policy
 
     output_file(out, "--out")
     written = export_policy(checkpoint, out)
@@ -166,9 +166,9 @@ def evaluate(
     import torch
     from rich.progress import Progress
 
-    from toddlerbot.manipulation.dp.evaluate import evaluate as run_evaluation
-    from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
-    from toddlerbot.manipulation.tasks import TASKS
+    from toddlerbot.dp.evaluate import evaluate as run_evaluation
+    from toddlerbot.dp.shipped import shipped_checkpoint
+    from toddlerbot.tasks import TASKS
 
     if task not in TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS.names())}")

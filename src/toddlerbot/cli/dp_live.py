@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from toddlerbot.dp import require_torch
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.manipulation.dp import require_torch
 
 
 @dataclass
@@ -47,9 +47,9 @@ def sim_dp_policy(description, task: str, checkpoint: Path | None, seed: int, re
     """(robot, policy, progress) for `sim run --policy dp`: the task's scene reset for ``seed``, the simulated head
     camera, and inference on the worker thread when the loop runs in real time (inline otherwise: a simulation
     that runs faster or slower than the clock makes a worker's latency meaningless)."""
-    from toddlerbot.manipulation.dp.evaluate import shipped_checkpoint
-    from toddlerbot.manipulation.dp.live import load_live_policy
-    from toddlerbot.manipulation.tasks import PickConfig, PickTask, TaskRobot
+    from toddlerbot.dp.live import load_live_policy
+    from toddlerbot.dp.shipped import shipped_checkpoint
+    from toddlerbot.tasks.pick import PickConfig, PickTask, TaskRobot
 
     if task not in SIM_DP_TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(SIM_DP_TASKS)}")
@@ -65,8 +65,8 @@ def sim_dp_policy(description, task: str, checkpoint: Path | None, seed: int, re
 def hw_dp_policy(robot, checkpoint: Path | None, camera: str | None, threads: int):
     """(policy, camera or None) for `hw run --policy dp`: inference on the worker thread, images from a V4L2
     device or a video file. Both are checked before the bus opens."""
-    from toddlerbot.manipulation.dp.live import load_live_policy
-    from toddlerbot.manipulation.video_camera import VideoCamera
+    from toddlerbot.dp.live import load_live_policy
+    from toddlerbot.tasks.video_camera import VideoCamera
 
     if checkpoint is None:
         raise ToddlerbotError("--policy dp needs --checkpoint (a checkpoint from `dp train` or `dp export`)")

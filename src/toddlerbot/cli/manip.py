@@ -20,7 +20,7 @@ TASK_HELP = "Task: pick (lift the cube and hold it for 1 s) or wagon (grasp the 
 
 
 def _check_task(task: str) -> None:
-    from toddlerbot.manipulation.tasks import TASKS
+    from toddlerbot.tasks import TASKS
 
     if task not in TASKS:
         raise ToddlerbotError(f"unknown task {task!r}; expected one of {', '.join(TASKS.names())}")
@@ -41,7 +41,7 @@ def demo(
     """Record scripted demonstrations of a task (50 Hz raw episodes, 10 Hz LeRobot v3.0 dataset)."""
     from rich.progress import Progress
 
-    from toddlerbot.manipulation.record import record_demos
+    from toddlerbot.tasks.record import record_demos
 
     _check_task(task)
     if snapshot is not None and video is None:
@@ -85,8 +85,8 @@ def demo_rate(
 
     from rich.progress import Progress
 
-    from toddlerbot.manipulation.record import DEMONSTRATORS, run_demo
-    from toddlerbot.manipulation.tasks import make_task
+    from toddlerbot.tasks import make_task
+    from toddlerbot.tasks.record import DEMONSTRATORS, run_demo
 
     _check_task(task)
     sim_task = make_task(task)
@@ -114,8 +114,8 @@ def decode(
     out: Annotated[Path, typer.Option("--out", "-o", help="Decoded copy to write (.npz).")],
 ) -> None:
     """Validate a dataset and write it decoded (images as arrays) to one .npz that trains without PyAV/pyarrow."""
-    from toddlerbot.manipulation.dataset import save_decoded
-    from toddlerbot.manipulation.lerobot_reader import load_dataset
+    from toddlerbot.datasets.dataset import save_decoded
+    from toddlerbot.datasets.lerobot_reader import load_dataset
 
     if out.suffix != ".npz":
         raise ToddlerbotError(f"--out {out}: expected a file name ending in .npz")
@@ -132,7 +132,7 @@ def info(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
     """Validate a LeRobot v3.0 dataset (files, row and frame counts, NaN rows) and print its summary."""
-    from toddlerbot.manipulation.lerobot_reader import load_dataset
+    from toddlerbot.datasets.lerobot_reader import load_dataset
 
     summary = load_dataset(root, decode_video=False).summary()
     if as_json:
@@ -169,8 +169,8 @@ def view(
         import rerun as rr
     except ImportError:
         raise ToddlerbotError("the dataset viewer needs rerun-sdk: pip install -e '.[viz]'") from None
-    from toddlerbot.manipulation.dataset_view import choose_episodes, log_dataset, recording_for
-    from toddlerbot.manipulation.lerobot_reader import load_dataset
+    from toddlerbot.datasets.lerobot_reader import load_dataset
+    from toddlerbot.datasets.view import choose_episodes, log_dataset, recording_for
     from toddlerbot.sim.render import has_display
 
     if save is not None:

@@ -11,7 +11,7 @@ import typer
 from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, output_dir, within
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.sim.scenes import SCENES
+from toddlerbot.tasks.scenes import SCENES
 
 app = typer.Typer(help="Teleoperation: game controller (Table 4), keyboard, leader-follower arms; record episodes.",
                   invoke_without_command=True)
@@ -55,9 +55,9 @@ def teleop(
     episodes; with --input leader the arms follow the leader arms. Runs at 50 Hz in real time."""
     if ctx.invoked_subcommand is not None:
         return
-    from toddlerbot.manipulation.gamepad import load_mapping
-    from toddlerbot.manipulation.tasks import ManipulationSpace
-    from toddlerbot.manipulation.teleop import EpisodeRecorder, TeleopSession
+    from toddlerbot.tasks.space import ManipulationSpace
+    from toddlerbot.teleop.gamepad import load_mapping
+    from toddlerbot.teleop.session import EpisodeRecorder, TeleopSession
 
     for name, value, allowed in (("--backend", backend, BACKENDS), ("--input", input_kind, INPUTS),
                                  ("--task", task, SIM_TASKS), ("--policy", policy, ("walk-zmp", "walk-rl"))):
@@ -101,18 +101,18 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
         robot = RealRobot(description, port, load_calibration(calibration, description),
                           imu=open_robot_imu(imu, port, "teleop (it walks)"))
         return robot, None, True
-    from toddlerbot.manipulation.camera import HeadCamera
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+    from toddlerbot.tasks.camera import HeadCamera
 
     if task == "pick":
-        from toddlerbot.manipulation.tasks import PickTask, TaskRobot
+        from toddlerbot.tasks.pick import PickTask, TaskRobot
 
         pick = PickTask(description)
         pick.reset(seed)
         return TaskRobot(pick, seed), pick.head_image, False
     model = None
     if task == "wagon":
-        from toddlerbot.sim.scenes import scene_model
+        from toddlerbot.tasks.scenes import scene_model
 
         model = scene_model(description, "wagon")
     robot = MuJoCoRobot(description, model=model)
@@ -123,7 +123,7 @@ def _robot(backend: str, task: str, port: str | None, calibration: Path | None, 
 def _chain_hook(names: list[str] | None, backend: str, task: str, robot, camera=None):
     """The skill hook running the chains `names` (default in sim: the shipped chains of the task's scene) on their
     buttons; `camera` gives a `dp` skill its head-camera images."""
-    from toddlerbot.manipulation.chaining.spec import SHIPPED_DIR, load_chain
+    from toddlerbot.skills.spec import SHIPPED_DIR, load_chain
 
     groups = tuple(robot.description.groups)
     if names is None:
@@ -133,15 +133,15 @@ def _chain_hook(names: list[str] | None, backend: str, task: str, robot, camera=
         chains = [load_chain(name, groups) for name in names]
     if not chains:
         return None
-    from toddlerbot.manipulation.chaining.teleop_hook import ChainHook
+    from toddlerbot.skills.teleop_hook import ChainHook
 
     if backend == "real":
-        from toddlerbot.sim.scenes import scene_model
+        from toddlerbot.tasks.scenes import scene_model
 
         hook = ChainHook(chains, robot, scene_model(robot.description, chains[0].scene), head_image=camera,
                          log=console.print)
     else:
-        from toddlerbot.manipulation.chaining.probe import SceneProbe
+        from toddlerbot.tasks.probe import SceneProbe
 
         hook = ChainHook(chains, robot, robot.model, SceneProbe(robot.model, robot.data), head_image=camera,
                          log=console.print)
@@ -151,7 +151,7 @@ def _chain_hook(names: list[str] | None, backend: str, task: str, robot, camera=
 
 
 def _source(input_kind: str, pad):
-    from toddlerbot.manipulation.sdl_input import InputError, JoystickInput, KeyboardInput
+    from toddlerbot.teleop.sdl_input import InputError, JoystickInput, KeyboardInput
 
     if input_kind == "keyboard":
         return KeyboardInput(pad)
@@ -167,9 +167,9 @@ def _source(input_kind: str, pad):
 
 
 def _leader_link(endpoint: str | None, robot):
-    from toddlerbot.manipulation.follower import ArmFollower
-    from toddlerbot.manipulation.link import DEFAULT_ENDPOINT, LinkSubscriber
-    from toddlerbot.manipulation.tasks import ManipulationSpace
+    from toddlerbot.tasks.space import ManipulationSpace
+    from toddlerbot.teleop.follower import ArmFollower
+    from toddlerbot.teleop.link import DEFAULT_ENDPOINT, LinkSubscriber
 
     space = ManipulationSpace.of(robot.description)
     return LinkSubscriber(endpoint or DEFAULT_ENDPOINT), ArmFollower(robot.motor_names, space.names)
@@ -206,9 +206,9 @@ def _run(session, robot, source, seconds: float, viewer: bool) -> None:
 
 
 def _write(out: Path, recorder) -> None:
-    from toddlerbot.manipulation.episode import resample
-    from toddlerbot.manipulation.lerobot_writer import write_dataset
-    from toddlerbot.manipulation.record import DATASET_FPS
+    from toddlerbot.datasets.episode import resample
+    from toddlerbot.datasets.lerobot_writer import write_dataset
+    from toddlerbot.tasks.record import DATASET_FPS
 
     if recorder.active:
         console.print(recorder.toggle())
@@ -233,9 +233,9 @@ def leader(
 
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.leader import LeaderArms
-    from toddlerbot.manipulation.leader_follower import stream_leader
-    from toddlerbot.manipulation.link import DEFAULT_ENDPOINT, LinkPublisher
     from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.teleop.leader_follower import stream_leader
+    from toddlerbot.teleop.link import DEFAULT_ENDPOINT, LinkPublisher
 
     link = link or DEFAULT_ENDPOINT
     within(rate, "--rate", 0.1, 1000.0, "Hz")
@@ -261,8 +261,8 @@ def probe(
     seconds: Annotated[float, typer.Option("--seconds", help="How long to listen.")] = 10.0,
 ) -> None:
     """Print which controller axis, button or hat moves (to edit the mapping file)."""
-    from toddlerbot.manipulation.gamepad import load_mapping
-    from toddlerbot.manipulation.sdl_input import JoystickInput
+    from toddlerbot.teleop.gamepad import load_mapping
+    from toddlerbot.teleop.sdl_input import JoystickInput
 
     duration(seconds, "--seconds")
     source = JoystickInput(load_mapping())

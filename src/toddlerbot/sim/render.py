@@ -6,7 +6,7 @@ was imported first. An explicit ``MUJOCO_GL`` (set before starting Python) alway
 
 Scene renders draw the robot's visual geometry (motor housings, printed shells, camera lens, gripper jaws: see
 `toddlerbot.robot.visuals`) instead of its collision primitives; ``visuals=False`` draws the primitives as the
-physics sees them. The head camera (`toddlerbot.manipulation.camera`) renders with MuJoCo's default groups, so it
+physics sees them. The head camera (`toddlerbot.tasks.camera`) renders with MuJoCo's default groups, so it
 sees the collision primitives it was trained on.
 
 A machine without the backend's library still simulates: `configure_gl` and `Recorder` raise `RenderError` naming

@@ -1,1 +1,0 @@
-"""Manipulation from demonstrations: the diffusion policy (``dp``, PyTorch, extra ``[dp]``)."""

@@ -1,0 +1,268 @@
+"""Skill kinds of a chain. A skill starts from the targets the previous one ended with and, each control step,
+returns motor targets and firmware gains (the runner applies `hold` and sends them through `Robot.step`).
+
+* ``scripted_grasp``: both (or one) grippers grasp a bar lying across the robot (the wagon handle): each grasp
+  point moves to a pre-grasp point behind the bar, then onto it along the fingers, then the grippers close; DLS IK
+  every step, targets leading the IK solution by the gravity sag, a slow integral of the measured error (as the
+  pick demonstrator does). In sim the bar's position comes from the scene; on hardware from ``target_pos`` or, by
+  default, where the scene's layout puts it.
+* ``dp``: a diffusion-policy checkpoint drives the arm and gripper motors (torch is imported only here).
+* ``walk``: a walking policy (walk-zmp, walk-rl) with a fixed command.
+* ``hold``: every motor keeps the previous skill's last targets.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from toddlerbot.dp.shipped import is_shipped
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.tasks.demonstrator import min_jerk
+from toddlerbot.tasks.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, GraspPointCorrection
+from toddlerbot.tasks.scenes import SIDES, grasp_site
+
+MAX_ARM_KP_SCALE = 3.0
+"""Largest arm gain multiple a chain may ask for (walk-zmp's swing leg runs at 3x the spec's gains)."""
+
+
+@dataclass(frozen=True)
+class GraspParams:
+    target: str
+    """Geom of the bar to grasp (sim); the bar lies along y, each hand grasps it straight in front of itself."""
+    target_pos: tuple[float, float, float] | None = None
+    """Hardware: the bar's centre in the world frame of the home pose (x forward, z up from the floor), m."""
+    hands: Literal["both", "left", "right"] = "both"
+    pitch: float = 0.5
+    """Fingers tilted down from horizontal by this much, rad (the arms reach further forward and lower)."""
+    depth: float = 0.008
+    """Grasp point this far past the bar's axis along the fingers, m (the bar sits nearer the palm)."""
+    back: float = 0.05
+    """Pre-grasp point this far behind the grasp point along the fingers, m."""
+    grip_fraction: float = 0.85
+    """Closed gripper target as a fraction of the drive's range from open."""
+    arm_kp_scale: float = 1.0
+    """The grasping arms' firmware kp while grasping, as a multiple of the spec's. The targets lead the IK solution
+    by the gravity sag at these gains, so a skill after it that holds the arms at the spec's gains (`hold` skills,
+    and `hold: [arm]` after one) supports 1/arm_kp_scale of the arms' weight and the rest lies on the bar."""
+    approach_s: float = 1.5
+    reach_s: float = 1.5
+    close_s: float = 0.8
+    correction_gain: float = CORRECTION_GAIN
+    max_correction: float = MAX_CORRECTION
+    checkpoint: str | None = None
+    """Task whose shipped diffusion-policy checkpoint grasps instead of the script, when one is shipped."""
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.arm_kp_scale <= MAX_ARM_KP_SCALE:
+            raise ValueError(f"arm_kp_scale: expected a number in [1, {MAX_ARM_KP_SCALE:g}], got {self.arm_kp_scale}")
+
+
+@dataclass(frozen=True)
+class DPParams:
+    checkpoint: str
+    """A shipped checkpoint's task name (``pick``) or a checkpoint file."""
+    seed: int = 0
+    threads: int = 1
+    """torch CPU threads (the process's setting), 1 as in `dp eval`: on a busy 2-core machine two threads made
+    one inference 30-50 times slower than one."""
+
+    def __post_init__(self) -> None:
+        if self.threads < 1:
+            raise ValueError(f"threads: expected a positive number of threads, got {self.threads}")
+
+
+@dataclass(frozen=True)
+class WalkParams:
+    policy: Literal["walk-zmp", "walk-rl"] = "walk-zmp"
+    command: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """(vx m/s, vy m/s, yaw rate rad/s)."""
+
+
+@dataclass(frozen=True)
+class HoldParams:
+    pass
+
+
+def grasp_gains(description: RobotDescription, p: GraspParams) -> np.ndarray:
+    """Firmware kp while grasping: the spec's, the grasping arms' scaled by `arm_kp_scale` (the wagon task
+    demonstrates and evaluates its policy at these gains too)."""
+    kp = description.default_kp.copy()
+    names = description.motor_names
+    for side in SIDES if p.hands == "both" else (p.hands,):
+        kp[[i for i in description.groups["arm"] if names[i].startswith(side)]] *= p.arm_kp_scale
+    return kp
+
+
+PARAMS: dict[str, type] = {"scripted_grasp": GraspParams, "dp": DPParams, "walk": WalkParams, "hold": HoldParams}
+
+
+@dataclass(frozen=True)
+class SkillEnv:
+    """What a skill may use: the robot, a kinematic model with the grasp sites, and the base pose to solve IK in."""
+
+    robot: Robot
+    model: mujoco.MjModel
+    base_qpos: Callable[[], np.ndarray]
+    """The model's full qpos for the base and free bodies: the simulated state, or the home keyframe on hardware."""
+    target_pos: Callable[[str], np.ndarray] | None
+    """World position of a named geom (sim), None on hardware."""
+    layout_pos: Callable[[str], np.ndarray]
+    """World position of a named geom where the scene's layout puts it (the home keyframe): hardware's default."""
+    head_image: Callable[[], np.ndarray] | None
+    """The head camera's 96x96 RGB image (sim), None where the `Robot` has no camera."""
+    simulated: bool
+    """True in sim (time is the simulation's), False on a real robot (the control loop runs in real time)."""
+
+
+class Skill(ABC):
+    by = ""
+    """What drives it, for reports (e.g. ``scripted (no checkpoint for task wagon)``)."""
+
+    @abstractmethod
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        """Begin from `targets` (rad, the last ones commanded)."""
+
+    @abstractmethod
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        """(motor targets rad, firmware kp) for the next step, `elapsed` s after `start`."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Release threads or files."""
+
+
+class ScriptedGrasp(Skill):
+    def __init__(self, env: SkillEnv, p: GraspParams, why: str) -> None:
+        self.env, self.p, self.by = env, p, f"scripted ({why})"
+        d = env.robot.description
+        sides = SIDES if p.hands == "both" else (p.hands,)
+        self.iks = [ArmIK(d, env.model, side, site=grasp_site(side)) for side in sides]
+        self.grippers = [d.motor_names.index(f"{side}_gripper_drive") for side in sides]
+        self.kp = grasp_gains(d, p)
+        self._stiffness = d.actuator_arrays(self.kp).kp
+
+    def _bar(self) -> np.ndarray:
+        if self.env.target_pos is not None:  # sim: where the bar is now
+            return self.env.target_pos(self.p.target)
+        if self.p.target_pos is not None:  # hardware: where the chain file says it is
+            return np.array(self.p.target_pos, dtype=float)
+        return self.env.layout_pos(self.p.target)
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        p, base, bar = self.p, self.env.base_qpos(), self._bar()
+        tilt = np.array([np.cos(p.pitch), 0.0, -np.sin(p.pitch)])
+        """Fingertip direction in the world: forward, tilted down by `pitch`."""
+        self._plans = []
+        for ik in self.iks:
+            pos, rot = ik.forward(obs.motor_pos, base)
+            wrist = rot.T @ (ik.data.xpos[ik.model.site_bodyid[ik.site]] - pos)
+            fingers = -np.sign(wrist[1]) * tilt  # site y runs along the fingers, towards the tips on one side only
+            closing = np.array([np.sin(p.pitch), 0.0, np.cos(p.pitch)])
+            closing *= np.sign(closing @ rot[:, 2])  # keep the closing axis' sense: no wrist flip
+            goal_rot = np.column_stack([np.cross(fingers, closing), fingers, closing])
+            goal = np.array([bar[0], pos[1], bar[2]]) + p.depth * tilt
+            self._plans.append((pos, goal - p.back * tilt, goal, goal_rot))
+        self._q = np.array(targets, dtype=float)
+        self._open = self._q[self.grippers].copy()
+        self._correction = [GraspPointCorrection(p.correction_gain, p.max_correction) for _ in self.iks]
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        p, base = self.p, self.env.base_qpos()
+        q = self._q
+        for k, (ik, (start, pregrasp, goal, rot)) in enumerate(zip(self.iks, self._plans)):
+            if elapsed < p.approach_s:
+                a, b, s = start, pregrasp, min_jerk(elapsed / p.approach_s)
+            else:
+                a, b, s = pregrasp, goal, min_jerk((elapsed - p.approach_s) / p.reach_s)
+            desired = a + (b - a) * s
+            measured, _ = ik.forward(obs.motor_pos, base)
+            q, _ = ik.solve(q, self._correction[k].target(desired, measured), rot, base)
+        self._q = q
+        out = q.copy()
+        for ik in self.iks:
+            out[ik.arm] += ik.gravity_torque(q, base) / self._stiffness[ik.arm]
+        lo_hi = self.env.robot.description.motor_range[self.grippers]
+        closed = lo_hi[:, 0] + p.grip_fraction * (lo_hi[:, 1] - lo_hi[:, 0])
+        s = min_jerk((elapsed - p.approach_s - p.reach_s) / p.close_s)
+        out[self.grippers] = self._open + s * (closed - self._open)
+        return out, self.kp
+
+
+class DPSkill(Skill):
+    """A checkpoint as the runtime runs it (`dp.live.LiveDPPolicy`): its motors found by name, observations at the
+    policy rate, the other motors held; inference inline in sim (as `dp eval`), on the worker thread on a real
+    robot (the 50 Hz loop must not wait for it)."""
+
+    def __init__(self, env: SkillEnv, p: DPParams, kp: np.ndarray | None = None) -> None:
+        from toddlerbot.dp import require_torch
+        from toddlerbot.dp.live import load_live_policy
+        from toddlerbot.dp.shipped import shipped_checkpoint
+
+        require_torch(p.threads)
+        path = Path(p.checkpoint) if p.checkpoint.endswith(".pt") else shipped_checkpoint(p.checkpoint)
+        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated, seed=p.seed, kp=kp)
+        self.by = f"dp ({path.name})"
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        self.live.reset(obs)
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        action = self.live.act(obs, np.zeros(3))
+        return action.motor_targets, action.kp
+
+    def close(self) -> None:
+        self.live.close()
+
+
+class WalkSkill(Skill):
+    def __init__(self, env: SkillEnv, p: WalkParams) -> None:
+        from toddlerbot.policies import make_policy
+
+        self.policy = make_policy(p.policy, env.robot)
+        self.command = np.array(p.command)
+        self.kp = env.robot.description.default_kp.copy()
+        self.by = p.policy
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        self.policy.reset(obs)
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        action = self.policy.act(obs, self.command)
+        return action.motor_targets, self.kp if action.kp is None else np.asarray(action.kp, dtype=float)
+
+
+class HoldSkill(Skill):
+    by = "hold"
+
+    def __init__(self, env: SkillEnv) -> None:
+        self.kp = env.robot.description.default_kp.copy()
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        self._targets = np.array(targets, dtype=float)
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        return self._targets.copy(), self.kp
+
+
+def make_skill(kind: str, params: object, env: SkillEnv) -> Skill:
+    if kind == "scripted_grasp":
+        task = params.checkpoint  # type: ignore[attr-defined]
+        shipped = task is not None and is_shipped(task)
+        if shipped and env.head_image is not None:
+            # at the scripted grasp's gains: the wagon task demonstrates and trains the policy at them
+            return DPSkill(env, DPParams(task), grasp_gains(env.robot.description, params))  # type: ignore[arg-type]
+        why = ("no checkpoint named" if task is None else f"no head camera for {task}.pt" if shipped
+               else f"no checkpoint for task {task}")
+        return ScriptedGrasp(env, params, why)  # type: ignore[arg-type]
+    if kind == "dp":
+        return DPSkill(env, params)  # type: ignore[arg-type]
+    if kind == "walk":
+        return WalkSkill(env, params)  # type: ignore[arg-type]
+    return HoldSkill(env)

@@ -1,0 +1,219 @@
+"""The chain file: YAML, validated into frozen dataclasses with one-line errors naming file, skill and field.
+
+    name: wagon                      # chain name (defaults to the file's stem)
+    scene: wagon                     # sim scene it runs in (`toddlerbot.tasks.scenes.SCENES`)
+    button: l2                       # optional: teleop button that runs it (l1, r1, l2, r2)
+    success: {moved: {body: wagon, at_least: 0.5}, grasped: {target: wagon_handle}}   # optional, checked at the end
+    skills:
+      - name: grasp
+        kind: scripted_grasp         # scripted_grasp | dp | walk | hold; other keys are the kind's parameters
+        target: wagon_handle
+        hold: [leg]                  # motor groups kept at the targets the previous skill ended with
+        until: {predicate: grasped, target: wagon_handle}   # or {after: SECONDS} or {button: l1}
+        timeout: 6                   # optional: fail if `until` has not held after this long, s
+
+Each kind's parameters are a dataclass in `skills` (`PARAMS`); a predicate's are in `predicates`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.yaml_input import read_yaml
+
+BUTTONS = ("l1", "r1", "l2", "r2")
+MAX_CHAIN_BYTES = 64_000
+SHIPPED_DIR = Path(__file__).resolve().parent / "chains"
+
+
+class ChainFileError(ToddlerbotError):
+    """A chain file that cannot be used (one line: file, skill, field, what was expected)."""
+
+
+@dataclass(frozen=True)
+class Switch:
+    """When a skill hands over: after a time, when a named predicate holds, or while a button is held."""
+
+    after: float | None = None
+    predicate: str | None = None
+    params: object | None = None
+    """The predicate's parameter dataclass."""
+    button: str | None = None
+
+
+@dataclass(frozen=True)
+class SkillSpec:
+    name: str
+    kind: str
+    params: object
+    """The kind's parameter dataclass (`skills.PARAMS`)."""
+    until: Switch
+    hold: tuple[str, ...] = ()
+    timeout: float | None = None
+
+
+@dataclass(frozen=True)
+class ChainSpec:
+    name: str
+    source: str
+    """Where it was read from (for messages)."""
+    scene: str
+    skills: tuple[SkillSpec, ...]
+    button: str | None = None
+    success: tuple[tuple[str, object], ...] = ()
+    """(predicate name, its parameters) that must all hold when the chain ends."""
+
+    def with_dp_grasps(self) -> ChainSpec:
+        """The same chain with every ``scripted_grasp`` skill that names no checkpoint driven by the scene's
+        shipped diffusion policy (``checkpoint`` = the scene, e.g. ``wagon.pt``) where there is one."""
+        skills = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=self.scene))  # type: ignore
+                       if s.kind == "scripted_grasp" and s.params.checkpoint is None else s  # type: ignore
+                       for s in self.skills)
+        return dataclasses.replace(self, skills=skills)
+
+
+def chain_path(name_or_path: str | Path) -> Path:
+    """A shipped chain by name (``wagon``) or a chain file path."""
+    shipped = SHIPPED_DIR / f"{name_or_path}.yaml"
+    if shipped.is_file():
+        return shipped
+    path = Path(name_or_path)
+    if not path.is_file():
+        names = ", ".join(sorted(p.stem for p in SHIPPED_DIR.glob("*.yaml")))
+        raise ChainFileError(f"{name_or_path}: no such chain file and no shipped chain of that name ({names})")
+    return path
+
+
+def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> ChainSpec:
+    """Read and validate a chain; `groups` are the motor groups `hold` may name (the description's)."""
+    from toddlerbot.skills.library import PARAMS
+    from toddlerbot.tasks.predicates import PREDICATES
+    from toddlerbot.tasks.scenes import SCENES
+
+    path = chain_path(name_or_path)
+    doc = read_yaml(path, "chain file", ChainFileError, MAX_CHAIN_BYTES)
+    src = str(path)
+    top = _mapping(doc, src, "the file")
+    _only(top, ("name", "scene", "button", "success", "skills"), src, "the file")
+    scene = _choice(top.get("scene"), SCENES, src, "scene")
+    button = None if top.get("button") is None else _choice(top["button"], BUTTONS, src, "button")
+    raw_skills = top.get("skills")
+    if not isinstance(raw_skills, list) or not raw_skills:
+        raise ChainFileError(f"{src}: skills: expected a non-empty list of skills, got {raw_skills!r}")
+    skills, names = [], set()
+    for i, raw in enumerate(raw_skills):
+        raw = _mapping(raw, src, f"skill {i + 1}")
+        name = raw.get("name")
+        if not isinstance(name, str) or not name:
+            raise ChainFileError(f"{src}: skill {i + 1}: name: expected a non-empty string, got {name!r}")
+        if name in names:
+            raise ChainFileError(f"{src}: skill {name}: name: used twice")
+        names.add(name)
+        where = f"{src}: skill {name}"
+        kind = _choice(raw.get("kind"), tuple(PARAMS), where, "kind")
+        hold = raw.get("hold", [])
+        if not isinstance(hold, list) or any(g not in groups for g in hold):
+            raise ChainFileError(f"{where}: hold: expected a list of motor groups from {', '.join(groups)}, "
+                                 f"got {hold!r}")
+        timeout = raw.get("timeout")
+        if timeout is not None:
+            timeout = _positive(timeout, where, "timeout")
+        until = _switch(raw.get("until"), where, PREDICATES)
+        params = build_params(PARAMS[kind], {k: v for k, v in raw.items()
+                                             if k not in ("name", "kind", "hold", "timeout", "until")}, where)
+        skills.append(SkillSpec(name, kind, params, until, tuple(hold), timeout))
+    success = []
+    for pred, raw in _mapping(top.get("success", {}), src, "success").items():
+        where = f"{src}: success: {pred}"
+        _choice(pred, tuple(PREDICATES), f"{src}: success", "predicate")
+        success.append((pred, build_params(PREDICATES[pred].params, _mapping(raw, where, "parameters"), where)))
+    return ChainSpec(str(top.get("name", path.stem)), src, scene, tuple(skills), button, tuple(success))
+
+
+def _switch(raw: object, where: str, predicates: Mapping) -> Switch:
+    raw = _mapping(raw, where, "until")
+    keys = [k for k in ("after", "predicate", "button") if k in raw]
+    if len(keys) != 1:
+        raise ChainFileError(f"{where}: until: expected exactly one of after, predicate, button; got {sorted(raw)}")
+    if keys[0] == "after":
+        _only(raw, ("after",), where, "until")
+        return Switch(after=_positive(raw["after"], where, "until.after"))
+    if keys[0] == "button":
+        _only(raw, ("button",), where, "until")
+        return Switch(button=_choice(raw["button"], BUTTONS, where, "until.button"))
+    name = _choice(raw["predicate"], tuple(predicates), where, "until.predicate")
+    params = build_params(predicates[name].params, {k: v for k, v in raw.items() if k != "predicate"},
+                          f"{where}: until")
+    return Switch(predicate=name, params=params)
+
+
+def build_params(cls: type, raw: Mapping, where: str) -> object:
+    """An instance of the parameter dataclass `cls` from `raw`, each value checked against the field's type."""
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    hints = typing.get_type_hints(cls)
+    _only(raw, tuple(fields), where, "parameters")
+    values = {}
+    for name, value in raw.items():
+        values[name] = _typed(value, hints[name], where, name)
+    missing = [n for n, f in fields.items() if n not in values and f.default is dataclasses.MISSING]
+    if missing:
+        raise ChainFileError(f"{where}: {missing[0]}: required")
+    try:
+        return cls(**values)
+    except ValueError as exc:
+        raise ChainFileError(f"{where}: {exc}") from None
+
+
+def _typed(value: object, hint: object, where: str, field: str) -> object:
+    """`value` converted to `hint` (float, int, str, bool, a Literal, a fixed tuple of floats, or X | None)."""
+    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    if value is None and type(None) in options:
+        return None
+    hint = next(o for o in options if o is not type(None))
+    if typing.get_origin(hint) is typing.Literal:
+        return _choice(value, typing.get_args(hint), where, field)
+    if hint is bool and isinstance(value, bool):
+        return value
+    if hint is str and isinstance(value, str) and value:
+        return value
+    if hint in (float, int) and isinstance(value, int | float) and not isinstance(value, bool):
+        number = hint(value)
+        if number == value and number == number and abs(number) != float("inf"):
+            return number
+    if typing.get_origin(hint) is tuple and isinstance(value, list):
+        size = len(typing.get_args(hint))
+        if len(value) == size:
+            return tuple(_typed(v, float, where, f"{field}[{i}]") for i, v in enumerate(value))
+    name = getattr(hint, "__name__", str(hint))
+    raise ChainFileError(f"{where}: {field}: expected {name}, got {value!r}")
+
+
+def _mapping(value: object, where: str, what: str) -> dict:
+    if not isinstance(value, dict):
+        raise ChainFileError(f"{where}: {what}: expected a mapping, got {value!r}")
+    return value
+
+
+def _only(raw: Mapping, allowed: tuple[str, ...], where: str, what: str) -> None:
+    unknown = [k for k in raw if k not in allowed]
+    if unknown:
+        raise ChainFileError(f"{where}: {what}: unknown field {unknown[0]!r}; expected {', '.join(allowed)}")
+
+
+def _choice(value: object, allowed: tuple, where: str, field: str) -> str:
+    if value not in allowed:
+        raise ChainFileError(f"{where}: {field}: expected one of {', '.join(map(str, allowed))}, got {value!r}")
+    return value  # type: ignore[return-value]
+
+
+def _positive(value: object, where: str, field: str) -> float:
+    number = _typed(value, float, where, field)
+    if not number > 0:  # type: ignore[operator]
+        raise ChainFileError(f"{where}: {field}: expected a positive number of seconds, got {value!r}")
+    return number  # type: ignore[return-value]

@@ -1,0 +1,233 @@
+"""The ``pick`` task (lift a cube and hold it) on the `Robot` interface; the ``wagon`` task (grasp the wagon handle
+with both hands) is the wagon chain's grasp phase, in `toddlerbot.skills.wagon`.
+
+A task owns a `MuJoCoRobot` on a scene model (`toddlerbot.tasks.scenes`), resets it for a seed (cube pose
+randomised, arm in its ready pose, neck looking at the table), steps it with the follower's reduced upper-body
+gains, tracks success and renders the head-camera image.
+
+The recorded vectors follow `ManipulationSpace`: the follower's arm and gripper motor angles (rad, motor-id
+order) are the observation state, and the same motors' commanded targets are the action.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import mujoco
+import numpy as np
+
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import CONTROL_DT, Observation
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+from toddlerbot.tasks.camera import HeadCamera
+from toddlerbot.tasks.demonstrator import DemoConfig, ScriptedPicker
+from toddlerbot.tasks.ik import ArmIK, top_down_rotation
+from toddlerbot.tasks.scenes import (
+    CUBE_BODY,
+    CUBE_GEOM,
+    TABLE_GEOM,
+    finger_pads,
+    grasp_site,
+    place_cube,
+    scene_model,
+)
+from toddlerbot.tasks.space import FOLLOWER_KP_SCALE, ManipulationSpace, follower_gains
+
+
+@dataclass(frozen=True)
+class PickConfig:
+    """The ``pick`` task: cube start region, success rule and follower settings (lengths in m, world frame)."""
+
+    arm: str = "right"
+    cube_x: tuple[float, float] = (0.10, 0.125)
+    """Range of the cube centre's x (forward)."""
+    cube_y: tuple[float, float] = (-0.125, -0.085)
+    cube_yaw: tuple[float, float] = (-0.6, 0.6)
+    """Range of the cube's yaw about z, rad."""
+    lift_height: float = 0.03
+    """Success: the cube's bottom at least this far above the table top..."""
+    hold_seconds: float = 1.0
+    """...and held between both fingers, continuously for this long."""
+    upper_body_kp_scale: float = FOLLOWER_KP_SCALE
+    neck_pitch: float = -1.15
+    """Neck pitch drive angle (rad, negative looks down) so the head camera sees the table..."""
+    neck_yaw: float = -0.4
+    """...and neck yaw drive angle (rad, negative looks right, towards the cube region)."""
+    ready_offset: tuple[float, float, float] = (0.0, -0.05, 0.10)
+    """Start pose: grasp point at this offset from the cube region's centre on the table top (outside and above,
+    so the gripper does not hide the cube from the head camera)."""
+    control_dt: float = CONTROL_DT
+
+    def __post_init__(self) -> None:
+        if self.arm not in ("left", "right"):
+            raise ValueError(f"arm must be 'left' or 'right', got {self.arm!r}")
+        for name in ("cube_x", "cube_y", "cube_yaw"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ValueError(f"{name}: lower {lo} is greater than upper {hi}")
+
+
+@dataclass
+class SuccessTracker:
+    """Counts how long the cube has been lifted and pinched by both fingers without interruption."""
+
+    hold_seconds: float
+    held_for: float = 0.0
+    """Seconds the current uninterrupted lifted pinch has lasted."""
+    succeeded: bool = False
+    max_lift: float = 0.0
+    """Highest lift seen, m (for failure reports)."""
+
+    def update(self, lifted: float, lift_needed: float, pinched: bool, dt: float) -> bool:
+        self.max_lift = max(self.max_lift, lifted)
+        self.held_for = self.held_for + dt if lifted >= lift_needed and pinched else 0.0
+        self.succeeded = self.succeeded or self.held_for >= self.hold_seconds - 1e-9
+        return self.succeeded
+
+
+class PickTask:
+    """Lift a 3 cm cube from the table and hold it between both fingers for 1 s (gripper variant)."""
+
+    name = "pick"
+    instruction = "pick up the red cube"
+    episode_seconds = 8.0
+    """`dp eval`'s default limit per episode, s (simulated)."""
+
+    def __init__(self, description: RobotDescription | None = None, config: PickConfig | None = None) -> None:
+        self.config = config or PickConfig()
+        description = description or RobotDescription.load(variant="gripper")
+        if description.spec.variant != "gripper":
+            description = description.with_variant("gripper")
+        self.description = description
+        self.model = scene_model(description, "pick")
+        self.robot = MuJoCoRobot(description, SimConfig(control_dt=self.config.control_dt), model=self.model)
+        self.space = ManipulationSpace.of(description)
+        self.kp = follower_gains(description, self.config.upper_body_kp_scale)
+        m = self.model
+        side = self.config.arm
+        self._cube = m.body(CUBE_BODY).id
+        self._cube_geom = m.geom(CUBE_GEOM).id
+        self._fingers = tuple(m.geom(pad).id for pad in finger_pads(side))
+        self._table_top = float(self.robot.data.geom(TABLE_GEOM).xpos[2] + m.geom(TABLE_GEOM).size[2])
+        self._cube_half = float(m.geom(CUBE_GEOM).size[0])
+        names = description.motor_names
+        self.gripper_motor = names.index(f"{side}_gripper_drive")
+        self.neck_pitch_motor = names.index("neck_pitch_drive")
+        self.neck_yaw_motor = names.index("neck_yaw_drive")
+        self.camera = HeadCamera(m, self.robot.data, description.handles.head_camera or "head_camera")
+        self.tracker = SuccessTracker(self.config.hold_seconds)
+
+    def demonstrator(self, config: DemoConfig | None = None) -> ScriptedPicker:
+        """The task's scripted demonstrator (`manip demo`)."""
+        return ScriptedPicker(self, config)
+
+    @property
+    def table_top(self) -> float:
+        """Height of the table top, m."""
+        return self._table_top
+
+    def gripper_range(self) -> tuple[float, float]:
+        """(open, closed) gripper drive angles, rad."""
+        lo, hi = self.description.motor_range[self.gripper_motor]
+        return float(lo), float(hi)
+
+    @cached_property
+    def ready_pose(self) -> np.ndarray:
+        """Start pose (motor angles, rad): the home pose with the neck looking at the table and the task's arm
+        holding its grasp point at `ready_offset` from the middle of the cube region, fingers down (by IK)."""
+        cfg = self.config
+        ik = ArmIK(self.description, self.model, cfg.arm, site=grasp_site(cfg.arm))
+        centre = np.array([np.mean(cfg.cube_x), np.mean(cfg.cube_y), self.table_top]) + np.array(cfg.ready_offset)
+        q = self.home_pose()
+        for _ in range(6):
+            q, _ = ik.solve(q, centre, top_down_rotation(np.array([0.0, 1.0])), self.model.key("home").qpos)
+        return q
+
+    def reset(self, seed: int, start_pose: np.ndarray | None = None) -> Observation:
+        """Reset to the home keyframe, place the cube for `seed`, put the robot in `start_pose` (motor angles,
+        rad; default: `ready_pose`) and return the first observation."""
+        cfg = self.config
+        rng = np.random.default_rng(seed)
+        self.robot.reset()
+        xy = np.array([rng.uniform(*cfg.cube_x), rng.uniform(*cfg.cube_y)])
+        place_cube(self.model, self.robot.data, xy, float(rng.uniform(*cfg.cube_yaw)))
+        q = self.ready_pose if start_pose is None else np.asarray(start_pose, dtype=float)
+        self._set_motor_pos(q)
+        self.tracker = SuccessTracker(cfg.hold_seconds)
+        return self.robot.observe()
+
+    def home_pose(self) -> np.ndarray:
+        q = self.description.home_motor_pos.copy()
+        q[self.neck_pitch_motor] = self.config.neck_pitch
+        q[self.neck_yaw_motor] = self.config.neck_yaw
+        return q
+
+    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+             ) -> Observation:
+        """One control step through the `Robot` interface (CommandGuard applies) at the follower gains (or
+        `kp`, firmware units; `kd` as `Robot.step` takes it)."""
+        obs = self.robot.step(motor_targets, kp=self.kp if kp is None else kp, kd=kd)
+        self.tracker.update(self.cube_lift(), self.config.lift_height, self.pinched(), self.robot.control_dt)
+        return obs
+
+    def cube_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Cube centre (m) and rotation matrix in the world."""
+        d = self.robot.data
+        return d.xpos[self._cube].copy(), d.xmat[self._cube].reshape(3, 3).copy()
+
+    def cube_lift(self) -> float:
+        """Height of the cube's lowest point above the table top, m (0 when resting on it)."""
+        pos, rot = self.cube_pose()
+        bottom = pos[2] - self._cube_half * float(np.abs(rot[2]).sum())
+        return max(0.0, bottom - self._table_top)
+
+    def grasp_distance(self) -> float:
+        """Distance from the task arm's grasp point (between the finger pads) to the cube centre, m."""
+        site = self.robot.data.site(grasp_site(self.config.arm)).xpos
+        return float(np.linalg.norm(site - self.cube_pose()[0]))
+
+    def pinched(self) -> bool:
+        """Do both fingers of the task's gripper touch the cube?"""
+        d = self.robot.data
+        touching = set()
+        for c in d.contact[: d.ncon]:
+            pair = (int(c.geom[0]), int(c.geom[1]))
+            if self._cube_geom in pair:
+                touching.add(pair[0] if pair[1] == self._cube_geom else pair[1])
+        return all(f in touching for f in self._fingers)
+
+    @property
+    def succeeded(self) -> bool:
+        return self.tracker.succeeded
+
+    def head_image(self) -> np.ndarray:
+        """The head camera's 96x96 RGB image (uint8) of the current state."""
+        return self.camera.image()
+
+    def _set_motor_pos(self, q_motor: np.ndarray) -> None:
+        tmap = self.description.transmission
+        d = self.robot.data
+        for name, value in tmap.motor_to_model(q_motor).items():
+            d.qpos[self.model.joint(name).qposadr[0]] = value
+        mujoco.mj_forward(self.model, d)
+
+
+class TaskRobot:
+    """A task's robot for code written against `Robot` (the runner, teleoperation): `reset` puts the task in its
+    start state for ``seed`` (cube placed, arm ready), `step` goes through `PickTask.step` (follower gains unless
+    given, success tracked); everything else is the task's `MuJoCoRobot`."""
+
+    def __init__(self, task: PickTask, seed: int) -> None:
+        self.task, self.seed = task, seed
+
+    def __getattr__(self, name: str):
+        return getattr(self.task.robot, name)
+
+    def reset(self) -> Observation:
+        return self.task.reset(self.seed)
+
+    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+             ) -> Observation:
+        return self.task.step(motor_targets, kp, kd)
+
