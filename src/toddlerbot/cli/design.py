@@ -8,13 +8,12 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.options import output_dir, within
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions, SpecOption, VariantOption, output_dir, within
 from toddlerbot.cli.output import console
 from toddlerbot.design.budget import PowerInputs
 from toddlerbot.design.report import HEIGHT_RANGE_M, MASS_RANGE_KG, DesignReport, design_report
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
-from toddlerbot.robot.description import load_variant, variant_names
 
 app = typer.Typer(help="Design metrics of the appendix (sections 8.2, 8.4-8.6).", no_args_is_help=True)
 
@@ -25,10 +24,11 @@ def report(
     mass: Annotated[float | None, typer.Option("--mass", help="What-if mass, kg (default: the spec's).")] = None,
     plot: Annotated[Path | None, typer.Option("--plot", help="Directory to write the figures (PNG) to.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print machine-readable JSON only.")] = False,
-    variant: Annotated[str, typer.Option("--variant", help=f"One of: {', '.join(variant_names())}.")] = "floating",
+    variant: VariantOption = None,
     duty_cycle: Annotated[float, typer.Option(help="Motor duty cycle while walking.")] = PowerInputs.duty_cycle,
     battery_ah: Annotated[float, typer.Option(help="Battery capacity, Ah.")] = PowerInputs.battery_capacity_ah,
-    spec_path: Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML.")] = None,
+    spec_path: SpecOption = None,
+    motor_params: MotorParamsOption = None,
 ) -> None:
     """Print the design report (and optionally write its figures)."""
     for name, value, (low, high), unit in (("--height", height, HEIGHT_RANGE_M, "m"),
@@ -37,9 +37,7 @@ def report(
             within(value, name, low, high, unit)
     if plot is not None:
         output_dir(plot, "--plot")
-    if variant not in variant_names():
-        raise typer.BadParameter(f"{variant!r} is not one of {', '.join(variant_names())}", param_hint="--variant")
-    description, _ = load_variant(variant, spec_path)
+    description = RobotOptions.of(spec_path, variant, motor_params).description()
     try:
         power = PowerInputs(duty_cycle=duty_cycle, battery_capacity_ah=battery_ah)
     except ValueError as exc:

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import duration, output_file
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions, duration, output_file
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
@@ -29,12 +29,10 @@ def tracking(
                                                       "one by name: walk_rl (default) or walk_rl_gpu.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Where to save the commanded-vs-achieved velocity plot.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
-    motor_params: Annotated[list[Path] | None, typer.Option(
-        "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")] = None,
+    motor_params: MotorParamsOption = None,
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
     (exit code 1 if the robot fell)."""
-    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_velocity_tracking
 
@@ -46,7 +44,7 @@ def tracking(
     duration(seconds, "--seconds")
     if plot is not None:
         output_file(plot, "--plot")
-    description = RobotDescription.load(motor_params=motor_params or [])
+    description = RobotOptions.of(motor_params=motor_params).description()
     with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not as_json else _null():
         result = evaluate_policy(description, policy, schedule_text, seconds, weights)
     summary = result.summary()

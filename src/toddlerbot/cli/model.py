@@ -4,70 +4,68 @@ from __future__ import annotations
 
 from dataclasses import asdict
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.options import output_file
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions, SpecOption, VariantOption, output_file
 from toddlerbot.cli.output import console
 from toddlerbot.files import atomic_write_text, json_text
-from toddlerbot.robot.description import variant_names
-
-SHAPES = ("visual", "collision")
+from toddlerbot.robot.builder import Base
 
 app = typer.Typer(help="Build and inspect the MuJoCo model generated from the robot spec.", no_args_is_help=True)
 
-SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
-VariantOption = Annotated[str, typer.Option("--variant", help=f"One of: {', '.join(variant_names())}.")]
-MotorParamsOption = Annotated[
-    list[Path] | None,
-    typer.Option("--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable); replaces that motor "
-                 "model's actuator parameters."),
-]
+BaseOption = Annotated[Base | None, typer.Option(
+    "--base", help="floating (a free joint) or fixed (the torso welded in place); default: the variant's, else "
+                   "floating.")]
 
 
-def _check_variant(variant: str) -> str:
-    if variant not in variant_names():
-        raise typer.BadParameter(f"{variant!r} is not one of {', '.join(variant_names())}", param_hint="--variant")
-    return variant
+def _load(robot: RobotOptions, base: Base | None):
+    """The description, the base to build on and how to name both in a message."""
+    description, variant_base = robot.load()
+    base = base or variant_base
+    return description, base, ", ".join(dict.fromkeys(n for n in (robot.variant, base) if n))
 
 
 @app.command()
 def build(
     output: Annotated[Path, typer.Option("-o", "--output", help="MJCF file to write.")],
-    variant: VariantOption = "floating",
+    variant: VariantOption = None,
+    base: BaseOption = None,
     scene: Annotated[bool, typer.Option("--scene", help="Add a floor, lights and cameras.")] = False,
     spec_path: SpecOption = None,
     motor_params: MotorParamsOption = None,
 ) -> None:
     """Write the MJCF of the robot (deterministic: same spec, same bytes)."""
-    from toddlerbot.robot.description import load_variant
-
     output_file(output, "--output")
-    description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
+    description, base, label = _load(RobotOptions.of(spec_path, variant, motor_params), base)
     mjspec = description.mjspec(base, scene)  # compiled: a model MuJoCo cannot compile is never written
     atomic_write_text(output, mjspec.to_xml())
-    console.print(f"wrote {output} ({description.spec.name}, {variant}{', scene' if scene else ''})")
+    console.print(f"wrote {output} ({description.spec.name}, {label}{', scene' if scene else ''})")
 
 
 @app.command()
 def info(
-    variant: VariantOption = "floating",
+    variant: VariantOption = None,
+    base: BaseOption = None,
     spec_path: SpecOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False,
     motor_params: MotorParamsOption = None,
 ) -> None:
     """Print counts, total mass, standing height and the motor table (tau_max from the fitted motors if given)."""
-    from toddlerbot.robot.description import load_variant
     from toddlerbot.robot.summary import summarize_model
 
-    description, base = load_variant(_check_variant(variant), spec_path, motor_params or [])
+    description, base, label = _load(RobotOptions.of(spec_path, variant, motor_params), base)
     summary = summarize_model(description, description.model(base, scene=False))
     if as_json:
         typer.echo(json_text(asdict(summary), indent=2))
         return
-    console.print(f"[bold]{summary.name}[/] ({variant})")
+    _print_summary(summary, label)
+
+
+def _print_summary(summary, label: str) -> None:
+    console.print(f"[bold]{summary.name}[/] ({label})")
     console.print(
         f"bodies {summary.bodies}  joints {summary.joints}  nq {summary.nq}  nv {summary.nv}  "
         f"actuators {summary.actuators}  equalities {summary.equalities}  tendons {summary.tendons}  "
@@ -85,10 +83,11 @@ def info(
 @app.command()
 def render(
     output: Annotated[Path, typer.Option("-o", "--output", help="PNG file to write.")],
-    variant: VariantOption = "floating",
+    variant: VariantOption = None,
+    base: BaseOption = None,
     camera: Annotated[list[str] | None, typer.Option(
         "--camera", help="Scene camera (repeatable; side by side): perspective, side, front, top.")] = None,
-    shapes: Annotated[str, typer.Option(
+    shapes: Annotated[Literal["visual", "collision"], typer.Option(
         "--shapes", help="visual (motor housings, printed shells: what a person sees) or collision (the "
         "primitives the physics and the head camera see).")] = "visual",
     width: Annotated[int, typer.Option("--width", min=16, max=1280, help="Pixels per camera view.")] = 480,
@@ -98,17 +97,14 @@ def render(
     """Render the robot standing at its home pose to a PNG (needs OSMesa or EGL, as `sim run --video`)."""
     import mujoco
 
-    from toddlerbot.robot.description import load_variant
     from toddlerbot.sim.render import render_views, write_png
 
-    if shapes not in SHAPES:
-        raise typer.BadParameter(f"{shapes!r} is not one of {', '.join(SHAPES)}", param_hint="--shapes")
     output_file(output, "--output")
-    description, base = load_variant(_check_variant(variant), spec_path, [])
+    description, base, label = _load(RobotOptions.of(spec_path, variant), base)
     model = description.model(base, scene=True)
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
     mujoco.mj_forward(model, data)
     image = render_views(model, data, camera or ["perspective", "front"], width, height, shapes == "visual")
     write_png(output, image)
-    console.print(f"wrote {output} ({variant}, {shapes} shapes, {image.shape[1]}x{image.shape[0]})")
+    console.print(f"wrote {output} ({label}, {shapes} shapes, {image.shape[1]}x{image.shape[0]})")

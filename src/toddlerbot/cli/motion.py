@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import output_file
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions, output_file
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 
@@ -27,9 +27,7 @@ def edit(
                                       "only (use SSH port forwarding from another one).")] = "127.0.0.1",
     out: Annotated[Path | None, typer.Option("--out", "-o", help="File Save writes (default: the opened file; "
                                              "a built-in motion needs a name, in the page or here).")] = None,
-    motor_params: Annotated[list[Path] | None, typer.Option(
-        "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): play with fitted motors.")]
-        = None,
+    motor_params: MotorParamsOption = None,
 ) -> None:
     """Serve the motion editor: the robot in 3D, joint sliders per limb, keyframes (add, delete, reorder,
     duration, mirror), play in MuJoCo with the actuator model (upright? CoM and support polygon), save as
@@ -40,33 +38,19 @@ def edit(
     except ImportError:
         raise ToddlerbotError("the motion editor needs viser: pip install -e '.[viz]'") from None
     from toddlerbot.motion_editor.app import check_save_path, open_editor
-    from toddlerbot.motion_editor.keyframes import Keyframes
-    from toddlerbot.policies.motions import (
-        MAX_MOTION_BYTES,
-        MotionError,
-        builtin_motions,
-        motion_path,
-        parse_motion,
-    )
-    from toddlerbot.robot.description import RobotDescription
-    from toddlerbot.yaml_input import read_yaml
+    from toddlerbot.motion_editor.opening import open_keyframes
 
-    description = RobotDescription.load(motor_params=motor_params or [])
-    save_to = out
-    if motion is None:
-        keyframes = Keyframes.new(description, name=out.stem if out else "motion")
-    else:
-        path = motion_path(motion)
-        raw = read_yaml(path, "motion file", MotionError, MAX_MOTION_BYTES)
-        parsed = parse_motion(raw, description, str(path))
-        keyframes = Keyframes.from_motion(parsed, description, text=str(raw.get("description", "")))
-        if save_to is None and motion not in builtin_motions():
-            save_to = path
+    description = RobotOptions.of(motor_params=motor_params).description()
+    keyframes, save_to = open_keyframes(motion, description, out)
     if out is not None:
         check_save_path(str(out))
         output_file(out, "--out")
     _check_host(host)
-    editor = open_editor(description, keyframes, save_to, host, port)
+    _serve(open_editor(description, keyframes, save_to, host, port), host, port)
+
+
+def _serve(editor, host: str, port: int) -> None:
+    """Say where the page is and serve it until Ctrl-C."""
     actual = editor.server.get_port()
     moved = f" (port {port} was busy)" if port not in (0, actual) else ""
     console.print(f"motion editor: http://{'localhost' if host in ('127.0.0.1', 'localhost') else host}:{actual}"

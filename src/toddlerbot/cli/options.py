@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -13,6 +15,50 @@ import typer
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies import policy_names
+from toddlerbot.robot.builder import Base
+from toddlerbot.robot.description import RobotDescription, load_variant, variant_names
+
+
+def _registered_variant(name: str | None) -> str | None:
+    """`name` if the variant registry knows it (plugins register names at run time, so no fixed choice list)."""
+    if name is not None and name not in variant_names():
+        raise typer.BadParameter(f"{name!r} is not one of {', '.join(variant_names())}", param_hint="--variant")
+    return name
+
+
+SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
+VariantOption = Annotated[str | None, typer.Option(
+    "--variant", callback=_registered_variant, autocompletion=variant_names,
+    help=f"Registered robot variant: {', '.join(variant_names())} (default: the spec as it is, floating base).")]
+MotorParamsOption = Annotated[list[Path] | None, typer.Option(
+    "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable, one per motor model): the fitted "
+                           "actuator parameters replace that motor model's.")]
+
+
+@dataclass(frozen=True)
+class RobotOptions:
+    """The robot a command works on, from ``--spec``, ``--variant`` and ``--motor-params``: every command spells
+    and reads them the same way, and builds one `RobotDescription` from them."""
+
+    spec: Path | None = None
+    variant: str | None = None
+    """A name of the variant registry (`robot.description.register_variant`), or None for the spec as it is."""
+    motor_params: tuple[Path, ...] = ()
+
+    @classmethod
+    def of(cls, spec: Path | None = None, variant: str | None = None,
+           motor_params: Sequence[Path] | None = None) -> RobotOptions:
+        """From the option values as typer passes them (an absent repeatable option is None)."""
+        return cls(spec, variant, tuple(motor_params or ()))
+
+    def load(self) -> tuple[RobotDescription, Base]:
+        """The description and the base its variant builds on (floating without a variant)."""
+        if self.variant is None:
+            return RobotDescription.load(self.spec, motor_params=self.motor_params), "floating"
+        return load_variant(self.variant, self.spec, self.motor_params)
+
+    def description(self) -> RobotDescription:
+        return self.load()[0]
 
 MAX_RUN_SECONDS = 3600.0
 """Longest run a command accepts, s: an hour (the battery's run time; a simulated hour logs about 180,000 steps)."""

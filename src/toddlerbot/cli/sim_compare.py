@@ -8,29 +8,27 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.options import output_dir
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions, output_dir
 from toddlerbot.cli.output import console
 from toddlerbot.files import json_text
 
 
 def compare_command(
     log: Annotated[Path, typer.Argument(help="Run log (.npz) from `toddlerbot hw run --log` or `sim run --log`.")],
-    motor_params: Annotated[list[Path] | None, typer.Option(
-        "--motor-params", help="params.json from `sysid fit` (repeatable): simulate the fitted motors.")] = None,
+    motor_params: MotorParamsOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False,
     plot: Annotated[Path | None, typer.Option("--plot", help="Folder for the logged-vs-simulated plot.")] = None,
     top: Annotated[int, typer.Option("--top", min=1, help="Motors listed (and plotted), largest error first.")] = 10,
 ) -> None:
     """Replay the log's motor targets and gains from its first state in the simulator; report position and
     velocity errors per motor and overall, and Table 7 tracking errors of both for a walking run."""
-    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.log import RunLog
     from toddlerbot.runtime.sim_compare import plot_comparison, replay_in_sim
 
     if plot is not None:
         output_dir(plot, "--plot")
     run = RunLog.load(log)
-    result = replay_in_sim(run, RobotDescription.load(motor_params=motor_params or []))
+    result = replay_in_sim(run, RobotOptions.of(motor_params=motor_params).description())
     written = plot_comparison(result, plot, top=min(top, 6)) if plot is not None else []
     if as_json:
         typer.echo(json_text(result.to_json(), indent=2))

@@ -55,3 +55,8 @@ def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path) 
 def training_curve(history: list[dict], path: Path, warm: list[dict] | None = None) -> Path:
     """One run's learning curves (`learning_curves`)."""
     return learning_curves({"this run": (warm or [], history)}, path)
+
+
+def write_run_curve(run_dir: Path, history: list[dict]) -> Path:
+    """``RUN/training_curve.png``: `history` (PPO epochs) after the run's DAgger warm start, if it has one."""
+    return training_curve(history, run_dir / "training_curve.png", warm=run_records(run_dir)[0])

@@ -1,0 +1,133 @@
+"""From `rl train` options to what `rl.train.train` runs: a resumed run as it started, or a new run's recipe (by
+physics backend, or another run's warm start) with the options' overrides, every option checked before anything
+compiles. Importing it starts no JAX (`is_smoke_run` is asked before the XLA flags are set)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.files import atomic_write_text
+from toddlerbot.rl import config
+
+if TYPE_CHECKING:
+    from toddlerbot.rl.train import WarmStartSource
+
+SMOKE_MARKER = "smoke"
+"""File in a `--smoke` run: a resumed smoke run sets the smoke XLA flags again."""
+
+
+@dataclass(frozen=True)
+class TrainRequest:
+    """The `rl train` options that choose the configuration (None: the recipe's value)."""
+
+    smoke: bool = False
+    timesteps: int | None = None
+    num_envs: int | None = None
+    seed: int = 0
+    solver_iterations: int | None = None
+    ls_iterations: int | None = None
+    backend: str = "auto"
+    imitation_iterations: int | None = None
+    motor_params: tuple[Path, ...] = ()
+    warm_start: Path | None = None
+
+
+@dataclass(frozen=True)
+class TrainPlan:
+    """Arguments of `rl.train.train` (configurations None: a resumed run reads its own)."""
+
+    run_dir: Path
+    resume: bool
+    env: config.EnvConfig | None = None
+    ppo: config.PPOConfig | None = None
+    imitation: config.ImitationConfig | None = None
+
+
+def is_smoke_run(run_dir: Path) -> bool:
+    return (run_dir / SMOKE_MARKER).is_file()
+
+
+def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
+    """Continue the run in `run_dir`; options that would change its configuration are refused."""
+    if not (run_dir / "config.json").is_file():
+        raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
+    if request.motor_params or request.solver_iterations is not None or request.ls_iterations is not None \
+            or request.backend != "auto" or request.imitation_iterations is not None or request.warm_start is not None:
+        raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/"
+                              "--imitation-iterations/--warm-start: a resumed run keeps the settings it started with")
+    return TrainPlan(run_dir, resume=True)
+
+
+def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
+    """A new run in `run_dir`: the recipe of the resolved backend (CPU recipe, one-GPU configuration or smoke), or
+    the `--warm-start` run's environment, networks and warm start (copied into `run_dir`), then the overrides."""
+    from toddlerbot.rl.env import resolve_backend
+    from toddlerbot.rl.train import adopt_warm_start
+
+    backend = resolve_backend(request.backend)
+    source = _warm_start_source(request)
+    env_cfg = _environment(source.env if source else config.smoke_env_config() if request.smoke
+                           else config.EnvConfig(), backend, request)
+    ppo_cfg, imitation_cfg = _recipe(backend, request)
+    if source:
+        ppo_cfg, imitation_cfg = source.policy_of(ppo_cfg), source.imitation
+    if request.imitation_iterations is not None:
+        imitation_cfg = replace(imitation_cfg, iterations=request.imitation_iterations)
+    ppo_cfg = _ppo_overrides(ppo_cfg, request)
+    if source:
+        adopt_warm_start(source.run_dir, run_dir)
+    if request.smoke:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(run_dir / SMOKE_MARKER, "this run uses the --smoke configuration\n")
+    return TrainPlan(run_dir, False, env_cfg, ppo_cfg, imitation_cfg)
+
+
+def _warm_start_source(request: TrainRequest) -> WarmStartSource | None:
+    from toddlerbot.rl.train import warm_start_source
+
+    if request.warm_start is None:
+        return None
+    if request.motor_params or request.imitation_iterations is not None:
+        raise ToddlerbotError("--warm-start: the source run's warm start fixes its --motor-params and "
+                              "--imitation-iterations")
+    return warm_start_source(request.warm_start)
+
+
+def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest) -> config.EnvConfig:
+    try:
+        env_cfg = replace(
+            env_cfg, backend=backend,
+            solver_iterations=env_cfg.solver_iterations if request.solver_iterations is None
+            else request.solver_iterations,
+            solver_ls_iterations=env_cfg.solver_ls_iterations if request.ls_iterations is None
+            else request.ls_iterations)
+    except ValueError as exc:
+        raise ToddlerbotError(f"--solver-iterations/--ls-iterations: {exc}") from exc
+    if not request.motor_params:
+        return env_cfg
+    from toddlerbot.actuation.params_file import catalogue_with_params
+
+    catalogue_with_params(request.motor_params)  # bad files fail here, before anything compiles
+    return replace(env_cfg, motor_params=tuple(str(p) for p in request.motor_params))
+
+
+def _recipe(backend: str, request: TrainRequest) -> tuple[config.PPOConfig, config.ImitationConfig]:
+    cpu = backend == "cpu"
+    ppo_cfg = config.SMOKE if request.smoke else config.CPU if cpu else config.FULL
+    imitation_cfg = config.SMOKE_IMITATION if request.smoke else config.CPU_IMITATION if cpu \
+        else config.ImitationConfig()
+    return replace(ppo_cfg, seed=request.seed), imitation_cfg
+
+
+def _ppo_overrides(ppo_cfg: config.PPOConfig, request: TrainRequest) -> config.PPOConfig:
+    try:
+        if request.timesteps is not None:
+            ppo_cfg = replace(ppo_cfg, num_timesteps=request.timesteps)
+        if request.num_envs is not None:
+            ppo_cfg = config.with_num_envs(ppo_cfg, request.num_envs)
+    except ValueError as exc:
+        raise ToddlerbotError(f"--num-envs/--timesteps: {exc}") from exc
+    return ppo_cfg
