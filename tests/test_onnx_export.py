@@ -210,7 +210,7 @@ def test_cli_export_from_npz_and_bad_format(tmp_path, monkeypatch, capsys):
     assert figures[0] <= TOL and figures[1] == 256  # difference on 256 random observations
     code, _, err = _cli(monkeypatch, capsys, "rl", "export", DEFAULT_WEIGHTS, "--format", "tflite", "--out",
                         tmp_path / "x.tflite")
-    assert code == 2 and err.count("\n") == 1 and "--format 'tflite': expected one of npz, onnx" in err
+    assert code == 2 and err.count("\n") == 1 and "'--format': Value error, 'tflite' is not one of 'npz', 'onnx'" in err
     assert not (tmp_path / "x.tflite").exists()
 
 
@@ -340,7 +340,7 @@ def test_dp_export_cli_formats(tmp_path, monkeypatch, capsys):
     assert len(differences) == 2 and max(differences) <= TOL
     code, _, err = _cli(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "tflite", "--out",
                         tmp_path / "x")
-    assert code == 2 and err.count("\n") == 1 and "--format 'tflite': expected one of pt, onnx" in err
+    assert code == 2 and err.count("\n") == 1 and "'--format': Value error, 'tflite' is not one of 'pt', 'onnx'" in err
 
 
 def _with_dtype(index: str, name: str, dtype: str) -> str:

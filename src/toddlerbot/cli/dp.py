@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 
@@ -19,34 +19,41 @@ from toddlerbot.cli.options import (
 )
 from toddlerbot.cli.output import console
 from toddlerbot.dp import require_torch
+from toddlerbot.dp.config import PRESETS
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 
 app = typer.Typer(help="Diffusion policy from demonstrations (needs the \\[dp] extra: torch==2.13.0).",
                   no_args_is_help=True)
 
-PRESET_NAMES = ("small", "tiny", "appendix")
 MAX_EPISODE_SECONDS = 600.0
 """Longest simulated evaluation episode, s (a pick takes about 6 s)."""
+
+DatasetArgument = Annotated[Path, typer.Argument(help="LeRobot v3.0 dataset directory (toddlerbot manip demo -o DIR) "
+                                                      "or its decoded .npz (toddlerbot manip dataset decode).")]
+RunOutOption = Annotated[Path, typer.Option("--out", "-o", help="Run directory (checkpoint.pt, loss_curve.png, ...).")]
+MinutesOption = Annotated[float | None, typer.Option(help="Stop after this wall time (resume later with --resume).")]
+StepsOption = Annotated[int | None, typer.Option(help="Stop at this total optimiser step count.")]
+ResumeOption = Annotated[bool, typer.Option(help="Continue the run in --out from its checkpoint.")]
+ConfigOption = Annotated[Literal[tuple(PRESETS)], typer.Option(help="Configuration preset.")]
+ImagenetOption = Annotated[Path | None, typer.Option(help="Local torchvision ResNet-18 state dict (ImageNet) to start "
+                                                          "the appendix config's encoder from.")]
+CheckpointEveryOption = Annotated[int, typer.Option(min=1, help="Save checkpoint.pt every this many steps (and at "
+                                                                "the end).")]
 
 
 @app.command()
 def train(
-    dataset: Annotated[Path, typer.Argument(help="LeRobot v3.0 dataset directory (toddlerbot manip demo -o DIR) or "
-                                                 "its decoded .npz (toddlerbot manip dataset decode).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Run directory (checkpoint.pt, loss_curve.png, ...).")],
-    minutes: Annotated[float | None, typer.Option(help="Stop after this wall time (resume later with --resume).")]
-    = None,
-    steps: Annotated[int | None, typer.Option(help="Stop at this total optimiser step count.")] = None,
-    resume: Annotated[bool, typer.Option(help="Continue the run in --out from its checkpoint.")] = False,
-    config: Annotated[str, typer.Option(help=f"Configuration preset: {', '.join(PRESET_NAMES)}.")] = "small",
-    imagenet_weights: Annotated[Path | None, typer.Option(help="Local torchvision ResNet-18 state dict (ImageNet) "
-                                                                "to start the appendix config's encoder from.")]
-    = None,
+    dataset: DatasetArgument,
+    out: RunOutOption,
+    minutes: MinutesOption = None,
+    steps: StepsOption = None,
+    resume: ResumeOption = False,
+    config: ConfigOption = "small",
+    imagenet_weights: ImagenetOption = None,
     threads: Annotated[int, typer.Option(min=1, help="CPU threads for torch.")] = 2,
     device: Annotated[str, typer.Option(help="Torch device to train on: cpu, cuda, cuda:1, ...")] = "cpu",
-    checkpoint_every: Annotated[int, typer.Option(min=1, help="Save checkpoint.pt every this many steps (and at "
-                                                               "the end).")] = 500,
+    checkpoint_every: CheckpointEveryOption = 500,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -55,30 +62,17 @@ def train(
     TensorBoard scalars (OUT/tensorboard; --wandb: also Weights & Biases)."""
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before any work
     require_torch()
-    import torch
+    from toddlerbot.dp.train import TrainSchedule, train_on_dataset
 
-    from toddlerbot.dp.config import PRESETS
-    from toddlerbot.dp.data import open_window_dataset
-    from toddlerbot.dp.train import TrainSchedule
-    from toddlerbot.dp.train import train as run_training
-
-    if config not in PRESETS:
-        raise ToddlerbotError(f"--config {config!r}: expected one of {', '.join(PRESET_NAMES)}")
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
     training_budget(minutes, steps)
     output_dir(out, "--out")
-    preset = PRESETS[config]
-    previous_threads = torch.get_num_threads()
-    torch.set_num_threads(threads)
-    try:
-        windows = open_window_dataset(dataset, preset.n_obs_steps, preset.horizon)
-        console.print(f"dataset {dataset}: {len(windows)} windows; run directory {out}")
-        result = run_training(windows, preset, out, minutes=minutes, resume=resume,
-                              schedule=TrainSchedule(max_steps=steps, checkpoint_every=checkpoint_every),
-                              imagenet_weights=imagenet_weights, device=device, dashboards=sinks)
-    finally:
-        torch.set_num_threads(previous_threads)  # in-process callers (tests, notebooks) keep their setting
+    result = train_on_dataset(
+        dataset, PRESETS[config], out, threads,
+        on_open=lambda windows: console.print(f"dataset {dataset}: {windows} windows; run directory {out}"),
+        minutes=minutes, resume=resume, schedule=TrainSchedule(max_steps=steps, checkpoint_every=checkpoint_every),
+        imagenet_weights=imagenet_weights, device=device, dashboards=sinks)
     last = result.history[-1] if result.history else {}
     val = last.get("val_loss")
     console.print(f"step {result.step}: train loss {last.get('train_loss', float('nan')):.4f}, validation loss "
@@ -113,16 +107,12 @@ def export(
     checkpoint: Annotated[Path, typer.Argument(help="A checkpoint written by dp train (RUN/checkpoint.pt).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="pt: the policy file to write (config and EMA weights "
                                                           "only); onnx: a folder for the two graphs.")],
-    export_format: Annotated[str, typer.Option("--format", help="pt (torch, for dp eval / sim run) or onnx "
-                                                                 "(observation encoder and noise U-Net, checked "
-                                                                 "against torch).")] = "pt",
+    export_format: Annotated[Literal["pt", "onnx"], typer.Option(  # dp.onnx_export.FORMATS, which imports torch
+        "--format", help="pt (torch, for dp eval / sim run) or onnx (observation encoder and noise U-Net, checked "
+                         "against torch).")] = "pt",
 ) -> None:
     """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy; or, with --format
     onnx, its per-inference networks as ONNX graphs (observation_encoder.onnx, noise_unet.onnx)."""
-    from toddlerbot.dp.onnx_export import FORMATS
-
-    if export_format not in FORMATS:
-        raise ToddlerbotError(f"--format {export_format!r}: expected one of {', '.join(FORMATS)}")
     require_torch()
     if export_format == "onnx":
         from toddlerbot.dp.onnx_export import export_onnx
@@ -142,28 +132,32 @@ def export(
                   f"{checkpoint.stat().st_size / 1e6:.1f} MB)")
 
 
+TaskOption = Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s) or wagon "
+                                         "(grasp the wagon handle with both hands).")]
+EvalCheckpointOption = Annotated[Path | None, typer.Option(help="Checkpoint to run (default: the one shipped for the "
+                                                                "task, if any).")]
+EpisodesOption = Annotated[int, typer.Option(min=1, max=10_000, help="Episodes (seeds --seed, --seed+1, ...).")]
+SecondsOption = Annotated[float | None, typer.Option(min=0.1, help="Simulated time limit per episode, s (at most "
+                                                     "600; default: the task's, pick 8, wagon 6 as the chain's grasp "
+                                                     "timeout).")]
+VideoOption = Annotated[Path | None, typer.Option(help="MP4 of all episodes: scene camera and head camera, 10 fps.")]
+
+
 @app.command("eval")
 def evaluate(
-    task: Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s) or wagon "
-                                      "(grasp the wagon handle with both hands).")] = "pick",
-    checkpoint: Annotated[Path | None, typer.Option(help="Checkpoint to run (default: the one shipped for the "
-                                                         "task, if any).")] = None,
-    episodes: Annotated[int, typer.Option(min=1, max=10_000, help="Episodes (seeds --seed, --seed+1, ...).")] = 50,
+    task: TaskOption = "pick",
+    checkpoint: EvalCheckpointOption = None,
+    episodes: EpisodesOption = 50,
     seed: Annotated[int, typer.Option(help="First scene seed (use seeds the demonstrations did not).")] = 1000,
-    seconds: Annotated[float | None, typer.Option(min=0.1, help="Simulated time limit per episode, s (at most "
-                                                  "600; default: the task's, pick 8, wagon 6 as the chain's grasp "
-                                                  "timeout).")] = None,
+    seconds: SecondsOption = None,
     json_output: Annotated[bool, typer.Option("--json", help="Print JSON: success_rate, episodes, inference_ms.")]
     = False,
-    video: Annotated[Path | None, typer.Option(help="MP4 of all episodes: scene camera and head camera, 10 fps.")]
-    = None,
+    video: VideoOption = None,
     threads: Annotated[int, typer.Option(min=1, help="CPU threads for torch.")] = 1,
     device: Annotated[str, typer.Option(help="Torch device for the network: cpu, cuda, ...")] = "cpu",
 ) -> None:
     """Run a checkpoint closed-loop on a simulated task (50 Hz control, 10 Hz observations) and report success."""
-    require_torch()
-
-    import torch
+    require_torch(threads)
     from rich.progress import Progress
 
     from toddlerbot.dp.evaluate import evaluate as run_evaluation
@@ -177,7 +171,6 @@ def evaluate(
     if video is not None:
         output_file(video, "--video")
     checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task)
-    torch.set_num_threads(threads)
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{task} episodes", total=episodes)
         result = run_evaluation(checkpoint, episodes, seed, seconds, task, video_path=video,

@@ -26,16 +26,22 @@ def _check_task(task: str) -> None:
         raise ToddlerbotError(f"unknown task {task!r}; expected one of {', '.join(TASKS.names())}")
 
 
+TaskOption = Annotated[str, typer.Option("--task", help=TASK_HELP)]
+DatasetOutOption = Annotated[Path, typer.Option("-o", "--out", help="Dataset directory to write (LeRobot v3.0 + "
+                                                                     "raw/).")]
+EpisodesOption = Annotated[int, typer.Option("--episodes", min=1, max=10_000, help="Successful episodes to record.")]
+VideoOption = Annotated[Path | None, typer.Option("--video", help="MP4: scene camera and head camera side by side.")]
+SnapshotOption = Annotated[Path | None, typer.Option("--snapshot", help="PNG of one video frame (needs --video).")]
+
+
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option("-o", "--out", help="Dataset directory to write (LeRobot v3.0 + raw/).")],
-    task: Annotated[str, typer.Option("--task", help=TASK_HELP)] = "pick",
-    episodes: Annotated[int, typer.Option("--episodes", min=1, max=10_000, help="Successful episodes to record.")] = 10,
+    out: DatasetOutOption,
+    task: TaskOption = "pick",
+    episodes: EpisodesOption = 10,
     seed: Annotated[int, typer.Option("--seed", help="First scene seed (then seed+1, ...).")] = 0,
-    video: Annotated[Path | None, typer.Option("--video", help="MP4: scene camera and head camera side by side.")]
-        = None,
-    snapshot: Annotated[Path | None, typer.Option("--snapshot", help="PNG of one video frame (needs --video).")]
-        = None,
+    video: VideoOption = None,
+    snapshot: SnapshotOption = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
 ) -> None:
     """Record scripted demonstrations of a task (50 Hz raw episodes, 10 Hz LeRobot v3.0 dataset)."""
@@ -44,14 +50,7 @@ def demo(
     from toddlerbot.tasks.record import record_demos
 
     _check_task(task)
-    if snapshot is not None and video is None:
-        raise ToddlerbotError("--snapshot takes a frame of the video: give --video too")
-    if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise ToddlerbotError(f"{out} exists and is not empty; pass --overwrite to replace it")
-    output_dir(out, "--out")
-    for option, path in (("--video", video), ("--snapshot", snapshot)):
-        if path is not None:
-            output_file(path, option)
+    _check_demo_outputs(out, video, snapshot, overwrite)
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"recording {task} demonstrations", total=episodes)
 
@@ -73,34 +72,37 @@ def demo(
             console.print(f"wrote {path}")
 
 
+def _check_demo_outputs(out: Path, video: Path | None, snapshot: Path | None, overwrite: bool) -> None:
+    """Every file `manip demo` writes is shown writable before the first episode runs."""
+    if snapshot is not None and video is None:
+        raise ToddlerbotError("--snapshot takes a frame of the video: give --video too")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise ToddlerbotError(f"{out} exists and is not empty; pass --overwrite to replace it")
+    output_dir(out, "--out")
+    for option, path in (("--video", video), ("--snapshot", snapshot)):
+        if path is not None:
+            output_file(path, option)
+
+
 @app.command("demo-rate")
 def demo_rate(
-    task: Annotated[str, typer.Option("--task", help=TASK_HELP)] = "pick",
+    task: TaskOption = "pick",
     episodes: Annotated[int, typer.Option("--episodes", min=1, max=10_000, help="Seeds to try.")] = 50,
     seed: Annotated[int, typer.Option("--seed", help="First seed.")] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
     """Success rate of the scripted demonstrator over consecutive seeds (no rendering)."""
-    import time
-
     from rich.progress import Progress
 
-    from toddlerbot.tasks import make_task
-    from toddlerbot.tasks.record import DEMONSTRATORS, run_demo
+    from toddlerbot.tasks.record import demo_success_rate
 
     _check_task(task)
-    sim_task = make_task(task)
-    demonstrator = DEMONSTRATORS[task](sim_task)
-    failed: list[int] = []
-    started = time.perf_counter()
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{task} demonstrations", total=episodes)
-        for s in range(seed, seed + episodes):
-            if not run_demo(sim_task, demonstrator, s, render=False).success:
-                failed.append(s)
-            progress.advance(bar)
-    result = {"task": task, "episodes": episodes, "success_rate": 1 - len(failed) / episodes,
-              "failed_seeds": failed, "seconds_per_episode": (time.perf_counter() - started) / episodes}
+        report = demo_success_rate(task, episodes, seed, on_episode=lambda *_: progress.advance(bar))
+    failed = report.failed_seeds
+    result = {"task": task, "episodes": episodes, "success_rate": report.success_rate, "failed_seeds": failed,
+              "seconds_per_episode": report.seconds_per_episode}
     if as_json:
         print(json_text(result))
     else:
@@ -162,13 +164,7 @@ def view(
     """Show a dataset in Rerun (extra `viz`): head-camera video, follower state and leader action per joint over
     time, episode boundaries and success. A native viewer opens where a display exists; elsewhere (over SSH) the
     web viewer is served until Ctrl-C."""
-    import time
-    from urllib.parse import quote
-
-    try:
-        import rerun as rr
-    except ImportError:
-        raise ToddlerbotError("the dataset viewer needs rerun-sdk: pip install -e '.[viz]'") from None
+    _require_rerun()
     from toddlerbot.datasets.lerobot_reader import load_dataset
     from toddlerbot.datasets.view import choose_episodes, log_dataset, recording_for
     from toddlerbot.sim.render import has_display
@@ -180,34 +176,59 @@ def view(
     dataset = load_dataset(root)
     episodes = choose_episodes(dataset, episode)
     recording = recording_for(dataset)
-    if save is not None:
-        recording.save(save)
-    elif web or not has_display():
-        _check_free(port, port + 1)
-        uri = recording.serve_grpc(grpc_port=port + 1)
-        rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=uri)
-    else:
-        recording.spawn()
-    sent = log_dataset(dataset, episodes, recording)
-    said = ", ".join(f"{e}: {'-' if s is None else 'yes' if s else 'no'}" for e, s in sent["success"].items())
-    summary = (f"{root}: {len(episodes)} episode(s), {sent['frames']} frames ({sent['seconds']:.1f} s); "
-               f"success {said}")
+    serve_web = save is None and (web or not has_display())
+    uri = _open_viewer(recording, save, serve_web, port)
+    summary = _sent_summary(root, episodes, log_dataset(dataset, episodes, recording))
     if save is not None:
         recording.flush()
         recording.disconnect()
         console.print(f"{summary}\nwrote {save} ({save.stat().st_size / 1e6:.2f} MB)", highlight=False)
-        return
-    if web or not has_display():
-        console.print(f"{summary}\nRerun web viewer: http://localhost:{port}/?url={quote(uri, safe='')}\n"
-                      f"over SSH: ssh -L {port}:localhost:{port} -L {port + 1}:localhost:{port + 1} ROBOT; "
-                      "Ctrl-C stops it", highlight=False, soft_wrap=True)
-        try:
-            while True:
-                time.sleep(1.0)
-        except KeyboardInterrupt:
-            console.print("viewer stopped")
+    elif serve_web:
+        _serve_web_until_interrupted(summary, uri, port)
     else:
         console.print(summary, highlight=False)
+
+
+def _require_rerun() -> None:
+    try:
+        import rerun  # noqa: F401
+    except ImportError:
+        raise ToddlerbotError("the dataset viewer needs rerun-sdk: pip install -e '.[viz]'") from None
+
+
+def _sent_summary(root: Path, episodes: list, sent: dict) -> str:
+    said = ", ".join(f"{e}: {'-' if s is None else 'yes' if s else 'no'}" for e, s in sent["success"].items())
+    return f"{root}: {len(episodes)} episode(s), {sent['frames']} frames ({sent['seconds']:.1f} s); success {said}"
+
+
+def _open_viewer(recording, save: Path | None, serve_web: bool, port: int) -> str | None:
+    """Where the recording goes: a file, the web viewer on `port` (its gRPC URI returned) or a native viewer."""
+    import rerun as rr
+
+    if save is not None:
+        recording.save(save)
+        return None
+    if not serve_web:
+        recording.spawn()
+        return None
+    _check_free(port, port + 1)
+    uri = recording.serve_grpc(grpc_port=port + 1)
+    rr.serve_web_viewer(web_port=port, open_browser=False, connect_to=uri)
+    return uri
+
+
+def _serve_web_until_interrupted(summary: str, uri: str, port: int) -> None:
+    import time
+    from urllib.parse import quote
+
+    console.print(f"{summary}\nRerun web viewer: http://localhost:{port}/?url={quote(uri, safe='')}\n"
+                  f"over SSH: ssh -L {port}:localhost:{port} -L {port + 1}:localhost:{port + 1} ROBOT; "
+                  "Ctrl-C stops it", highlight=False, soft_wrap=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        console.print("viewer stopped")
 
 
 def _check_free(*ports: int) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -15,15 +15,16 @@ from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
-from toddlerbot.cli.sysid_record import record_command
+from toddlerbot.cli.sysid_record import Profile, profile_names, record_command
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
-from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, PROFILES, excitation_set
+from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, excitation_set
 from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
+from toddlerbot.sysid.fit_run import fit_provenance, params_for
 from toddlerbot.sysid.logs import read_columns
 from toddlerbot.sysid.manifest import Manifest, load_manifest, select_gains
-from toddlerbot.sysid.params import DEFAULT_MODEL, SEARCH, SEARCHED_AS, parameter_names, save_params
+from toddlerbot.sysid.params import DEFAULT_MODEL, FIT_MODELS, SEARCH, SEARCHED_AS, save_params
 from toddlerbot.sysid.rigs import parse_rig
 from toddlerbot.sysid.synthetic import synthesize, write_runs
 from toddlerbot.sysid.testbed import armature_from_spindown, fit_friction
@@ -46,55 +47,51 @@ def _runs(manifest: Path, kp: list[float] | None) -> Manifest:
     return select_gains(m, kp) if kp else m
 
 
+FitModelOption = Annotated[Literal[tuple(FIT_MODELS)], typer.Option(
+    "--model", help="dc_motor (PWM duty, stall torque, back-EMF, load-dependent friction: the one that holds across "
+                    "gains on real servos), appendix (the 9 parameters of section 8.9) or extended (plus stiction, "
+                    "Stribeck velocity and load-dependent friction).")]
+FitKpScaleOption = Annotated[bool, typer.Option(
+    "--fit-kp-scale", help="Also fit the firmware-to-physical gain conversion (dc_motor: pwm_per_rad; appendix, "
+                           "extended: kp_scale).")]
+EvalsOption = Annotated[int, typer.Option("--evals", min=4, help="Candidate evaluations (all restarts).")]
+PopsizeOption = Annotated[int, typer.Option("--popsize", min=4, help="Candidates per generation of the first CMA-ES "
+                                                                     "run (doubled at each IPOP restart).")]
+StartOption = Annotated[Path | None, typer.Option("--start", help="params.json to start from (default: catalogue).")]
+
+
 @app.command("fit")
 def fit_command(
     manifest: ManifestArg,
     output: Annotated[Path, typer.Option("-o", "--output", help="params.json to write.")],
-    fit_kp_scale: Annotated[bool, typer.Option(
-        "--fit-kp-scale", help="Also fit the firmware-to-physical gain conversion (dc_motor: pwm_per_rad; appendix, "
-                               "extended: kp_scale).")] = False,
-    model: Annotated[str, typer.Option("--model", help="dc_motor (PWM duty, stall torque, back-EMF, load-dependent "
-                                       "friction: the one that holds across gains on real servos), appendix (the "
-                                       "9 parameters of section 8.9) or extended (plus stiction, Stribeck velocity "
-                                       "and load-dependent friction).")] = DEFAULT_MODEL,
+    fit_kp_scale: FitKpScaleOption = False,
+    model: FitModelOption = DEFAULT_MODEL,
     kp: GainsOption = None,
     seed: Annotated[int, typer.Option("--seed", min=1, help="CMA-ES seed (>= 1); same seed, same result.")] = 1,
-    evals: Annotated[int, typer.Option("--evals", min=4, help="Candidate evaluations (all restarts).")]
-    = DEFAULT_EVALS,
-    popsize: Annotated[int, typer.Option("--popsize", min=4, help="Candidates per generation of the first CMA-ES "
-                                                                  "run (doubled at each IPOP restart).")] = 32,
+    evals: EvalsOption = DEFAULT_EVALS,
+    popsize: PopsizeOption = 32,
     restarts: Annotated[int, typer.Option("--restarts", min=0, help="Most IPOP restarts on stagnation.")] = 4,
-    start: Annotated[Path | None, typer.Option("--start", help="params.json to start from (default: catalogue).")]
-    = None,
+    start: StartOption = None,
 ) -> None:
     """Fit an actuator model to the manifest's runs; prints each parameter's standard error, the parameters left
     at a bound and the ones kept fixed (with the reason)."""
-    parameter_names(fit_kp_scale, model)  # an unknown --model fails before any work
-    output_file(output, "--output")  # and an unwritable -o: not after minutes of fitting
+    output_file(output, "--output")  # an unwritable -o fails now, not after minutes of fitting
     m = _runs(manifest, kp)
-    start_params = None
-    if start is not None:
-        name, start_params = load_params(start)
-        if name != m.motor.name:
-            raise SysIDError(f"{start}: parameters are for {name}, but {manifest} is a {m.motor.name}")
+    start_params = None if start is None else params_for(start, m, manifest)
     with Progress(TextColumn("fitting"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"),
                   TimeElapsedColumn(), console=console, transient=True) as bar:
         task = bar.add_task("", total=evals)
         result = run_fit(m, fit_kp_scale=fit_kp_scale, model=model, seed=seed, evals=evals, popsize=popsize,
                          restarts=restarts, start=start_params,
                          progress=lambda n, rmse: bar.update(task, completed=n, description=f"RMSE {rmse:.3f} deg"))
-    provenance = {
-        "manifest": str(manifest), "runs": len(m.runs), "kp": sorted({r.kp for r in m.runs}), "rig": m.rig.type,
-        "seed": seed, "evals": result.evals, "generations": result.generations, "restarts": result.restarts,
-        "rmse_deg": result.rmse_deg, "wall_s": round(result.wall_s, 2), "model": model, "at_bounds": result.at_bounds,
-        "uncertainty": {name: {"std": u.std, "relative": u.relative,
-                               "strongest_correlation": list(u.strongest_correlation)}
-                        for name, u in result.uncertainty.items()},
-        "fixed": result.fixed,
-    }
-    save_params(output, m.motor.name, result.params, result.fitted, provenance)
+    save_params(output, m.motor.name, result.params, result.fitted, fit_provenance(m, manifest, model, seed, result))
     console.print(f"wrote {output}: {m.motor.name} ({model}), RMSE {result.rmse_deg:.3f} deg over {len(m.runs)} runs "
                   f"({result.evals} evaluations, {result.wall_s:.1f} s)")
+    _print_fit(result)
+
+
+def _print_fit(result) -> None:
+    """The fitted parameters with their uncertainty, then those at a search bound and those kept fixed."""
     table = Table(title="fitted parameters (standard error: linearised, residual autocorrelation counted)")
     for col in ("parameter", "value", "std error", "relative", "most correlated with"):
         table.add_column(col, justify="left" if col in ("parameter", "most correlated with") else "right")
@@ -123,15 +120,13 @@ def eval_command(
 ) -> None:
     """Tracking MAE/RMSE (degrees) of a parameter set per run and overall."""
     m = _runs(manifest, kp)
-    name, p = load_params(params)
-    if name != m.motor.name:
-        raise SysIDError(f"{params}: parameters are for {name}, but {manifest} is a {m.motor.name}")
+    p = params_for(params, m, manifest)
     ev = evaluate(m, p)
     written = plot_tracking(m, ev, plot) if plot is not None else []
     if as_json:
         typer.echo(json.dumps(ev.to_json(), indent=2))
         return
-    table = Table(title=f"{name} ({p.model}) on {m.rig.type}: tracking error")
+    table = Table(title=f"{m.motor.name} ({p.model}) on {m.rig.type}: tracking error")
     for col in ("run", "kp", "MAE (deg)", "RMSE (deg)"):
         table.add_column(col, justify="left" if col == "run" else "right")
     for r in ev.runs:
@@ -148,8 +143,7 @@ def excite(
     motor: Annotated[str, typer.Option("--motor", help="Catalogue name or alias.")] = "XC330",
     rig: Annotated[str, typer.Option("--rig", help="Rig as JSON, as in a manifest.")]
     = '{"type": "pendulum", "mass": 0.49, "length": 0.1}',
-    profile: Annotated[list[str] | None, typer.Option("--profile", help=f"Repeatable; {', '.join(PROFILES)}.")]
-    = None,
+    profile: Annotated[list[Profile] | None, typer.Option("--profile", help="Repeatable.")] = None,
     kp: Annotated[list[int] | None, typer.Option("--kp", help="Firmware kp values to cycle (repeatable).")] = None,
     duration: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
     rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = 200.0,
@@ -164,11 +158,8 @@ def excite(
     """Write excitation profiles (one CSV per profile x kp) and a manifest; --simulate fills in positions."""
     model = default_catalogue()[motor]
     rig_obj = parse_rig(_json_arg(rig, "--rig"), "--rig")
-    for name in profile or []:
-        if name not in PROFILES:
-            raise SysIDError(f"--profile: unknown profile {name!r}; expected one of {', '.join(PROFILES)}")
-    runs_ex = excitation_set(tuple(profile or DEFAULT_PROFILES), tuple(kp or DEFAULT_KP), duration, rate, amplitude,
-                             center)
+    runs_ex = excitation_set(profile_names(profile, DEFAULT_PROFILES), tuple(kp or DEFAULT_KP), duration, rate,
+                             amplitude, center)
     p = load_params(params)[1] if params is not None else model.actuator
     import numpy as np
 

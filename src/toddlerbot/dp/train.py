@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -224,3 +225,21 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     if state.history:
         plot_loss_curve(state.history, run_dir / "loss_curve.png")
     return TrainResult(run_dir, checkpoint, state.step, list(state.history), split)
+
+
+def train_on_dataset(path: Path, config: DPConfig, out_dir: Path, threads: int,
+                     on_open: Callable[[int], None] | None = None, **options) -> TrainResult:
+    """`train` (with `options`) on the dataset at `path` (LeRobot v3.0 directory or decoded .npz) read as windows of
+    `config`; torch uses `threads` CPU threads for this call only (in-process callers keep their setting).
+    `on_open` hears the number of windows before training starts."""
+    from toddlerbot.dp import data  # looked up at call time: tests replace the reader
+
+    previous_threads = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        windows = data.open_window_dataset(path, config.n_obs_steps, config.horizon)
+        if on_open is not None:
+            on_open(len(windows))
+        return train(windows, config, out_dir, **options)
+    finally:
+        torch.set_num_threads(previous_threads)

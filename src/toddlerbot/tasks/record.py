@@ -119,3 +119,21 @@ def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | str
             write_png(snapshot_path, video.kept[snapshot_frame])
     task.camera.close()
     return report
+
+
+def demo_success_rate(task: str, episodes: int, seed: int,
+                      on_episode: Callable[[int, bool], None] | None = None) -> DemoReport:
+    """The scripted demonstrator of `task` on seeds `seed` .. `seed + episodes - 1`, without rendering or
+    recording; `on_episode` hears each seed and whether it succeeded."""
+    sim_task = make_task(task)
+    demo = sim_task.demonstrator()
+    report = DemoReport()
+    started = time.perf_counter()
+    for episode_seed in range(seed, seed + episodes):
+        success = run_demo(sim_task, demo, episode_seed, render=False).success
+        (report.succeeded_seeds if success else report.failed_seeds).append(episode_seed)
+        if on_episode:
+            on_episode(episode_seed, success)
+    report.seconds_per_episode = (time.perf_counter() - started) / episodes
+    sim_task.camera.close()
+    return report
