@@ -76,12 +76,12 @@ def motor_params(fields: Mapping, source: str) -> MotorParams:
         raise ValueError(f"{source}: unknown actuator model {name!r}; expected one of {', '.join(MOTOR_MODELS)}")
     cls = MOTOR_MODELS[name]
     known = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(fields) - set(known))
+    if unknown:  # first: a misspelt field is also a missing one
+        raise ValueError(f"{source}: unknown {name} field(s) {', '.join(unknown)}; expected {', '.join(known)}")
     missing = [f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING and f.name not in fields]
     if missing:
         raise ValueError(f"{source}: the {name} model needs {', '.join(missing)}")
-    unknown = sorted(set(fields) - set(known))
-    if unknown:
-        raise ValueError(f"{source}: unknown {name} field(s) {', '.join(unknown)}; expected {', '.join(known)}")
     return cls(**fields)
 
 

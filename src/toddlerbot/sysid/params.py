@@ -64,6 +64,8 @@ class FitModel:
     """Parameters of the class the fit leaves as they start, with the reason."""
 
 
+# which parameters each model fits and in what order (the CMA-ES vector's: reordering changes a seeded fit); their
+# bounds, scales and units are the table's
 APPENDIX = ("damping", "frictionloss", "armature", "tau_max", "q_dot_tau_max", "tau_q_dot_max", "q_dot_max",
             "kd_min", "tau_brake")
 FIT_MODELS: dict[str, FitModel] = {
