@@ -10,11 +10,17 @@ from pathlib import Path
 import pytest
 import yaml
 
-from toddlerbot.actuation.catalogue import DEFAULT_CATALOGUE, MOTOR_MODELS, ActuatorParams, default_catalogue
+from toddlerbot.actuation.catalogue import (
+    DEFAULT_CATALOGUE,
+    MOTOR_MODELS,
+    ActuatorParams,
+    default_catalogue,
+    load_catalogue,
+)
 from toddlerbot.actuation.dc_motor import DCMotorParams
 from toddlerbot.actuation.parameters import PARAMETERS, parameters_of
 from toddlerbot.actuation.params_file import load_params
-from toddlerbot.errors import ParamsError
+from toddlerbot.errors import ParamsError, SpecError
 from toddlerbot.sysid.params import FIT_MODELS, SEARCH, SEARCHED_AS, from_unit, save_params, searched_value, to_unit
 
 DOCS = Path(__file__).parents[1] / "docs" / "sysid.md"
@@ -26,7 +32,7 @@ def test_each_models_fields_are_its_table_rows_in_order(model: str) -> None:
     assert [f.name for f in fields] == [p.name for p in parameters_of(model)]
     defaults = {f.name: f.default for f in fields if f.default is not dataclasses.MISSING}
     assert defaults == {p.name: p.default for p in parameters_of(model) if p.default is not None}
-    assert all(f.type == "float" or f.type is float for f in fields)
+    assert all(f.type is float for f in fields)
 
 
 def test_every_row_belongs_to_a_model_and_the_two_models_share_the_passive_terms() -> None:
@@ -104,6 +110,14 @@ def test_an_out_of_range_params_json_value_is_refused_in_one_line(tmp_path: Path
     with pytest.raises(ParamsError) as info:
         load_params(path)
     assert str(info.value) == f"{path}: {expected}"
+
+
+def test_an_out_of_range_motors_yaml_value_is_refused_in_one_line(tmp_path: Path) -> None:
+    path = tmp_path / "motors.yaml"
+    path.write_text(DEFAULT_CATALOGUE.read_text().replace("kd_min: 0.384", "kd_min: 150", 1))
+    with pytest.raises(SpecError) as info:
+        load_catalogue(path)
+    assert str(info.value) == f"{path}: motor model 'XC330-T288': kd_min must be at most 100, got 150"
 
 
 def test_the_checks_are_the_tables() -> None:

@@ -11,12 +11,10 @@ class MotorParams(Protocol):
     the passive terms and the three envelope figures; the actuator model uses `array_fields`."""
 
     model: str
+    # the passive terms both models have (units and meaning: `toddlerbot.actuation.parameters.PARAMETERS`)
     damping: float
-    """Passive viscous resistance, N*m*s/rad."""
     armature: float
-    """Reflected rotor inertia, kg*m^2."""
     frictionloss: float
-    """Coulomb friction, N*m."""
 
     @property
     def tau_max(self) -> float:
