@@ -34,7 +34,7 @@ def simulated(policy: str, weights: str | None) -> dict:
     robot = MuJoCoRobot(RobotDescription.load())
     start = time.perf_counter()
     result = run_policy(robot, make_policy(policy, robot, weights=weights), CommandSchedule.parse(DEFAULT_COMMANDS),
-                        DEFAULT_SECONDS, realtime=False, stop_on_fall=True)
+                        DEFAULT_SECONDS, stop_on_fall=True)
     log = result.log
     yaw = np.unwrap(heading(np.asarray(log.base_quat)))
     moved = np.asarray(log.base_pos[-1]) - np.asarray(log.base_pos[0])

@@ -18,7 +18,7 @@ from toddlerbot.dp.data import channel_first
 from toddlerbot.dp.live import LiveDPPolicy, LivePolicyError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.commands import CommandSchedule
-from toddlerbot.runtime.runner import run_policy
+from toddlerbot.runtime.runner import WallClock, run_policy
 from toddlerbot.tasks.camera import resize_and_crop
 from toddlerbot.tasks.video_camera import CameraError, VideoCamera
 
@@ -49,7 +49,7 @@ def test_slow_inference_runs_on_the_worker_and_the_50_hz_loop_keeps_its_period()
 
     policy = LiveDPPolicy(robot, slow_infer, CONFIG, camera=lambda: IMAGE)
     start = time.perf_counter()
-    result = run_policy(robot, policy, STILL, 2.0, realtime=True)
+    result = run_policy(robot, policy, STILL, 2.0, clock=WallClock())
     wall = time.perf_counter() - start
     policy.close()
     targets = policy_targets(robot)

@@ -152,7 +152,7 @@ def test_unplugged_camera_makes_the_live_policy_hold_and_says_why(tmp_path, monk
     from test_dp_live import chunk
     from toddlerbot.dp.live import LiveDPPolicy
     from toddlerbot.runtime.commands import CommandSchedule
-    from toddlerbot.runtime.runner import run_policy
+    from toddlerbot.runtime.runner import WallClock, run_policy
     from toddlerbot.tasks import video_camera
 
     real_open = av.open
@@ -177,7 +177,7 @@ def test_unplugged_camera_makes_the_live_policy_hold_and_says_why(tmp_path, monk
     robot = InstantRobot()
     policy = LiveDPPolicy(robot, lambda history: chunk(1), CONFIG, camera, synchronous=True)
     try:
-        result = run_policy(robot, policy, CommandSchedule.parse("0:0,0,0"), 2.0, realtime=True)
+        result = run_policy(robot, policy, CommandSchedule.parse("0:0,0,0"), 2.0, clock=WallClock())
     finally:
         camera.close()
     sent = np.array(robot.sent)

@@ -8,10 +8,10 @@ import pytest
 
 from toddlerbot.locomotion.config import WALK_REACH, CommandReach
 from toddlerbot.policies.walk_zmp import WalkZMPPolicy
-from toddlerbot.runtime.robustness import reach_commands
+from toddlerbot.runtime.robustness import KickSchedule, reach_commands
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-from toddlerbot.sim.perturbation import SCALED_MOTOR_PARAMS, KickSchedule, Perturbation, perturbed_robot
+from toddlerbot.sim.perturbation import SCALED_MOTOR_PARAMS, Perturbation, perturbed_robot
 
 
 def test_sampled_perturbations_stay_in_their_ranges_and_repeat_per_seed(description):
@@ -45,7 +45,7 @@ def test_kicks_add_exactly_the_speed_at_the_kick_times(description):
     robot.reset()
     for t in np.arange(0.0, 7.0, 0.02):
         before = robot.base_lin_vel[:2]
-        kicks(dataclasses.replace(robot.observe(), time=float(t)))
+        kicks.kick_at(dataclasses.replace(robot.observe(), time=float(t)))
         if kicks.kicks and kicks.kicks[-1][0] == pytest.approx(t):
             assert np.linalg.norm(robot.base_lin_vel[:2] - before) == pytest.approx(0.3)
     assert [k[0] for k in kicks.kicks] == pytest.approx([2.0, 4.5])

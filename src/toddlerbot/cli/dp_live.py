@@ -2,40 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 from toddlerbot.dp import require_torch
 from toddlerbot.errors import ToddlerbotError
-
-
-@dataclass
-class PickProgress:
-    """How the arm did on the pick task: grasp-point-to-cube distance (start, closest, end), lift, success."""
-
-    task: object  # PickTask
-    start_distance_m: float
-    min_distance_m: float = float("inf")
-    end_distance_m: float = float("nan")
-    max_lift_m: float = 0.0
-    succeeded: bool = False
-
-    def observe(self) -> None:
-        self.end_distance_m = self.task.grasp_distance()
-        self.min_distance_m = min(self.min_distance_m, self.end_distance_m)
-        self.max_lift_m = max(self.max_lift_m, self.task.cube_lift())
-        self.succeeded = self.task.succeeded
-
-    def to_dict(self) -> dict:
-        return {"name": self.task.name, "start_distance_m": self.start_distance_m,
-                "min_distance_m": self.min_distance_m, "end_distance_m": self.end_distance_m,
-                "max_lift_m": self.max_lift_m, "succeeded": self.succeeded}
-
-    def describe(self) -> str:
-        return (f"{self.task.name}: grasp point to cube {self.start_distance_m:.3f} m -> {self.end_distance_m:.3f} m "
-                f"(closest {self.min_distance_m:.3f} m), cube lifted {1e3 * self.max_lift_m:.0f} mm, "
-                f"{'succeeded' if self.succeeded else 'not succeeded'}")
-
 
 SIM_DP_TASKS = ("pick",)
 """Tasks `sim run --policy dp` runs (the wagon grasp runs closed-loop in `dp eval --task wagon` and in
@@ -49,7 +19,7 @@ def sim_dp_policy(description, task: str, checkpoint: Path | None, seed: int, re
     that runs faster or slower than the clock makes a worker's latency meaningless)."""
     from toddlerbot.dp.live import load_live_policy
     from toddlerbot.dp.shipped import shipped_checkpoint
-    from toddlerbot.tasks.pick import PickConfig, PickTask, TaskRobot
+    from toddlerbot.tasks.pick import PickConfig, PickProgress, PickTask, TaskRobot
 
     if task not in SIM_DP_TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(SIM_DP_TASKS)}")

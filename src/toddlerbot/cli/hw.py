@@ -202,12 +202,11 @@ def run(
     from toddlerbot.hardware.real_robot import RealRobot
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
-    from toddlerbot.runtime.log import LogRecorder
-    from toddlerbot.runtime.runner import run_policy
+    from toddlerbot.runtime.runner import RunLogObserver, run_policy
 
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
-    recorder, pol, video = LogRecorder(), None, None
+    run_log, pol, video = RunLogObserver(), None, None
     try:
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
         check_run_policy(policy)
@@ -235,11 +234,11 @@ def run(
         robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
         stack.callback(robot.imu.close)
         with robot:
-            result = run_policy(robot, pol, schedule, seconds, recorder=recorder)
+            result = run_policy(robot, pol, schedule, seconds, log=run_log)
     except BaseException as exc:
-        if len(recorder) and (log is not None or isinstance(exc, HardwareError)):
-            partial = recorder.finish(robot.motor_names, robot.joint_names, robot.control_dt, pol.name)
-            save_or_fallback(partial.save, log, f"the log of the {len(recorder)} steps before the stop")
+        if len(run_log.recorder) and (log is not None or isinstance(exc, HardwareError)):
+            partial = run_log.finish(robot, pol)
+            save_or_fallback(partial.save, log, f"the log of the {len(run_log.recorder)} steps before the stop")
         if isinstance(exc, BusInterrupt):
             console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
             raise typer.Exit(128 + exc.signum) from None

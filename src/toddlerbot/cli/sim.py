@@ -9,6 +9,7 @@ import typer
 
 from toddlerbot.cli.options import check_run_policy, duration, output_dir, output_file, positive, run_policy_names
 from toddlerbot.cli.output import console
+from toddlerbot.cli.progress import RunProgress
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text, json_text
@@ -19,52 +20,70 @@ app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motio
 app.command("compare")(compare_command)
 
 
-@app.command()
-def run(
-    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())}.")] = "walk-zmp",
-    command: Annotated[str | None, typer.Option(
-        "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
-        "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")] = None,
-    command_file: Annotated[
-        Path | None, typer.Option("--command-file", help="Schedule file (one entry per line); overrides --command.")
-    ] = None,
-    motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around "
-                                               "or a motion YAML file.")] = None,
-    weights: Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz, "
-                                                 "or .onnx run by onnxruntime), or a shipped one by name: walk_rl "
-                                                 "(default, CPU-trained) or walk_rl_gpu.")] = None,
-    seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")] = 10.0,
-    control_hz: Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")] = 1.0 / CONTROL_DT,
-    realtime: Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")] = False,
-    video: Annotated[Path | None, typer.Option("--video", help="Write an MP4 from the tracking camera.")] = None,
-    snapshot: Annotated[Path | None, typer.Option("--snapshot", help="Write a PNG of the last frame.")] = None,
-    camera: Annotated[str, typer.Option("--camera", help="perspective, side, front, top or head_camera.")] =
-        "perspective",
-    viewer: Annotated[bool, typer.Option("--viewer", help="Open the interactive MuJoCo viewer (needs a display; "
-                                         "implies --realtime).")] = False,
-    log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
-    summary_json: Annotated[Path | None, typer.Option("--summary-json", help="Write the summary as JSON.")] = None,
-    motor_params: Annotated[list[Path] | None, typer.Option(
-        "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")] = None,
-    task: Annotated[str | None, typer.Option("--task", help="For --policy dp: the manipulation scene (pick; the "
-                                             "gripper variant, the head camera as the policy's camera).")] = None,
-    checkpoint: Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
+PolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())}.")]
+CommandOpt = Annotated[str | None, typer.Option(
+    "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
+    "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")]
+CommandFileOpt = Annotated[Path | None, typer.Option("--command-file", help="Schedule file (one entry per line); "
+                                                     "overrides --command.")]
+MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around or a "
+                                               "motion YAML file.")]
+WeightsOpt = Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz, or "
+                                                 ".onnx run by onnxruntime), or a shipped one by name: walk_rl "
+                                                 "(default, CPU-trained) or walk_rl_gpu.")]
+SecondsOpt = Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")]
+ControlHzOpt = Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")]
+RealtimeOpt = Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")]
+VideoOpt = Annotated[Path | None, typer.Option("--video", help="Write an MP4 from the tracking camera.")]
+SnapshotOpt = Annotated[Path | None, typer.Option("--snapshot", help="Write a PNG of the last frame.")]
+CameraOpt = Annotated[str, typer.Option("--camera", help="perspective, side, front, top or head_camera.")]
+ViewerOpt = Annotated[bool, typer.Option("--viewer", help="Open the interactive MuJoCo viewer (needs a display; "
+                                         "implies --realtime).")]
+LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")]
+SummaryOpt = Annotated[Path | None, typer.Option("--summary-json", help="Write the summary as JSON.")]
+MotorParamsOpt = Annotated[list[Path] | None, typer.Option(
+    "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")]
+TaskOpt = Annotated[str | None, typer.Option("--task", help="For --policy dp: the manipulation scene (pick; the "
+                                             "gripper variant, the head camera as the policy's camera).")]
+CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
                                                     "`dp train`/`dp export` (default: the one shipped for --task).")]
-        = None,
-    seed: Annotated[int, typer.Option("--seed", help="For --task: scene seed (the cube's pose).")] = 0,
-    threads: Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")] = 1,
-) -> None:
+SeedOpt = Annotated[int, typer.Option("--seed", help="For --task: scene seed (the cube's pose).")]
+ThreadsOpt = Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")]
+
+
+@app.command()
+def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file: CommandFileOpt = None,
+        motion: MotionOpt = None, weights: WeightsOpt = None, seconds: SecondsOpt = 10.0,
+        control_hz: ControlHzOpt = 1.0 / CONTROL_DT, realtime: RealtimeOpt = False, video: VideoOpt = None,
+        snapshot: SnapshotOpt = None, camera: CameraOpt = "perspective", viewer: ViewerOpt = False,
+        log: LogOpt = None, summary_json: SummaryOpt = None, motor_params: MotorParamsOpt = None,
+        task: TaskOpt = None, checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = 1) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
-    from rich.progress import Progress
-
-    from toddlerbot.policies import make_policy
     from toddlerbot.robot.description import RobotDescription
-    from toddlerbot.runtime.commands import CommandSchedule
-    from toddlerbot.runtime.runner import run_policy
-    from toddlerbot.runtime.summary import summarize
-    from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-    from toddlerbot.sim.render import Recorder, RenderError, has_display, show_visuals
+    from toddlerbot.runtime.runner import SimulatedClock, WallClock, run_policy
 
+    _check_options(policy, task, checkpoint, weights, seconds, control_hz,
+                   {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json})
+    schedule = _schedule(policy, command, command_file)
+    description = RobotDescription.load(motor_params=motor_params or [])
+    _check_control_rate(control_hz, description.spec.simulation.timestep)
+    realtime = realtime or viewer
+    robot, pol, scene = _robot_and_policy(description, policy, motion, weights, task, checkpoint, seed, realtime,
+                                          1.0 / control_hz, threads)
+    video_obs, render_skipped = _video(robot, camera, video, snapshot)
+    viewer_obs = _viewer(robot) if viewer else None
+    watchers = [w for w in (scene, video_obs, viewer_obs) if w is not None]
+    with RunProgress(f"simulating {policy}", round(seconds / robot.control_dt)) as progress:
+        result = run_policy(robot, pol, schedule, seconds, clock=WallClock() if realtime else SimulatedClock(),
+                            observers=[*watchers, progress])
+    if viewer_obs is not None:
+        viewer_obs.close()
+    for path in video_obs.write(video, snapshot) if video_obs is not None else []:
+        console.print(f"wrote {path}")
+    _report(policy, result, pol, scene, log, summary_json, render_skipped)
+
+
+def _check_options(policy: str, task, checkpoint, weights, seconds: float, control_hz: float, outputs: dict) -> None:
     check_run_policy(policy)
     if (task is not None or checkpoint is not None) and policy != "dp":
         raise ToddlerbotError("--task and --checkpoint are for --policy dp")
@@ -72,77 +91,68 @@ def run(
         raise ToddlerbotError("--weights is for --policy walk-rl")
     duration(seconds, "--seconds")
     positive(control_hz, "--control-hz", "Hz")
-    outputs = {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json}
     for option, path in outputs.items():
         if path is not None:
             output_file(path, option)
-    if command is None:
-        command = "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0"
-    schedule = CommandSchedule.from_file(command_file) if command_file else CommandSchedule.parse(command)
-    description = RobotDescription.load(motor_params=motor_params or [])
-    _check_control_rate(control_hz, description.spec.simulation.timestep)
-    scene = None
+
+
+def _schedule(policy: str, command: str | None, command_file: Path | None):
+    from toddlerbot.runtime.commands import CommandSchedule
+
+    if command_file:
+        return CommandSchedule.from_file(command_file)
+    return CommandSchedule.parse(command if command is not None else "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0")
+
+
+def _robot_and_policy(description, policy: str, motion, weights, task, checkpoint, seed: int, realtime: bool,
+                      control_dt: float, threads: int):
+    """(robot, policy, scene observer or None): a diffusion policy gets its task's scene (`cli.dp_live`)."""
     if policy == "dp":
         from toddlerbot.cli.dp_live import sim_dp_policy
 
-        robot, pol, scene = sim_dp_policy(description, task or "pick", checkpoint, seed, realtime or viewer,
-                                          1.0 / control_hz, threads)
-    else:
-        robot = MuJoCoRobot(description, SimConfig(control_dt=1.0 / control_hz))
-        pol = make_policy(policy, robot, motion, weights)
-    recorder, render_skipped = None, None
-    if video or snapshot:
-        try:
-            recorder = Recorder(robot.model, robot.data, camera)
-        except RenderError as exc:  # simulate anyway; say after the summary what was skipped and why
-            wanted = [f"{kind} {path}" for kind, path in (("video", video), ("snapshot", snapshot)) if path]
-            render_skipped = f"{' and '.join(wanted)} skipped: {exc}"
-    frame_every = max(1, round(1.0 / 30.0 / robot.control_dt))
-    handle = None
-    if viewer:
-        if not has_display():
-            raise ToddlerbotError("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY); use --video instead")
-        import mujoco.viewer
+        return sim_dp_policy(description, task or "pick", checkpoint, seed, realtime, control_dt, threads)
+    from toddlerbot.policies import make_policy
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
-        handle = mujoco.viewer.launch_passive(robot.model, robot.data)
-        show_visuals(handle.opt)  # the robot as it looks; the viewer's group toggles (2, 3) switch to collision
-        realtime = True
-    steps = {"n": 0}
+    robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
+    return robot, make_policy(policy, robot, motion, weights), None
 
-    with Progress(console=console, transient=True) as progress:
-        task = progress.add_task(f"simulating {policy}", total=round(seconds / robot.control_dt))
 
-        def on_step(obs) -> None:
-            if scene is not None:
-                scene.observe()
-            if recorder is not None and steps["n"] % frame_every == 0:
-                recorder.capture()
-            if handle is not None:
-                handle.sync()
-            steps["n"] += 1
-            progress.advance(task)
+def _video(robot, camera: str, video: Path | None, snapshot: Path | None):
+    """(video observer or None, why rendering was skipped or None): without a renderer the run goes on and the
+    report says what was skipped and why."""
+    from toddlerbot.runtime.observers import VideoObserver
+    from toddlerbot.sim.render import RenderError
 
-        try:
-            result = run_policy(robot, pol, schedule, seconds, realtime=realtime, on_step=on_step)
-        finally:
-            if scene is not None:
-                pol.close()
-    if handle is not None:
-        handle.close()
+    if video is None and snapshot is None:
+        return None, None
+    try:
+        return VideoObserver(robot, camera), None
+    except RenderError as exc:
+        wanted = [f"{kind} {path}" for kind, path in (("video", video), ("snapshot", snapshot)) if path]
+        return None, f"{' and '.join(wanted)} skipped: {exc}"
+
+
+def _viewer(robot):
+    from toddlerbot.runtime.observers import ViewerObserver
+    from toddlerbot.sim.render import has_display
+
+    if not has_display():
+        raise ToddlerbotError("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY); use --video instead")
+    return ViewerObserver(robot)
+
+
+def _report(policy: str, result, pol, scene, log: Path | None, summary_json: Path | None,
+            render_skipped: str | None) -> None:
+    """Save the log and summary asked for, print the summary; a fall exits 1."""
+    from toddlerbot.runtime.summary import summarize
+
     summary = summarize(result.log, result.fell, result.fall_time)
-    extra = {} if scene is None else {"dp": pol.status.to_dict(), "task": scene.to_dict()}
-    if recorder is not None:
-        if video:
-            recorder.write_video(video, fps=1.0 / (frame_every * robot.control_dt))
-            console.print(f"wrote {video} ({len(recorder.frames)} frames)")
-        if snapshot:
-            recorder.write_png(snapshot)
-            console.print(f"wrote {snapshot}")
-        recorder.close()
     if log:
         result.log.save(log)
         console.print(f"wrote {log}")
     if summary_json:
+        extra = {} if scene is None else {"dp": pol.status.to_dict(), "task": scene.to_dict()}
         atomic_write_text(summary_json, json_text(summary.to_dict() | extra, indent=2))
     t = summary.tracking
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"

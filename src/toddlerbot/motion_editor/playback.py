@@ -12,7 +12,7 @@ from toddlerbot.motion_editor.balance import Balance, PoseModel
 from toddlerbot.policies.motions import Motion
 from toddlerbot.policies.replay import ReplayPolicy
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.runtime.runner import run_policy
+from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimulationError
 
 
@@ -52,23 +52,29 @@ def simulate(description: RobotDescription, motion: Motion) -> Playback:
     started = time.perf_counter()
     robot = MuJoCoRobot(description)
     policy = ReplayPolicy(robot, motion)
-    poses = PoseModel(description)
-    torso = robot.model.body(description.handles.torso).id
-    times, qpos, balance, tilt, height = [], [], [], [], []
-
-    def on_step(obs) -> None:
-        d = robot.data
-        times.append(float(d.time))
-        qpos.append(d.qpos.copy())
-        balance.append(poses.contact_balance(d))
-        tilt.append(float(np.degrees(np.arccos(np.clip(d.xmat[torso, 8], -1.0, 1.0)))))
-        height.append(float(d.xpos[torso, 2]))
-
+    trace = _Trace(robot, PoseModel(description), robot.model.body(description.handles.torso).id)
     fall_time, error = None, None
     try:
-        result = run_policy(robot, policy, lambda t: np.zeros(3), motion.duration + 1.0, on_step=on_step)
+        result = run_policy(robot, policy, seconds=motion.duration + 1.0, observers=[trace])
         fall_time = result.fall_time
     except SimulationError as exc:
         error = str(exc)
+    times, qpos, balance, tilt, height = trace.times, trace.qpos, trace.balance, trace.tilt, trace.height
     return Playback(np.array(times), np.array(qpos).reshape(len(qpos), -1), tuple(balance), fall_time, error,
                     max(tilt, default=0.0), min(height, default=0.0), time.perf_counter() - started)
+
+
+class _Trace(RunObserver):
+    """The playback's per-step record: time, pose, contact balance, torso tilt and height."""
+
+    def __init__(self, robot: MuJoCoRobot, poses: PoseModel, torso: int) -> None:
+        self.robot, self.poses, self.torso = robot, poses, torso
+        self.times, self.qpos, self.balance, self.tilt, self.height = [], [], [], [], []
+
+    def on_step(self, step: Step) -> None:
+        d = self.robot.data
+        self.times.append(float(d.time))
+        self.qpos.append(d.qpos.copy())
+        self.balance.append(self.poses.contact_balance(d))
+        self.tilt.append(float(np.degrees(np.arccos(np.clip(d.xmat[self.torso, 8], -1.0, 1.0)))))
+        self.height.append(float(d.xpos[self.torso, 2]))

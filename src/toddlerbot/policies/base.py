@@ -68,6 +68,16 @@ class Policy(ABC):
         """True once a finite behaviour (a motion replay) has finished."""
         return False
 
+    @property
+    def status(self) -> object | None:
+        """What the policy reports about itself during or after a run (a diffusion policy's inference statistics,
+        a chain's phases), an object with ``to_dict()`` for JSON; None when it has nothing to say."""
+        return None
+
+    def close(self) -> None:  # noqa: B027 (most policies hold nothing to release)
+        """Release what the policy holds (worker threads, sessions); the run loop calls it on every exit path,
+        and calling it twice is harmless."""
+
     def joint_action(self, joint_targets: np.ndarray) -> Action:
         """An action from joint-space targets (converted to motor space through the transmissions)."""
         joint_targets = np.asarray(joint_targets, dtype=float)

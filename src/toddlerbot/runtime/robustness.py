@@ -15,9 +15,10 @@ import numpy as np
 from toddlerbot.locomotion.config import CommandReach
 from toddlerbot.policies.base import Policy
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import Robot
-from toddlerbot.runtime.runner import run_policy
-from toddlerbot.sim.perturbation import KickSchedule, Perturbation, perturbed_robot
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.runtime.runner import RunObserver, Step, run_policy
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+from toddlerbot.sim.perturbation import Perturbation, perturbed_robot
 
 PolicyFactory = Callable[[Robot], Policy]
 
@@ -32,6 +33,33 @@ def reach_commands(reach: CommandReach) -> list[tuple[float, float, float]]:
         (hi[0] / 2, hi[1] / 2, hi[2] / 2), (lo[0] / 2, lo[1] / 2, lo[2] / 2),
         (0.0, 0.0, 0.0),
     ]
+
+
+
+class KickSchedule(RunObserver):
+    """A run observer: adds a horizontal velocity of ``kick_speed`` m/s in a random
+    direction (from the perturbation's seed) to the torso at the kick times. `kicks` lists (time, dvx, dvy)."""
+
+    def __init__(self, robot: MuJoCoRobot, perturbation: Perturbation) -> None:
+        self.robot = robot
+        self.speed = perturbation.kick_speed
+        self.timing = perturbation.kick_timing
+        self.rng = np.random.default_rng([perturbation.seed, 1])
+        self.next_time = self.timing.start
+        self.kicks: list[tuple[float, float, float]] = []
+
+    def on_step(self, step: Step) -> None:
+        self.kick_at(step.next_obs)
+
+    def kick_at(self, obs: Observation) -> None:
+        """Kick now if a kick is due at the observation's time."""
+        if self.speed <= 0 or obs.time + 1e-9 < self.next_time:
+            return
+        angle = self.rng.uniform(0.0, 2 * np.pi)
+        dv = self.speed * np.array([np.cos(angle), np.sin(angle)])
+        self.robot.push(dv)
+        self.kicks.append((obs.time, float(dv[0]), float(dv[1])))
+        self.next_time += self.timing.period
 
 
 @dataclass(frozen=True)
@@ -77,6 +105,6 @@ def run_trial(description: RobotDescription, make_policy: PolicyFactory, command
     perturbation = condition.perturb(description, seed)
     robot = perturbed_robot(description, perturbation)
     result = run_policy(robot, make_policy(robot), lambda t: np.asarray(command), seconds,
-                        on_step=KickSchedule(robot, perturbation))
+                        observers=[KickSchedule(robot, perturbation)])
     moved = robot.base_pos - result.log.base_pos[0]
     return Trial(tuple(command), condition.name, seed, result.fall_time, (float(moved[0]), float(moved[1])))

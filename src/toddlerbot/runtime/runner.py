@@ -1,25 +1,31 @@
-"""The runner: policy <-> robot at a fixed control rate, every step logged.
+"""The one run loop: a policy drives a robot at its control rate; observers see every step.
 
-``realtime=True`` locks each step to wall-clock time (sleeping off the remainder of the control period; a real
-robot's backend blocks on its bus instead). The run stops early when the policy is done, or when the robot falls
-(`Robot.fallen`: the IMU tilt, or the simulator's ground truth) unless ``stop_on_fall`` is False. The torso's
-true pose is logged for robots with `GroundTruth` (simulators) and NaN for the others.
+Everything that drives a robot — a walking policy, a motion replay, a scripted demonstrator, a skill chain, a
+diffusion policy, a teleop session — is a `Policy` run by `run_policy`. What a caller wants around the loop (the
+run log, a recorded episode, a success check, a video, a viewer, a progress bar, velocity kicks) is a
+`RunObserver`; how the loop keeps time is a `Clock`: `SimulatedClock` steps as fast as it can, `WallClock`
+locks each step to wall-clock time (sleeping off the rest of the control period; a real robot's backend blocks
+on its bus instead).
+
+The run stops when the requested time has elapsed, when the policy is done, when an observer asks to stop (a
+success check), or when the robot falls (`Robot.fallen`: the IMU tilt, or the simulator's ground truth) unless
+``stop_on_fall`` is False. The torso's true pose is logged for robots with `GroundTruth` and NaN for the others.
 
 A command the robot's guard refuses (`UnsafeCommandError`) or a policy that raises stops the run at once: the
 error propagates (a policy's own exception wrapped in `PolicyError`, which names the policy and the time) and
-the caller's ``with robot:`` turns torque off.
+the caller's ``with robot:`` turns torque off. The policy is closed on every exit path (`Policy.close`).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies.base import Policy
+from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.interface import GroundTruth, Observation, Robot
 from toddlerbot.runtime.log import LogRecorder, RunLog
 
@@ -37,65 +43,170 @@ class RunResult:
     fall_time: float | None
     """s since reset when the fall was detected."""
     completed: bool
-    """True when the policy finished (a motion replay) or the requested duration elapsed without a fall."""
+    """True when the run ended without a fall (time elapsed, policy done or an observer's stop)."""
+    stopped_by: str | None = None
+    """Why the run ended early: ``fall``, ``policy`` (done) or an observer's class name; None when time ran out."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """One control step as observers see it."""
+
+    index: int
+    obs: Observation
+    """What the policy saw."""
+    command: np.ndarray
+    """The velocity command it followed (clamped to its reach)."""
+    action: Action
+    next_obs: Observation
+    """The robot after the step."""
+    kp: np.ndarray
+    """Firmware gains in effect during the step."""
+    kd: np.ndarray
+    base_pos: np.ndarray
+    """Torso position in the world before the step (ground truth; NaN without it)."""
+    base_quat: np.ndarray
+    compute_time: float
+    """s spent in the policy and the backend's step."""
+    step_period: float
+    """s of wall time from this step's start to the next's (the clock's wait included)."""
+
+
+class RunObserver:
+    """Something that watches a run: override what you need."""
+
+    def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
+        """Called once, after the reset, before the first step."""
+
+    def on_step(self, step: Step) -> None:
+        """Called after every step."""
+
+    @property
+    def stop_requested(self) -> bool:
+        """True to end the run after the current step (e.g. a success check that has seen success)."""
+        return False
+
+
+class Clock:
+    """How the loop keeps time between steps."""
+
+    def start(self) -> None:
+        """Called once before the first step."""
+
+    def wait(self, period: float) -> None:
+        """Called after each step with the control period, s."""
+
+
+class SimulatedClock(Clock):
+    """No waiting: simulated time advances as fast as the computer steps."""
+
+
+class WallClock(Clock):
+    """Each step locked to wall-clock time: sleeps off the rest of the control period (deadlines accumulate, so a
+    late step is caught up by the next ones rather than drifting)."""
+
+    def start(self) -> None:
+        self._deadline = time.perf_counter()
+
+    def wait(self, period: float) -> None:
+        self._deadline += period
+        time.sleep(max(0.0, self._deadline - time.perf_counter()))
+
+
+class RunLogObserver(RunObserver):
+    """Records the run log (one row per step; `runtime.log`). Give one to `run_policy` to keep the steps of a run
+    that stops on an exception."""
+
+    def __init__(self) -> None:
+        self.recorder = LogRecorder()
+
+    def on_step(self, step: Step) -> None:
+        obs, action = step.obs, step.action
+        self.recorder.append(
+            time=obs.time, command=step.command, motor_pos=obs.motor_pos, motor_vel=obs.motor_vel,
+            motor_torque=obs.motor_torque, joint_pos=obs.joint_pos, joint_vel=obs.joint_vel,
+            motor_target=action.motor_targets, joint_target=action.joint_targets, imu_quat=obs.imu_quat,
+            imu_ang_vel=obs.imu_ang_vel, imu_lin_acc=obs.imu_lin_acc, foot_contact=obs.foot_contact,
+            base_pos=step.base_pos, base_quat=step.base_quat, compute_time=step.compute_time,
+            step_period=step.step_period, motor_kp=step.kp, motor_kd=step.kd,
+        )
+
+    def finish(self, robot: Robot, policy: Policy) -> RunLog:
+        return self.recorder.finish(robot.motor_names, robot.joint_names, robot.control_dt, policy.name)
+
+
+def _still(_: float) -> np.ndarray:
+    return np.zeros(3)
 
 
 def run_policy(
     robot: Robot,
     policy: Policy,
-    commands: Callable[[float], np.ndarray],
-    seconds: float,
-    realtime: bool = False,
+    commands: Callable[[float], np.ndarray] = _still,
+    seconds: float = 10.0,
+    clock: Clock | None = None,
+    observers: Sequence[RunObserver] = (),
     stop_on_fall: bool = True,
-    on_step: Callable[[Observation], None] | None = None,
-    recorder: LogRecorder | None = None,
+    log: RunLogObserver | None = None,
 ) -> RunResult:
-    """Run ``policy`` on ``robot`` for ``seconds`` (or until the policy is done / the robot falls). Steps are logged
-    into ``recorder`` (a new one if None): give one to keep the steps of a run that stops on an exception."""
-    recorder = LogRecorder() if recorder is None else recorder
-    obs = robot.reset()
-    policy.reset(obs)
-    n_steps = round(seconds / robot.control_dt)
-    fall_time = None
+    """Run ``policy`` on ``robot`` for ``seconds`` (or until the policy is done, an observer stops the run or the
+    robot falls), following the velocity ``commands`` (a function of time; none: stand still). Steps are logged
+    into ``log`` (a new one if None)."""
+    log = RunLogObserver() if log is None else log
+    clock = SimulatedClock() if clock is None else clock
+    watchers = (log, *observers)
+    try:
+        obs = robot.reset()
+        policy.reset(obs)
+        for observer in watchers:
+            observer.on_start(robot, policy, obs)
+        fall_time, stopped_by = _loop(robot, policy, commands, round(seconds / robot.control_dt), clock, watchers,
+                                      stop_on_fall, obs)
+    finally:
+        policy.close()
+    fell = fall_time is not None
+    return RunResult(log=log.finish(robot, policy), fell=fell, fall_time=fall_time, completed=not fell,
+                     stopped_by=stopped_by)
+
+
+def _loop(robot: Robot, policy: Policy, commands: Callable[[float], np.ndarray], n_steps: int, clock: Clock,
+          watchers: Sequence[RunObserver], stop_on_fall: bool, obs: Observation) -> tuple[float | None, str | None]:
     truth = robot if isinstance(robot, GroundTruth) else None
-    next_deadline = time.perf_counter()
     kp, kd = robot.default_kp, robot.default_kd  # gains stay in effect until a policy sends others
-    for _ in range(n_steps):
+    fall_time = None
+    clock.start()
+    for index in range(n_steps):
         start = time.perf_counter()
         command = policy.within_reach(commands(obs.time))  # logged as the policy follows it
-        try:
-            action = policy.act(obs, command)
-        except ToddlerbotError:
-            raise
-        except Exception as exc:  # a policy bug must stop the robot with a clear message, not a traceback
-            raise PolicyError(f"policy {policy.name} failed at t={obs.time:.3f} s: {type(exc).__name__}: {exc}"
-                              ) from exc
+        action = _act(policy, obs, command)
         base_pos = truth.base_pos if truth is not None else NAN3
         base_quat = truth.base_quat if truth is not None else NAN4
-        new_obs = robot.step(action.motor_targets, action.kp, action.kd)
+        next_obs = robot.step(action.motor_targets, action.kp, action.kd)
         kp = kp if action.kp is None else action.kp
         kd = kd if action.kd is None else action.kd
         compute = time.perf_counter() - start
-        if realtime:
-            next_deadline += robot.control_dt
-            time.sleep(max(0.0, next_deadline - time.perf_counter()))
-        recorder.append(
-            time=obs.time, command=command, motor_pos=obs.motor_pos, motor_vel=obs.motor_vel,
-            motor_torque=obs.motor_torque, joint_pos=obs.joint_pos, joint_vel=obs.joint_vel,
-            motor_target=action.motor_targets, joint_target=action.joint_targets, imu_quat=obs.imu_quat,
-            imu_ang_vel=obs.imu_ang_vel, imu_lin_acc=obs.imu_lin_acc, foot_contact=obs.foot_contact,
-            base_pos=base_pos, base_quat=base_quat, compute_time=compute,
-            step_period=time.perf_counter() - start, motor_kp=kp, motor_kd=kd,
-        )
-        obs = new_obs
-        if on_step is not None:
-            on_step(obs)
+        clock.wait(robot.control_dt)
+        step = Step(index, obs, command, action, next_obs, kp, kd, base_pos, base_quat, compute,
+                    time.perf_counter() - start)
+        for observer in watchers:
+            observer.on_step(step)
+        obs = next_obs
         if robot.fallen:
             fall_time = obs.time
             if stop_on_fall:
-                break
+                return fall_time, "fall"
         if policy.done:
-            break
-    log = recorder.finish(robot.motor_names, robot.joint_names, robot.control_dt, policy.name)
-    fell = fall_time is not None
-    return RunResult(log=log, fell=fell, fall_time=fall_time, completed=not fell)
+            return fall_time, "policy"
+        for observer in watchers:
+            if observer.stop_requested:
+                return fall_time, type(observer).__name__
+    return fall_time, None
+
+
+def _act(policy: Policy, obs: Observation, command: np.ndarray) -> Action:
+    try:
+        return policy.act(obs, command)
+    except ToddlerbotError:
+        raise
+    except Exception as exc:  # a policy bug must stop the robot with a clear message, not a traceback
+        raise PolicyError(f"policy {policy.name} failed at t={obs.time:.3f} s: {type(exc).__name__}: {exc}") from exc

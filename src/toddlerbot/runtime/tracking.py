@@ -113,7 +113,7 @@ def evaluate_policy(description: RobotDescription, policy_name: str, commands: s
     schedule = CommandSchedule.parse(commands, source="--commands")
     robot = MuJoCoRobot(description)
     policy = make_policy(policy_name, robot, weights=weights)
-    result = run_policy(robot, policy, schedule, seconds, realtime=False, stop_on_fall=True)
+    result = run_policy(robot, policy, schedule, seconds, stop_on_fall=True)
     log = result.log
     return tracking_errors(np.asarray(log.time), np.asarray(log.command), np.asarray(log.base_pos),
                            np.asarray(log.base_quat), result.fell)

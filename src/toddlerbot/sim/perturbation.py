@@ -6,7 +6,6 @@ one from a seed, so a set of perturbations is reproducible on every machine; wha
 rate (falls out of runs), never one trajectory.
 
     robot = perturbed_robot(description, perturbation)       # a MuJoCoRobot with the changed model
-    kicks = KickSchedule(robot, perturbation)                 # pass as run_policy(..., on_step=kicks)
 """
 
 from __future__ import annotations
@@ -18,7 +17,6 @@ import numpy as np
 
 from toddlerbot.actuation.catalogue import Catalogue
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
 SCALED_MOTOR_PARAMS = ("damping", "armature", "frictionloss", "tau_max", "q_dot_max", "kd_min", "tau_brake")
@@ -109,25 +107,3 @@ def perturbed_robot(description: RobotDescription, perturbation: Perturbation,
     if perturbation.joint_offset:
         robot.initial_motor_offset = np.asarray(perturbation.joint_offset, dtype=float)
     return robot
-
-
-class KickSchedule:
-    """An observer for `run_policy(on_step=...)`: adds a horizontal velocity of ``kick_speed`` m/s in a random
-    direction (from the perturbation's seed) to the torso at the kick times. `kicks` lists (time, dvx, dvy)."""
-
-    def __init__(self, robot: MuJoCoRobot, perturbation: Perturbation) -> None:
-        self.robot = robot
-        self.speed = perturbation.kick_speed
-        self.timing = perturbation.kick_timing
-        self.rng = np.random.default_rng([perturbation.seed, 1])
-        self.next_time = self.timing.start
-        self.kicks: list[tuple[float, float, float]] = []
-
-    def __call__(self, obs: Observation) -> None:
-        if self.speed <= 0 or obs.time + 1e-9 < self.next_time:
-            return
-        angle = self.rng.uniform(0.0, 2 * np.pi)
-        dv = self.speed * np.array([np.cos(angle), np.sin(angle)])
-        self.robot.push(dv)
-        self.kicks.append((obs.time, float(dv[0]), float(dv[1])))
-        self.next_time += self.timing.period

@@ -19,6 +19,7 @@ import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, Observation
+from toddlerbot.runtime.runner import RunObserver, Step
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.demonstrator import DemoConfig, ScriptedPicker
@@ -211,6 +212,36 @@ class PickTask:
         for name, value in tmap.motor_to_model(q_motor).items():
             d.qpos[self.model.joint(name).qposadr[0]] = value
         mujoco.mj_forward(self.model, d)
+
+
+@dataclass
+class PickProgress(RunObserver):
+    """A run observer: how the arm did on the pick task: grasp-point-to-cube distance (start, closest, end), lift,
+    success."""
+
+    task: PickTask
+    start_distance_m: float
+    min_distance_m: float = float("inf")
+    end_distance_m: float = float("nan")
+    max_lift_m: float = 0.0
+    succeeded: bool = False
+
+    def on_step(self, step: Step) -> None:
+        self.end_distance_m = self.task.grasp_distance()
+        self.min_distance_m = min(self.min_distance_m, self.end_distance_m)
+        self.max_lift_m = max(self.max_lift_m, self.task.cube_lift())
+        self.succeeded = self.task.succeeded
+
+    def to_dict(self) -> dict:
+        return {"name": self.task.name, "start_distance_m": self.start_distance_m,
+                "min_distance_m": self.min_distance_m, "end_distance_m": self.end_distance_m,
+                "max_lift_m": self.max_lift_m, "succeeded": self.succeeded}
+
+    def describe(self) -> str:
+        return (f"{self.task.name}: grasp point to cube {self.start_distance_m:.3f} m -> {self.end_distance_m:.3f} m "
+                f"(closest {self.min_distance_m:.3f} m), cube lifted {1e3 * self.max_lift_m:.0f} mm, "
+                f"{'succeeded' if self.succeeded else 'not succeeded'}")
+
 
 
 class TaskRobot:
