@@ -3,10 +3,13 @@ refused with one line before anything starts: no bus is opened, no simulation is
 
 from __future__ import annotations
 
+import json
+
 import pytest
 from typer.testing import CliRunner
 
 from toddlerbot.cli import hw, sim
+from toddlerbot.cli.options import RobotOptions
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.hardware.calibration import Calibration, save_calibration
 from toddlerbot.robot.description import RobotDescription
@@ -72,3 +75,27 @@ def test_empty_weights_file_is_one_line_before_the_bus(calibration, tmp_path):
     message = _error(hw.app, ["run", "--port", NO_PORT, "--calibration", str(calibration), "--policy", "walk-rl",
                               "--weights", str(empty)])
     assert message == f"{empty}: empty file, not an exported RL policy"
+
+
+def test_robot_options_build_the_variants_description_and_base(tmp_path):
+    params = tmp_path / "xc330.json"
+    params.write_text('{"motor": "XC330", "actuator": {"armature": 0.0123}}')
+    plain, plain_base = RobotOptions().load()
+    gripper, gripper_base = RobotOptions.of(variant="gripper", motor_params=[params]).load()
+    assert (plain.n_motors, plain_base, plain.motor_params_files) == (30, "floating", ())
+    assert (gripper.n_motors, gripper_base, gripper.spec.variant) == (32, "floating", "gripper")
+    assert gripper.motor_params_files == (str(params),) and gripper.catalogue["XC330"].actuator.armature == 0.0123
+    assert RobotOptions.of(variant="fixed").load()[1] == "fixed"
+
+
+def test_model_base_overrides_the_variants_and_unknown_variant_is_named():
+    from toddlerbot.cli import model
+
+    result = CliRunner().invoke(model.app, ["info", "--variant", "gripper", "--base", "fixed", "--json"])
+    assert result.exit_code == 0, result.output
+    info = json.loads(result.output)
+    assert info["actuators"] == 32 and info["nq"] == info["nv"]  # the gripper's motors, no free joint
+    floating = json.loads(CliRunner().invoke(model.app, ["info", "--json"]).output)
+    assert floating["nq"] == floating["nv"] + 1  # the free joint: a quaternion (4) for 3 angular velocities
+    unknown = CliRunner().invoke(model.app, ["info", "--variant", "wings"])
+    assert unknown.exit_code == 2 and "'wings' is not one of floating, fixed, gripper" in unknown.output
