@@ -49,32 +49,34 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     no other thread steps)."""
     if n_substeps < 1:
         raise ValueError(f"n_substeps must be >= 1, got {n_substeps}")
-    # MjData's arrays are views of memory that never moves: take them once, not every substep
-    qpos, qvel, ctrl = [d.qpos for d in datas], [d.qvel for d in datas], [d.ctrl for d in datas]
-    one = len(datas) == 1
+    # every substep costs a few numpy calls next to mj_step: take MjData's views (their memory never moves),
+    # addresses and methods once, not every substep
+    qpos, qvel = [d.qpos for d in datas], [d.qvel for d in datas]
+    robots = list(enumerate(zip(models, datas, [d.ctrl for d in datas], strict=True)))
+    qadr, dofs, actuators = motors.qpos, motors.dof, motors.actuator
+    torque, step, one = drive.torque, mujoco.mj_step, len(datas) == 1
     budget = drive.has_friction_excess
-    frictionloss = [m.dof_frictionloss[motors.dof].copy() for m in models] if budget else []
+    frictionloss = [m.dof_frictionloss[dofs].copy() for m in models] if budget else []
     if sensors_last_only:
         for m in models:
             m.opt.disableflags |= _NO_SENSOR
-    step = mujoco.mj_step
     for k in range(n_substeps):
-        if one:
-            q, q_dot = qpos[0][motors.qpos][None], qvel[0][motors.dof][None]
+        if one:  # (n_motors,) states broadcast against the (1, n_motors) targets
+            q, q_dot = qpos[0][qadr], qvel[0][dofs]
         else:  # stack whole state vectors, then index once: one fancy index per robot costs more than the stack
-            q, q_dot = np.stack(qpos)[:, motors.qpos], np.stack(qvel)[:, motors.dof]
-        tau = drive.torque(targets, q, q_dot)
+            q, q_dot = np.stack(qpos)[:, qadr], np.stack(qvel)[:, dofs]
+        tau = torque(targets, q, q_dot)
         excess = drive.friction_excess(q_dot, tau) if budget else None
         if sensors_last_only and k == n_substeps - 1:
             for m in models:
                 m.opt.disableflags &= ~_NO_SENSOR
-        for i, (m, d) in enumerate(zip(models, datas, strict=True)):
-            ctrl[i][motors.actuator] = tau[i]
+        for i, (m, d, ctrl) in robots:
+            ctrl[actuators] = tau[i]
             if budget:
-                m.dof_frictionloss[motors.dof] = frictionloss[i] + excess[i]
+                m.dof_frictionloss[dofs] = frictionloss[i] + excess[i]
             step(m, d)
     for m, own in zip(models, frictionloss, strict=False):
-        m.dof_frictionloss[motors.dof] = own
+        m.dof_frictionloss[dofs] = own
     return tau
 
 

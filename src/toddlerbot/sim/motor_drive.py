@@ -38,14 +38,16 @@ class MotorDrive:
         self._off = None if torque_on is None or np.all(torque_on) else ~np.asarray(torque_on, dtype=bool)
         limit = None if torque_limit is None else np.asarray(torque_limit, dtype=float)
         self._limit = None if limit is None else (-limit, limit)
+        self._plain = not (self._shaped or self._back_emf or self._off is not None or self._limit is not None)
         self.has_friction_excess = has_friction_excess(p)
         """Whether the load-dependent friction budget (`friction_excess`) is more than zero for some motor."""
 
     def torque(self, targets: np.ndarray, q: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
         """Motor torques, N*m, for motor targets and angles (rad) and speeds (rad/s)."""
         tau = self._kp * (targets - q) - self._damping * q_dot
-        if (np.abs(tau) <= self._never_clamped).all():  # the common case holding a pose: no motor at its limit
-            return self._after_limit(tau, q_dot)
+        # the common case holding a pose: no motor at its limit (the ufunc's reduce: ndarray.all's wrapper costs more)
+        if np.logical_and.reduce(np.abs(tau) <= self._never_clamped, axis=None):
+            return tau if self._plain else self._after_limit(tau, q_dot)
         # the drive limit (Eq. 9-10): tau_max up to the knee speed, then linear to tau_q_dot_max at q_dot_max
         fraction = np.abs(q_dot)
         fraction -= self._knee

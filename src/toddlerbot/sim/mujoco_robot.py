@@ -79,7 +79,7 @@ class MuJoCoRobot(Robot, GroundTruth):
         self._imu = {name: slice(m.sensor(name).adr[0], m.sensor(name).adr[0] + m.sensor(name).dim[0])
                      for name in ("imu_quat", "imu_gyro", "imu_accel")}
         handles = description.handles
-        self._foot_geoms = np.array([m.geom(g).id for g in handles.feet_geoms])
+        self._foot_geoms = [m.geom(g).id for g in handles.feet_geoms]
         self._floor = m.geom("floor").id
         self._truth = TorsoTruth(m, self.data, handles.torso)
         self._home_key = m.key("home").id
@@ -124,8 +124,9 @@ class MuJoCoRobot(Robot, GroundTruth):
         self._targets = motor_targets
         if self._drive.params is not self._params:
             self._drive = MotorDrive(self._params)
+        # the robot owns its model, and only the last substep's sensors are observed
         self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive,
-                                     self.n_substeps)[0]
+                                     self.n_substeps, sensors_last_only=True)[0]
         self._check_stable()
         return self.observe()
 
@@ -137,12 +138,10 @@ class MuJoCoRobot(Robot, GroundTruth):
 
     def foot_contact(self) -> np.ndarray:
         """(left, right): does each foot's collision geom touch the floor?"""
-        ncon = self.data.ncon
-        if ncon == 0:
-            return np.zeros(2, dtype=bool)
-        geoms = self.data.contact.geom[:ncon]
-        with_floor = geoms[(geoms == self._floor).any(axis=1)]
-        return np.isin(self._foot_geoms, with_floor)
+        floor = self._floor
+        on_floor = {b if a == floor else a for a, b in self.data.contact.geom[: self.data.ncon].tolist()
+                    if floor in (a, b)}  # a few contacts: plain Python beats numpy's set operations
+        return np.array([foot in on_floor for foot in self._foot_geoms])
 
     def push(self, velocity_change: np.ndarray) -> None:
         """Add a horizontal velocity (dvx, dvy), m/s, world frame, to the torso: a kick."""
