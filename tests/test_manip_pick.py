@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import GroundTruth, Robot
+from toddlerbot.runtime.runner import run_policy
 from toddlerbot.tasks.camera import resize_and_crop
 from toddlerbot.tasks.demonstrator import ScriptedPicker
 from toddlerbot.tasks.ik import ArmIK, top_down_rotation
-from toddlerbot.tasks.pick import PickTask, SuccessTracker
+from toddlerbot.tasks.pick import PickTask, SuccessTracker, TaskRobot
 from toddlerbot.tasks.scenes import grasp_site, scene_model
 from toddlerbot.tasks.space import follower_gains
 
@@ -113,14 +115,29 @@ def test_head_camera_sees_the_cube(task):
     assert red.sum() > 20  # the red cube is in view when looking down at the table
 
 
+def test_task_robot_is_the_task_through_the_robot_interface(task):
+    robot = TaskRobot(task, 2)
+    assert isinstance(robot, Robot) and isinstance(robot, GroundTruth) and robot.model is task.model
+    obs = robot.reset()
+    cube = task.cube_pose()[0]
+    np.testing.assert_array_equal(obs.motor_pos, task.ready_pose)  # the arm ready...
+    task.reset(2)
+    np.testing.assert_array_equal(task.cube_pose()[0], cube)  # ...and the cube where seed 2 puts it
+    assert robot.last_targets is None
+    targets = task.ready_pose.copy()
+    targets[task.gripper_motor] = 10.0  # beyond the drive's range: the simulator's guard clamps it
+    robot.step(targets)
+    np.testing.assert_array_equal(robot.last_targets, task.robot.last_targets)
+    assert robot.last_targets[task.gripper_motor] == task.gripper_range()[1]
+    np.testing.assert_array_equal(robot.default_kp, task.kp)  # the gains the task steps at
+    np.testing.assert_array_equal(robot.base_pos, task.robot.base_pos)
+
+
 @pytest.mark.slow
 def test_scripted_demonstrator_lifts_and_holds_the_cube(task):
     demo = ScriptedPicker(task)
     for seed in (0, 1):
-        obs = task.reset(seed)
-        demo.reset(obs, np.random.default_rng(seed))
-        for _ in range(round(demo.config.duration / task.robot.control_dt)):
-            obs = task.step(demo.act(obs))
+        run_policy(TaskRobot(task, seed), demo, seconds=demo.config.duration, stop_on_fall=False)
         assert task.succeeded, f"seed {seed}: max lift {task.tracker.max_lift:.3f} m"
         assert task.tracker.max_lift > 0.03
 

@@ -1,10 +1,10 @@
 """The ``wagon`` task: the wagon chain's grasp phase as a task of its own (demonstrations, `dp eval`).
 
 Everything comes from the shipped chain (`chains/wagon.yaml`): its grasp skill's parameters (the scripted
-demonstrator *is* the chain's `ScriptedGrasp`, and the task steps at that skill's gains), its ``until`` check
-(success: the chain's ``grasped`` predicate, both grippers commanded closed and pinching the handle, which is
-when the chain would switch to its next skill) and its timeout (the episode's limit). The robot starts as the
-chain does: home pose, wagon shifted by the seed exactly as `chain run wagon --seed N` shifts it.
+demonstrator, a `Policy`, *is* the chain's `ScriptedGrasp`, and the task steps at that skill's gains), its
+``until`` check (success: the chain's ``grasped`` predicate, both grippers commanded closed and pinching the
+handle, which is when the chain would switch to its next skill) and its timeout (the episode's limit). The robot
+starts as the chain does: home pose, wagon shifted by the seed exactly as `chain run wagon --seed N` shifts it.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -71,10 +72,11 @@ class WagonTask:
         self.succeeded = False
         return self.robot.observe()
 
-    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None) -> Observation:
-        """One control step at the grasp skill's gains (or `kp`); success latches once the chain's check holds,
-        as the chain ends its grasp phase there."""
-        obs = self.robot.step(motor_targets, kp=self.kp if kp is None else kp)
+    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+             ) -> Observation:
+        """One control step at the grasp skill's gains (or `kp`; `kd` as `Robot.step` takes it); success latches
+        once the chain's check holds, as the chain ends its grasp phase there."""
+        obs = self.robot.step(motor_targets, kp=self.kp if kp is None else kp, kd=kd)
         context = Context(self.robot, obs, np.asarray(motor_targets, dtype=float), self.probe)
         self.succeeded = self.succeeded or holds(self.check.predicate, self.check.params, context)
         return obs
@@ -84,11 +86,14 @@ class WagonTask:
         return self.camera.image()
 
 
-class ScriptedWagonGrasp:
+class ScriptedWagonGrasp(Policy):
     """Demonstrator: the chain's own scripted grasp (`ScriptedGrasp`, the chain's parameters, the handle where the
-    scene has it), then the closed grip held for `HOLD_S`."""
+    scene has it), then the closed grip held for `HOLD_S`, at the task's gains; done after `duration`."""
+
+    name = "scripted-wagon-grasp"
 
     def __init__(self, task: WagonTask) -> None:
+        super().__init__(task.robot)
         self.task = task
         data = task.robot.data
         env = SkillEnv(task.robot, task.model, lambda: data.qpos, task.probe.geom_pos, task.probe.geom_pos,
@@ -96,15 +101,23 @@ class ScriptedWagonGrasp:
         self.skill = ScriptedGrasp(env, task.grasp_params, "wagon demonstration")
         p = task.grasp_params
         self.duration = p.approach_s + p.reach_s + p.close_s + HOLD_S
+        self._steps = round(self.duration / self.control_dt)
+        self._step = 0
         self._start_time = 0.0
 
-    def reset(self, task_obs: Observation, rng: np.random.Generator) -> None:
-        """Plan from the handle's position (call right after `WagonTask.reset`); the script draws nothing from
-        `rng` (the seed's wagon shift is the episode's variation)."""
+    @property
+    def done(self) -> bool:
+        return self._step >= self._steps
+
+    def reset(self, task_obs: Observation) -> None:
+        """Plan from the handle's position (right after `WagonTask.reset`: the run loop's reset of the task's
+        `TaskRobot`); the seed's wagon shift is the episode's only variation."""
         self.skill.start(task_obs, self.task.ready_pose)
         self._start_time = task_obs.time
+        self._step = 0
 
-    def act(self, obs: Observation) -> np.ndarray:
-        """Motor targets (rad, all motors) for the next control step."""
+    def act(self, obs: Observation, command: np.ndarray) -> Action:
+        """Motor targets (rad, all motors) for the next control step, at the task's gains."""
         targets, _ = self.skill.act(obs, obs.time - self._start_time)
-        return targets
+        self._step += 1
+        return Action(targets, self.transmission.motor_to_joint(targets), kp=self.task.kp)

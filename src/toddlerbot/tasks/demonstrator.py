@@ -1,4 +1,5 @@
-"""Scripted pick demonstrator: end-effector waypoints solved by damped-least-squares IK every control step.
+"""Scripted pick demonstrator, a `Policy` done after `DemoConfig.duration`: end-effector waypoints solved by
+damped-least-squares IK every control step.
 
 Phases (times in s from the episode start, `DemoConfig`): ``approach`` to a pre-grasp point above the cube,
 ``descend`` onto it, ``close`` the gripper, ``lift``, ``hold``. The grasp point (midway between the finger pads)
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.interface import Observation
 from toddlerbot.tasks.ik import (
     CORRECTION_GAIN,
@@ -64,12 +66,18 @@ def min_jerk(s: float) -> float:
     return s**3 * (10 - 15 * s + 6 * s**2)
 
 
-class ScriptedPicker:
-    """Produces motor targets for `PickTask` from its observations, one control step at a time."""
+class ScriptedPicker(Policy):
+    """Drives `PickTask` (through its `TaskRobot`) from its observations, one control step at a time, at the task's
+    gains; the waypoint noise comes from the seed the task was reset with."""
+
+    name = "scripted-pick"
 
     def __init__(self, task: PickTask, config: DemoConfig | None = None) -> None:
+        super().__init__(task.robot)
         self.task = task
         self.config = config or DemoConfig()
+        self._steps = round(self.config.duration / self.control_dt)
+        self._step = 0
         side = task.config.arm
         self.ik = ArmIK(task.description, task.model, side, IKConfig(), site=grasp_site(side))
         self.open, fully_closed = task.gripper_range()
@@ -86,9 +94,15 @@ class ScriptedPicker:
         """Length of an episode, s."""
         return self.config.duration
 
-    def reset(self, task_obs: Observation, rng: np.random.Generator) -> None:
-        """Plan the episode's waypoints from the cube's pose (call right after `PickTask.reset`)."""
+    @property
+    def done(self) -> bool:
+        return self._step >= self._steps
+
+    def reset(self, task_obs: Observation) -> None:
+        """Plan the episode's waypoints from the cube's pose (right after `PickTask.reset`: the run loop's reset of
+        the `TaskRobot`)."""
         cfg = self.config
+        rng = np.random.default_rng(self.task.seed)
         cube_pos, cube_rot = self.task.cube_pose()
         start, _ = self.ik.forward(task_obs.motor_pos, self.task.robot.data.qpos)
         # Close across the pair of cube faces whose normal is nearest the gripper's current closing axis.
@@ -104,6 +118,7 @@ class ScriptedPicker:
         self._targets = task_obs.motor_pos.copy()
         self._targets[self.task.gripper_motor] = self.open
         self._correction = GraspPointCorrection(cfg.correction_gain, cfg.max_correction)
+        self._step = 0
 
     def phase(self, t: float) -> str:
         cfg = self.config
@@ -120,8 +135,8 @@ class ScriptedPicker:
             t -= duration
         raise AssertionError("unreachable")
 
-    def act(self, obs: Observation) -> np.ndarray:
-        """Motor targets (rad, all motors) for the next control step."""
+    def act(self, obs: Observation, command: np.ndarray) -> Action:
+        """Motor targets (rad, all motors) for the next control step, at the task's gains."""
         cfg = self.config
         t = obs.time
         desired = self.desired_grasp_point(t)
@@ -139,4 +154,5 @@ class ScriptedPicker:
         else:
             q[self.task.gripper_motor] = self.open
         self._targets[self.task.gripper_motor] = q[self.task.gripper_motor]
-        return q
+        self._step += 1
+        return Action(q, self.transmission.motor_to_joint(q), kp=self.task.kp)

@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import CONTROL_DT, Observation
+from toddlerbot.robot.interface import CONTROL_DT, GroundTruth, Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 from toddlerbot.tasks.camera import HeadCamera
@@ -118,6 +118,8 @@ class PickTask:
         self.neck_yaw_motor = names.index("neck_yaw_drive")
         self.camera = HeadCamera(m, self.robot.data, description.handles.head_camera or "head_camera")
         self.tracker = SuccessTracker(self.config.hold_seconds)
+        self.seed: int | None = None
+        """The seed of the last `reset` (the demonstrator draws its waypoint noise from it)."""
 
     def demonstrator(self, config: DemoConfig | None = None) -> ScriptedPicker:
         """The task's scripted demonstrator (`manip demo`)."""
@@ -156,6 +158,7 @@ class PickTask:
         q = self.ready_pose if start_pose is None else np.asarray(start_pose, dtype=float)
         self._set_motor_pos(q)
         self.tracker = SuccessTracker(cfg.hold_seconds)
+        self.seed = seed
         return self.robot.observe()
 
     def home_pose(self) -> np.ndarray:
@@ -244,21 +247,57 @@ class PickProgress(RunObserver):
 
 
 
-class TaskRobot:
-    """A task's robot for code written against `Robot` (the runner, teleoperation): `reset` puts the task in its
-    start state for ``seed`` (cube placed, arm ready), `step` goes through `PickTask.step` (follower gains unless
-    given, success tracked); everything else is the task's `MuJoCoRobot`."""
+class TaskRobot(Robot, GroundTruth):
+    """A task episode's robot for the run loop: `reset` is the task's reset for ``seed`` (a pick: cube placed, arm
+    ready), `step` is the task's step (its gains unless ``kp`` is given; success tracked). The task's simulated
+    robot is `sim`; ground truth and the scene (`model`, `data`, for rendering and probes) are its own."""
 
-    def __init__(self, task: PickTask, seed: int) -> None:
-        self.task, self.seed = task, seed
+    def __init__(self, task: PickTask, seed: int) -> None:  # or any task with reset(seed), step, kp, robot
+        super().__init__(task.description, task.robot.control_dt)
+        self.task, self.seed, self.sim = task, seed, task.robot
+        self.default_kp = task.kp  # what the task steps at when a policy sends no gains
 
-    def __getattr__(self, name: str):
-        return getattr(self.task.robot, name)
+    @property
+    def model(self) -> mujoco.MjModel:
+        return self.sim.model
+
+    @property
+    def data(self) -> mujoco.MjData:
+        return self.sim.data
 
     def reset(self) -> Observation:
-        return self.task.reset(self.seed)
+        obs = self.task.reset(self.seed)
+        self.last_targets = self.sim.last_targets
+        return obs
+
+    def observe(self) -> Observation:
+        return self.sim.observe()
 
     def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
              ) -> Observation:
-        return self.task.step(motor_targets, kp, kd)
+        """The task's step; the simulator's own `step` guards the command (a second guard here would clamp twice,
+        and clamping through a coupled transmission is not exactly idempotent)."""
+        obs = self.task.step(motor_targets, kp, kd)
+        self.last_targets = self.sim.last_targets
+        return obs
 
+    def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
+        raise NotImplementedError("a TaskRobot steps through its task's `step`")
+
+    @property
+    def base_pos(self) -> np.ndarray:
+        return self.sim.base_pos
+
+    @property
+    def base_quat(self) -> np.ndarray:
+        return self.sim.base_quat
+
+    def torso_height(self) -> float:
+        return self.sim.torso_height()
+
+    def torso_uprightness(self) -> float:
+        return self.sim.torso_uprightness()
+
+    @property
+    def fallen(self) -> bool:
+        return self.sim.fallen

@@ -1,7 +1,9 @@
 """Record scripted demonstrations of a task into raw episodes and a LeRobot v3.0 dataset, with an optional video.
 
-Seeds run from `seed` upwards; only successful demonstrations enter the dataset (failed seeds are reported),
-up to a bounded number of attempts.
+An episode is a run of the task's demonstrator (a `Policy`) on the task's `TaskRobot` through `run_policy`, whose
+reset is the task's reset for the seed; `EpisodeRecorder` watches the run and builds the raw episode. Seeds run
+from `seed` upwards; only successful demonstrations enter the dataset (failed seeds are reported), up to a
+bounded number of attempts.
 """
 
 from __future__ import annotations
@@ -15,12 +17,13 @@ import numpy as np
 
 from toddlerbot.datasets.episode import RawEpisode, resample
 from toddlerbot.datasets.lerobot_writer import write_dataset
+from toddlerbot.policies.base import Policy
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.tasks import make_task
 from toddlerbot.tasks.demonstrator import ScriptedPicker
-from toddlerbot.tasks.pick import PickTask
+from toddlerbot.tasks.pick import PickTask, TaskRobot
 from toddlerbot.tasks.video import SideBySideVideo, write_png
-
-"""Task name -> its scripted demonstrator for a task instance (`reset(obs, rng)`, `act(obs)`, `duration`)."""
 
 DATASET_FPS = 10
 CAMERA_EVERY = 3
@@ -42,34 +45,57 @@ class DemoReport:
         return len(self.succeeded_seeds) / attempts if attempts else 0.0
 
 
+class EpisodeRecorder(RunObserver):
+    """A run observer building the `RawEpisode` of a demonstration: the follower state and commanded targets of
+    the task's recorded motors at every step, and (if `render`) the head-camera image of the state the policy
+    acted on every `CAMERA_EVERY` steps from the first, each also a frame of `video` when one is given. The run
+    must end when the policy is done (no image is taken after the last step)."""
+
+    def __init__(self, task: PickTask, render: bool = True, video: SideBySideVideo | None = None) -> None:
+        self.task, self.render, self.video = task, render, video
+
+    def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
+        self.policy = policy
+        self.times, self.states, self.actions, self.image_times, self.images = [], [], [], [], []
+        self._capture(obs.time)
+
+    def on_step(self, step: Step) -> None:
+        indices = self.task.space.indices
+        self.times.append(step.obs.time)
+        self.states.append(step.obs.motor_pos[indices])
+        self.actions.append(step.action.motor_targets[indices])
+        if (step.index + 1) % CAMERA_EVERY == 0 and not self.policy.done:  # the image the next step acts on
+            self._capture(step.next_obs.time)
+
+    def _capture(self, at: float) -> None:
+        if not self.render:
+            return
+        image = self.task.head_image()
+        self.image_times.append(at)
+        self.images.append(image)
+        if self.video is not None:
+            self.video.add(image)
+
+    def episode(self, seed: int) -> RawEpisode:
+        """The recorded run as a raw episode; success is the task's."""
+        images, image_times = self.images, self.image_times
+        if not images:  # not rendered: one blank image keeps the episode's shape
+            images, image_times = [np.zeros((96, 96, 3), np.uint8)], [self.times[0]]
+        return RawEpisode(
+            task=self.task.instruction, names=self.task.space.names, time=np.array(self.times),
+            state=np.array(self.states), action=np.array(self.actions), image_time=np.array(image_times),
+            images=np.array(images), success=self.task.succeeded, seed=seed,
+        )
+
+
 def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = True,
              video: SideBySideVideo | None = None) -> RawEpisode:
-    """One scripted episode of `task` for `seed`: 50 Hz follower state and commanded targets, head-camera
-    images every `CAMERA_EVERY` steps (if `render`)."""
-    obs = task.reset(seed)
-    demo.reset(obs, np.random.default_rng(seed))
-    space = task.space
-    steps = round(demo.duration / task.robot.control_dt)
-    times, states, actions, image_times, images = [], [], [], [], []
-    for k in range(steps):
-        if render and k % CAMERA_EVERY == 0:
-            image = task.head_image()
-            image_times.append(obs.time)
-            images.append(image)
-            if video is not None:
-                video.add(image)
-        targets = demo.act(obs)
-        times.append(obs.time)
-        states.append(obs.motor_pos[space.indices])
-        actions.append(targets[space.indices])
-        obs = task.step(targets)
-    if not images:
-        images, image_times = [np.zeros((96, 96, 3), np.uint8)], [times[0]]
-    return RawEpisode(
-        task=task.instruction, names=space.names, time=np.array(times), state=np.array(states),
-        action=np.array(actions), image_time=np.array(image_times), images=np.array(images),
-        success=task.succeeded, seed=seed,
-    )
+    """One scripted episode of `task` for `seed` (the demonstrator run until done on the task's robot): 50 Hz
+    follower state and commanded targets, head-camera images every `CAMERA_EVERY` steps (if `render`)."""
+    recorder = EpisodeRecorder(task, render, video)
+    # the demonstration runs its full length, as the dataset's episodes do, whatever the robot does
+    run_policy(TaskRobot(task, seed), demo, seconds=demo.duration, observers=[recorder], stop_on_fall=False)
+    return recorder.episode(seed)
 
 
 def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | str = "pick",
