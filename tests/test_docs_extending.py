@@ -1,7 +1,8 @@
 """docs/extending.md stays correct: its Python blocks run, in order, in one namespace (they assert their own
 figures: the catalogue entry loads, a fitted params.json reaches the description, the example policy nods the
-head by the commanded amount, the example variant adds exactly its mass and is registered for `--variant`), and its
-policy, installed as it says, runs from the command line."""
+head by the commanded amount, the example variant adds exactly its mass and is registered for `--variant`, the
+example skill turns the head by the commanded amount in a chain), and its policy, installed as it says, runs from
+the command line."""
 
 import os
 import re
@@ -11,20 +12,34 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from toddlerbot.runtime.log import RunLog
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "extending.md"
 
 
-def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, restored_registries):
+@pytest.fixture
+def restored_skills(monkeypatch):
+    """The skill kinds the guide registers last only for the test (as `restored_registries` does for policies)."""
+    from toddlerbot.skills import SKILLS
+
+    SKILLS.names()
+    monkeypatch.setattr(SKILLS, "_targets", dict(SKILLS._targets))
+    monkeypatch.setattr(SKILLS, "_resolved", dict(SKILLS._resolved))
+
+
+def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, restored_registries, restored_skills):
     blocks = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), flags=re.S | re.M)
-    assert len(blocks) == 6
+    assert len(blocks) == 8  # motor model (3), policy (2), variant (1), skill (2)
     monkeypatch.chdir(tmp_path)  # the blocks write their example files to the current folder
     namespace: dict = {"__name__": "extending_guide"}
     for number, block in enumerate(blocks, 1):
         exec(compile(block, f"{DOC.name} python block {number}", "exec"), namespace)
-    assert namespace["swing"] > 0.4 and namespace["extra_kg"] > 0.19
+    assert namespace["swing"] > 0.4 and namespace["extra_kg"] > 0.19 and namespace["turned"] > 0.35
+    from toddlerbot.skills import SKILLS
+
+    assert "look" in SKILLS  # registered by the guide, for chain files
 
 
 def _block(language: str, containing: str) -> str:

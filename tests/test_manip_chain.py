@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.runtime.runner import RunObserver, run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.skills.runner import ChainRunner
 from toddlerbot.skills.spec import ChainFileError, load_chain
@@ -191,8 +192,23 @@ def test_a_sim_only_predicate_on_hardware_is_a_one_line_error(tmp_path):
     assert "grasped" in text  # names the predicates that do work on hardware
 
 
+class _Watch(RunObserver):
+    """Keeps, after every step of a teleop run, the buttons held, the targets sent and `extra()`; at the start, the
+    session's arm targets (teleop's hold) and `at_start()`."""
+
+    def __init__(self, session, extra=lambda: None, at_start=lambda: None) -> None:
+        self.session, self.extra, self.at_start, self.steps = session, extra, at_start, []
+
+    def on_start(self, robot, policy, obs) -> None:
+        self.robot, self.teleop_targets = robot, self.session.arm_targets.copy()
+        self.start = self.at_start()
+
+    def on_step(self, step) -> None:
+        self.steps.append((self.session.last_command.skills, self.robot.last_targets.copy(), self.extra()))
+
+
 def test_holding_l2_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_teleop():
-    from toddlerbot.skills.teleop_hook import ChainHook
+    from toddlerbot.skills.teleop_hook import ChainButtons
     from toddlerbot.tasks.probe import SceneProbe
     from toddlerbot.tasks.scenes import grasp_site
     from toddlerbot.teleop.gamepad import GamepadMapper, GamepadState, KeyboardMapper, TeleopCommand, load_mapping
@@ -215,34 +231,35 @@ def test_holding_l2_in_teleop_runs_the_wagon_chain_and_releasing_returns_to_tele
     chain = load_chain("wagon", GROUPS)
     assert chain.button == "l2"
     model = scene_model(DESCRIPTION, "wagon")
-    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    robot = MuJoCoRobot(DESCRIPTION, model=model)  # at its start state, as run_policy's reset puts it
     logs: list[str] = []
-    hook = ChainHook([chain], robot, model, SceneProbe(model, robot.data), log=logs.append)
-    source = Trigger(held=100)
-    session = TeleopSession(robot, source, skill_hook=hook, log=logs.append)
-    session.reset()
-    teleop_targets = session.arm_targets.copy()
+    session = TeleopSession(robot, Trigger(held=100), log=logs.append)
+    hook = ChainButtons(session, [chain], model, SceneProbe(model, robot.data), log=logs.append)
     site = robot.data.site(grasp_site("right"))
     start = site.xpos.copy()
     handle = robot.data.geom("wagon_handle").xpos.copy()
-    for _ in range(100):  # 2 s of L2: the grasp skill's approach (1.5 s) and part of its reach
-        session.step()
-        assert session.last_command.skills == frozenset({"skill_l2"})
+    watch = _Watch(session, lambda: (hook.runner and hook.runner.status.skill, site.xpos.copy()))
+    # 2 s of L2 (the grasp skill's approach, 1.5 s, and part of its reach), then 5 steps released
+    run_policy(robot, hook, seconds=105 * robot.control_dt, observers=[watch], stop_on_fall=False)
+    held, released = watch.steps[:100], watch.steps[100:]
+    assert len(released) == 5
+    assert all(skills == frozenset({"skill_l2"}) for skills, _, _ in held)
+    _, targets, (skill, grasp_point) = held[-1]
     arms = DESCRIPTION.groups["arm"]
-    assert logs == ["chain wagon: started (l2)"] and hook.runner.status.skill == "grasp"
-    assert np.abs(robot.last_targets[arms] - teleop_targets[arms]).max() > 0.3  # the chain drives the arms
-    assert site.xpos[0] - start[0] > 0.04  # right grasp point moved forward towards the handle...
-    assert abs(site.xpos[2] - handle[2]) < 0.04  # ...to about its height
-    for _ in range(5):  # released: teleop's held arm targets again
-        session.step()
-        assert session.last_command.skills == frozenset()
-    np.testing.assert_allclose(robot.last_targets[arms], teleop_targets[arms], atol=1e-9)
+    assert logs == ["chain wagon: started (l2)"] and skill == "grasp"
+    assert np.abs(targets[arms] - watch.teleop_targets[arms]).max() > 0.3  # the chain drives the arms
+    assert grasp_point[0] - start[0] > 0.04  # right grasp point moved forward towards the handle...
+    assert abs(grasp_point[2] - handle[2]) < 0.04  # ...to about its height
+    for skills, targets, _ in released:  # released: teleop's held arm targets again
+        assert skills == frozenset()
+        np.testing.assert_allclose(targets[arms], watch.teleop_targets[arms], atol=1e-9)
 
 
 def test_holding_l1_in_teleop_on_the_pick_task_runs_the_dp_pick_chain_and_releasing_returns_to_teleop():
     pytest.importorskip("torch")
-    from toddlerbot.cli.teleop import _chain_hook, _robot
+    from toddlerbot.skills.teleop_hook import with_chains
     from toddlerbot.teleop.gamepad import KeyboardMapper, TeleopCommand, load_mapping
+    from toddlerbot.teleop.launch import sim_robot
     from toddlerbot.teleop.session import TeleopSession
 
     class Keys:
@@ -255,41 +272,42 @@ def test_holding_l1_in_teleop_on_the_pick_task_runs_the_dp_pick_chain_and_releas
             self.polls += 1
             return self.mapper.command({"1"} if self.idle < self.polls <= self.idle + self.held else set())
 
-    robot, camera, walks = _robot("sim", "pick", None, None, 1000, "bno08x")  # `teleop --task pick --seed 1000`
-    hook = _chain_hook(None, "sim", "pick", robot, camera)  # the shipped chains of the pick scene
-    assert not walks and {b: c.name for b, c in hook.bound.items()} == {"l1": "pick"}
+    setup = sim_robot("pick", 1000)  # `teleop --task pick --seed 1000`
+    robot = setup.robot
     logs: list[str] = []
+    session = TeleopSession(robot, Keys(idle=10, held=100), log=logs.append)
+    hook = with_chains(session, None, "pick", setup.head_image, log=lambda _: None)  # the pick scene's chains
+    assert not setup.walks and {b: c.name for b, c in hook.bound.items()} == {"l1": "pick"}
     hook.log = logs.append
-    session = TeleopSession(robot, Keys(idle=10, held=100), skill_hook=hook, log=logs.append)
-    session.reset()
-    teleop_targets = session.arm_targets.copy()
     d = robot.description
     arms, neck = d.groups["arm"], d.motor_names.index("neck_pitch_drive")
-    start_distance = robot.task.grasp_distance()
-    for _ in range(10):  # teleop holds the task's start pose, the head looking down at the table
-        session.step()
-    assert robot.last_targets[neck] == pytest.approx(robot.task.config.neck_pitch, abs=1e-9)
+    watch = _Watch(session, lambda: (hook.runner, hook.runner and hook.runner.status.skill,
+                                     robot.task.grasp_distance()), robot.task.grasp_distance)
+    run_policy(robot, hook, seconds=115 * robot.control_dt, observers=[watch], stop_on_fall=False)
+    idle, held, released = watch.steps[:10], watch.steps[10:110], watch.steps[110:]
+    assert len(released) == 5
+    for _, targets, _ in idle:  # teleop holds the task's start pose, the head looking down at the table
+        assert targets[neck] == pytest.approx(robot.task.config.neck_pitch, abs=1e-9)
     moved = 0.0
-    for _ in range(100):  # 2 s of L1: the policy reaches for the cube
-        session.step()
-        moved = max(moved, float(np.abs(robot.last_targets[arms] - teleop_targets[arms]).max()))
-        assert robot.last_targets[neck] == pytest.approx(robot.task.config.neck_pitch, abs=1e-9)
-    skill = hook.runner.skills[0]
-    assert logs == ["chain pick: started (l1)"] and hook.runner.status.skill == "pick"
+    for _, targets, _ in held:  # 2 s of L1: the policy reaches for the cube
+        moved = max(moved, float(np.abs(targets[arms] - watch.teleop_targets[arms]).max()))
+        assert targets[neck] == pytest.approx(robot.task.config.neck_pitch, abs=1e-9)
+    runner, skill_name, distance = held[-1][2]
+    skill = runner.skills[0]
+    assert logs == ["chain pick: started (l1)"] and skill_name == "pick"
     assert skill.by == "dp (pick.pt)"
     status = skill.live.status
     # chunks asked for every 25 steps, each used from 15 steps later: 4 in 100 steps (measured 4, arm 0.82 rad off
     # teleop's targets, grasp point 0.101 m -> 0.012 m from the cube)
     assert status.chunks_used >= 3 and status.failures == 0 and status.camera_misses == 0
     assert moved > 0.3  # the policy's chunks, not teleop's hold, drove the arm...
-    assert robot.task.grasp_distance() < start_distance - 0.05  # ...to the cube
-    for _ in range(5):  # released: teleop's held arm targets again
-        session.step()
-    np.testing.assert_allclose(robot.last_targets[arms], teleop_targets[arms], atol=1e-9)
+    assert distance < watch.start - 0.05  # ...to the cube
+    for _, targets, _ in released:  # released: teleop's held arm targets again
+        np.testing.assert_allclose(targets[arms], watch.teleop_targets[arms], atol=1e-9)
 
 
 def test_a_chain_that_cannot_start_in_teleop_is_one_log_line_and_teleop_goes_on(tmp_path):
-    from toddlerbot.skills.teleop_hook import ChainHook
+    from toddlerbot.skills.teleop_hook import ChainButtons
     from toddlerbot.tasks.probe import SceneProbe
     from toddlerbot.teleop.gamepad import TeleopCommand
     from toddlerbot.teleop.session import TeleopSession
@@ -307,13 +325,14 @@ def test_a_chain_that_cannot_start_in_teleop_is_one_log_line_and_teleop_goes_on(
     model = scene_model(DESCRIPTION, "pick")
     robot = MuJoCoRobot(DESCRIPTION, model=model)
     logs: list[str] = []
-    hook = ChainHook([chain], robot, model, SceneProbe(model, robot.data), log=logs.append)
-    session = TeleopSession(robot, R1(), skill_hook=hook, log=logs.append)
-    session.reset()
+    session = TeleopSession(robot, R1(), log=logs.append)
+    hook = ChainButtons(session, [chain], model, SceneProbe(model, robot.data), log=logs.append)
+    watch = _Watch(session, lambda: session.arm_targets.copy())
+    run_policy(robot, hook, seconds=3 * robot.control_dt, observers=[watch], stop_on_fall=False)
     arms = DESCRIPTION.groups["arm"]
-    for _ in range(3):  # held: refused once, not retried every step; teleop's targets go out
-        session.step()
-        np.testing.assert_allclose(robot.last_targets[arms], session.arm_targets[arms], atol=1e-9)
+    assert len(watch.steps) == 3
+    for _, targets, teleop_targets in watch.steps:  # held: refused once, not retried every step; teleop's go out
+        np.testing.assert_allclose(targets[arms], teleop_targets[arms], atol=1e-9)
     assert len(logs) == 1 and logs[0].startswith("chain c: cannot start: ") and "no_such_task" in logs[0]
     assert "\n" not in logs[0]
 
@@ -402,22 +421,26 @@ def test_a_dp_skill_drives_the_arms_with_a_shipped_checkpoint(tmp_path):
     model = scene_model(DESCRIPTION, "pick")
     robot = MuJoCoRobot(DESCRIPTION, model=model)
     camera = HeadCamera(model, robot.data, DESCRIPTION.handles.head_camera)
-    runner = ChainRunner(chain, robot, model, SceneProbe(model, robot.data), camera.image)
-    obs = robot.reset()
     home = DESCRIPTION.home_motor_pos
     arms = DESCRIPTION.groups["arm"]
-    runner.start(obs, home)
-    moved = 0.0
+    runner = ChainRunner(chain, robot, model, SceneProbe(model, robot.data), camera.image, start_targets=home)
+
+    class Reach(RunObserver):
+        moved = 0.0
+
+        def on_step(self, step) -> None:
+            self.moved = max(self.moved, float(np.abs(step.action.motor_targets[arms] - home[arms]).max()))
+
+    reach = Reach()
     try:
-        while (command := runner.step(obs)) is not None:
-            moved = max(moved, float(np.abs(command[0][arms] - home[arms]).max()))
-            obs = robot.step(*command)
+        result = run_policy(robot, runner, seconds=5.0, observers=[reach], stop_on_fall=False)
     finally:
         camera.close()
+    assert result.stopped_by == "policy"  # the chain ended, not the 5 s
     assert runner.status.failure is None and runner.skills[0].by == "dp (pick.pt)"
     assert runner.skills[0].live.status.chunks_used >= 2 and runner.skills[0].live.status.failures == 0
-    assert moved > 0.05  # the policy's chunks, not a hold, drove the arms
-    assert obs.time == pytest.approx(1.5, abs=0.021)
+    assert reach.moved > 0.05  # the policy's chunks, not a hold, drove the arms
+    assert robot.observe().time == pytest.approx(1.5, abs=0.021)
 
 
 def test_the_shipped_pick_chain_lifts_the_cube_with_the_dp_checkpoint_and_holds_it():

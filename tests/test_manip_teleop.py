@@ -120,9 +120,11 @@ def test_virtual_controller_walks_the_simulated_robot_and_records_an_episode(joy
     from toddlerbot.datasets.lerobot_writer import write_dataset
     from toddlerbot.policies import make_policy
     from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.runtime.runner import RunObserver, run_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
     from toddlerbot.tasks.space import ManipulationSpace
-    from toddlerbot.teleop.session import EpisodeRecorder, TeleopSession
+    from toddlerbot.teleop.recording import EpisodeRecorder
+    from toddlerbot.teleop.session import TeleopSession
 
     description = RobotDescription.load(variant="gripper")
     robot = MuJoCoRobot(description)
@@ -130,21 +132,27 @@ def test_virtual_controller_walks_the_simulated_robot_and_records_an_episode(joy
     recorder = EpisodeRecorder("walk forward", space)
     messages: list[str] = []
     session = TeleopSession(robot, JoystickInput(MAPPING, joystick.index), make_policy("walk-zmp", robot),
-                            recorder=recorder, log=messages.append)
-    session.reset()
-    start = robot.base_pos
+                            on_menu=recorder.toggle, log=messages.append)
+
+    class Operator(RunObserver):
+        """Moves the virtual controller between steps: Menu for step 0, then the stick forward and the D-pad left
+        for 0.5 s, for 150 steps; then Menu again."""
+
+        def on_step(self, step) -> None:
+            if step.index == 0:
+                joystick.button(7, False)
+                joystick.axis(1, -0.6)     # left stick forward
+                joystick.hat(0, -1, 0)     # D-pad left for 0.5 s: twist the waist by 0.4 rad/s x 0.5 s
+            elif step.index == 25:
+                joystick.hat(0, 0, 0)
+            elif step.index == 150:
+                joystick.axis(1, 0.0)
+                joystick.button(7, True)   # Menu: episode ends
+
+    start = robot.base_pos  # the start state run_policy's reset puts it in
     joystick.button(7, True)   # Menu: episode starts
-    session.step()
-    joystick.button(7, False)
-    joystick.axis(1, -0.6)     # left stick forward
-    joystick.hat(0, -1, 0)     # D-pad left for 0.5 s: twist the waist by 0.4 rad/s x 0.5 s
-    for step in range(150):
-        if step == 25:
-            joystick.hat(0, 0, 0)
-        session.step()
-    joystick.axis(1, 0.0)
-    joystick.button(7, True)   # Menu: episode ends
-    session.step()
+    run_policy(robot, session, seconds=152 * robot.control_dt, observers=[recorder, Operator()],
+               stop_on_fall=False)
     moved = robot.base_pos - start
     assert not robot.fallen
     assert moved[0] > 0.05, moved
@@ -162,6 +170,7 @@ def test_leader_arms_drive_the_simulated_pick_robot_and_staleness_is_reported():
     import socket
     import time
 
+    from toddlerbot.runtime.runner import RunObserver, run_policy
     from toddlerbot.tasks.pick import PickTask
     from toddlerbot.teleop.follower import ArmFollower
     from toddlerbot.teleop.gamepad import TeleopCommand
@@ -181,24 +190,35 @@ def test_leader_arms_drive_the_simulated_pick_robot_and_staleness_is_reported():
     follower = ArmFollower(robot.motor_names, task.space.names)
     messages: list[str] = []
     session = TeleopSession(robot, Idle(), leader=(subscriber, follower), log=messages.append)
+    goal = robot.reset().motor_pos[task.space.indices].copy()  # where run_policy's reset puts the arms
+    elbow = task.space.names.index("right_elbow_roll")
+    goal[elbow] += 0.4
+    motor = task.space.indices[elbow]
+
+    class Leader(RunObserver):
+        """The leader: sends `goal` before each of the first 12 steps (0.4 rad at 0.05 rad per step: reached after
+        8), then goes quiet."""
+
+        def on_start(self, robot, policy, obs) -> None:
+            deadline = time.monotonic() + 3
+            while subscriber.poll() is None and time.monotonic() < deadline:
+                publisher.send(task.space.names, goal)
+                time.sleep(0.01)
+            publisher.send(task.space.names, goal)
+
+        def on_step(self, step) -> None:
+            if step.index < 11:
+                publisher.send(task.space.names, goal)
+            elif step.index == 11:
+                self.reached = session.arm_targets[motor]
+                time.sleep(0.05)  # a loaded machine may deliver the last message late: let the next step take it
+            elif step.index == 12:
+                time.sleep(0.25)  # the leader goes quiet
+
+    leader = Leader()
     try:
-        obs = session.reset()
-        goal = obs.motor_pos[task.space.indices].copy()
-        elbow = task.space.names.index("right_elbow_roll")
-        goal[elbow] += 0.4
-        deadline = time.monotonic() + 3
-        while subscriber.poll() is None and time.monotonic() < deadline:
-            publisher.send(task.space.names, goal)
-            time.sleep(0.01)
-        for _ in range(12):  # 0.4 rad at 0.05 rad per step: reached after 8 steps
-            publisher.send(task.space.names, goal)
-            session.step()
-        motor = task.space.indices[elbow]
-        assert session.arm_targets[motor] == pytest.approx(goal[elbow], abs=1e-9)
-        time.sleep(0.05)  # a loaded machine may deliver the last message late: let the next step take it
-        session.step()
-        time.sleep(0.25)  # the leader goes quiet
-        session.step()
+        run_policy(robot, session, seconds=14 * robot.control_dt, observers=[leader], stop_on_fall=False)
+        assert leader.reached == pytest.approx(goal[elbow], abs=1e-9)
         assert follower.holding
         assert messages[0] == "arms: following leader"
         assert messages[-1].startswith("arms: leader stale") and messages[-1].endswith("holding last safe targets")

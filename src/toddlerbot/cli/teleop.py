@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 
@@ -12,212 +12,97 @@ from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, output_d
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.tasks.scenes import SCENES
+from toddlerbot.teleop.launch import MAX_TELEOP_SECONDS
 
 app = typer.Typer(help="Teleoperation: game controller (Table 4), keyboard, leader-follower arms; record episodes.",
                   invoke_without_command=True)
 
-BACKENDS = ("sim", "real")
-INPUTS = ("joystick", "keyboard", "leader")
-SIM_TASKS = ("walk", *SCENES)
-MAX_TELEOP_SECONDS = 12 * 3600.0
-"""Longest timed teleoperation session, s (a day of data collection; 0 runs until Esc)."""
+BackendOption = Annotated[Literal["sim", "real"], typer.Option("--backend", help="sim (MuJoCo) or real (Dynamixel "
+                                                                                 "bus).")]
+InputOption = Annotated[Literal["joystick", "keyboard", "leader"], typer.Option(
+    "--input", help="joystick, keyboard, or leader (arms from the leader link; walking from a controller if one is "
+                    "connected, else keys).")]
+TaskOption = Annotated[Literal[("walk", *SCENES)], typer.Option(  # the teleop tasks of teleop.launch.SIM_TASKS
+    "--task", help="Sim scene: walk (floor), pick (table and cube, torso mounted), wagon.")]
+OutOption = Annotated[Path | None, typer.Option("-o", "--out", help="Record episodes (Menu marks start and end) into "
+                                                                    "this dataset directory.")]
+PolicyOption = Annotated[str, typer.Option("--policy", help="Walking policy (a registered one that follows velocity "
+                                                            "commands: walk-zmp, walk-rl).")]
+MappingOption = Annotated[Path | None, typer.Option("--mapping", help="Controller mapping YAML (default: Table 4).")]
+SecondsOption = Annotated[float, typer.Option("--seconds", help="Stop after this long (0: run until Esc/Ctrl-C).")]
+LinkOption = Annotated[str | None, typer.Option("--link", help="Leader link endpoint (ZeroMQ; default: the local "
+                                                               "one, manipulation.link.DEFAULT_ENDPOINT).")]
+PortOption = Annotated[str | None, typer.Option("--port", help="Serial port of the robot (real backend).")]
+CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
+SeedOption = Annotated[int, typer.Option("--seed", help="Scene seed (pick).")]
+ViewerOption = Annotated[bool, typer.Option("--viewer", help="Show the MuJoCo viewer (sim; needs a display).")]
+ChainsOption = Annotated[list[str] | None, typer.Option(
+    "--chain", help="Skill chain (shipped name or file) run while its button is held; default (sim): the shipped "
+                    "chains of the task's scene, e.g. wagon on L2, pick on L1.")]
 
 
 @app.callback()
-def teleop(
-    ctx: typer.Context,
-    backend: Annotated[str, typer.Option("--backend", help="sim (MuJoCo) or real (Dynamixel bus).")] = "sim",
-    input_kind: Annotated[str, typer.Option("--input", help="joystick, keyboard, or leader (arms from the leader "
-                                            "link; walking from a controller if one is connected, else keys).")]
-        = "joystick",
-    task: Annotated[str, typer.Option("--task", help="Sim scene: walk (floor), pick (table and cube, torso "
-                                      "mounted), wagon.")] = "walk",
-    out: Annotated[Path | None, typer.Option("-o", "--out", help="Record episodes (Menu marks start and end) into "
-                                             "this dataset directory.")] = None,
-    policy: Annotated[str, typer.Option("--policy", help="Walking policy: walk-zmp or walk-rl.")] = "walk-zmp",
-    mapping: Annotated[Path | None, typer.Option("--mapping", help="Controller mapping YAML (default: Table 4).")]
-        = None,
-    seconds: Annotated[float, typer.Option("--seconds", help="Stop after this long (0: run until Esc/Ctrl-C).")]
-        = 0.0,
-    link: Annotated[str | None, typer.Option("--link", help="Leader link endpoint (ZeroMQ; default: the local "
-                                             "one, manipulation.link.DEFAULT_ENDPOINT).")] = None,
-    port: Annotated[str | None, typer.Option("--port", help="Serial port of the robot (real backend).")] = None,
-    calibration: Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
-        = None,
-    imu: ImuOption = "bno08x",
-    seed: Annotated[int, typer.Option("--seed", help="Scene seed (pick).")] = 0,
-    viewer: Annotated[bool, typer.Option("--viewer", help="Show the MuJoCo viewer (sim; needs a display).")] = False,
-    chains: Annotated[list[str] | None, typer.Option("--chain", help="Skill chain (shipped name or file) run while "
-                                                     "its button is held; default (sim): the shipped chains of "
-                                                     "the task's scene, e.g. wagon on L2, pick on L1.")] = None,
-) -> None:
+def teleop(ctx: typer.Context, backend: BackendOption = "sim", input_kind: InputOption = "joystick",
+           task: TaskOption = "walk", out: OutOption = None, policy: PolicyOption = "walk-zmp",
+           mapping: MappingOption = None, seconds: SecondsOption = 0.0, link: LinkOption = None,
+           port: PortOption = None, calibration: CalibrationOption = None, imu: ImuOption = "bno08x",
+           seed: SeedOption = 0, viewer: ViewerOption = False, chains: ChainsOption = None) -> None:
     """Teleoperate: left stick walks, right stick turns, D-pad moves the waist, Y/A/X/B the neck, Menu marks
     episodes; with --input leader the arms follow the leader arms. Runs at 50 Hz in real time."""
     if ctx.invoked_subcommand is not None:
         return
+    from toddlerbot.skills.teleop_hook import with_chains
     from toddlerbot.tasks.space import ManipulationSpace
-    from toddlerbot.teleop.gamepad import load_mapping
-    from toddlerbot.teleop.session import EpisodeRecorder, TeleopSession
+    from toddlerbot.teleop.launch import input_source, leader_link, run_teleop
+    from toddlerbot.teleop.recording import EpisodeRecorder
+    from toddlerbot.teleop.session import TeleopSession
 
-    for name, value, allowed in (("--backend", backend, BACKENDS), ("--input", input_kind, INPUTS),
-                                 ("--task", task, SIM_TASKS), ("--policy", policy, ("walk-zmp", "walk-rl"))):
-        if value not in allowed:
-            raise ToddlerbotError(f"{name} {value!r}: expected one of {', '.join(allowed)}")
+    _check_outputs(out, seconds)
+    setup, walker = _real(port, calibration, imu, policy) if backend == "real" else _sim(task, seed, policy)
+    robot = setup.robot
+    recorder = None if out is None else EpisodeRecorder(f"teleop {task}", ManipulationSpace.of(robot.description),
+                                                        setup.head_image)
+    session = TeleopSession(robot, input_source(input_kind, mapping, console.print), walker,
+                            leader_link(link, robot) if input_kind == "leader" else None,
+                            on_menu=None if recorder is None else recorder.toggle, log=console.print)
+    driver = with_chains(session, chains, task if backend == "sim" else None, setup.head_image, console.print)
+    run_teleop(robot, driver, seconds, [] if recorder is None else [recorder], viewer and backend == "sim",
+               console.print)
+    if recorder is not None:
+        recorder.write(out, console.print)  # type: ignore[arg-type]
+
+
+def _check_outputs(out: Path | None, seconds: float) -> None:
     if out is not None and out.is_dir() and any(out.iterdir()):
         raise ToddlerbotError(f"{out} exists and is not empty")
     if out is not None:
         output_dir(out, "--out")
     if seconds:  # 0: until Esc or Ctrl-C
         duration(seconds, "--seconds", MAX_TELEOP_SECONDS)
-    pad = load_mapping(mapping)
-    robot, camera, walks = _robot(backend, task, port, calibration, seed, imu)
-    source = _source(input_kind, pad)
-    leader = _leader_link(link, robot) if input_kind == "leader" else None
-    walker = None
-    if walks:
-        from toddlerbot.policies import make_policy
-
-        walker = make_policy(policy, robot)
-    recorder = None
-    if out is not None:
-        recorder = EpisodeRecorder(f"teleop {task}", ManipulationSpace.of(robot.description), camera)
-    hook = _chain_hook(chains, backend, task, robot, camera)
-    session = TeleopSession(robot, source, walker, recorder, leader, skill_hook=hook, log=console.print)
-    _run(session, robot, source, seconds, viewer and backend == "sim")
-    if recorder is not None:
-        _write(out, recorder)
 
 
-def _robot(backend: str, task: str, port: str | None, calibration: Path | None, seed: int, imu: str):
+def _sim(task: str, seed: int, policy: str):
+    """The task's simulated robot and, where it walks, the walking policy."""
+    from toddlerbot.teleop.launch import sim_robot, walking_policy
+
+    setup = sim_robot(task, seed)
+    return setup, walking_policy(policy, setup.robot) if setup.walks else None
+
+
+def _real(port: str | None, calibration: Path | None, imu: str, policy: str):
+    """The real robot (its IMU opened for a policy that balances from it) and the walking policy."""
+    if port is None or calibration is None:
+        raise ToddlerbotError("--backend real needs --port and --calibration")
+    from toddlerbot.hardware.calibration import load_calibration
+    from toddlerbot.hardware.real_robot import RealRobot
     from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.teleop.launch import TeleopRobot, walking_policy
 
     description = RobotDescription.load(variant="gripper")
-    if backend == "real":
-        if port is None or calibration is None:
-            raise ToddlerbotError("--backend real needs --port and --calibration")
-        from toddlerbot.hardware.calibration import load_calibration
-        from toddlerbot.hardware.real_robot import RealRobot
-
-        robot = RealRobot(description, port, load_calibration(calibration, description),
-                          imu=open_robot_imu(imu, port, "teleop (it walks)"))
-        return robot, None, True
-    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-    from toddlerbot.tasks.camera import HeadCamera
-
-    if task == "pick":
-        from toddlerbot.tasks.pick import PickTask, TaskRobot
-
-        pick = PickTask(description)
-        pick.reset(seed)
-        return TaskRobot(pick, seed), pick.head_image, False
-    model = None
-    if task == "wagon":
-        from toddlerbot.tasks.scenes import scene_model
-
-        model = scene_model(description, "wagon")
-    robot = MuJoCoRobot(description, model=model)
-    camera = HeadCamera(robot.model, robot.data, description.handles.head_camera or "head_camera")
-    return robot, camera.image, True
-
-
-def _chain_hook(names: list[str] | None, backend: str, task: str, robot, camera=None):
-    """The skill hook running the chains `names` (default in sim: the shipped chains of the task's scene) on their
-    buttons; `camera` gives a `dp` skill its head-camera images."""
-    from toddlerbot.skills.spec import SHIPPED_DIR, load_chain
-
-    groups = tuple(robot.description.groups)
-    if names is None:
-        shipped = [load_chain(p, groups) for p in sorted(SHIPPED_DIR.glob("*.yaml"))] if backend == "sim" else []
-        chains = [c for c in shipped if c.scene == task and c.button is not None]
-    else:
-        chains = [load_chain(name, groups) for name in names]
-    if not chains:
-        return None
-    from toddlerbot.skills.teleop_hook import ChainHook
-
-    if backend == "real":
-        from toddlerbot.tasks.scenes import scene_model
-
-        hook = ChainHook(chains, robot, scene_model(robot.description, chains[0].scene), head_image=camera,
-                         log=console.print)
-    else:
-        from toddlerbot.tasks.probe import SceneProbe
-
-        hook = ChainHook(chains, robot, robot.model, SceneProbe(robot.model, robot.data), head_image=camera,
-                         log=console.print)
-    for button, chain in hook.bound.items():
-        console.print(f"hold {button.upper()} to run chain {chain.name}")
-    return hook
-
-
-def _source(input_kind: str, pad):
-    from toddlerbot.teleop.sdl_input import InputError, JoystickInput, KeyboardInput
-
-    if input_kind == "keyboard":
-        return KeyboardInput(pad)
-    try:
-        source = JoystickInput(pad)
-        console.print(f"controller: {source.name}")
-        return source
-    except InputError:
-        if input_kind == "joystick":
-            raise
-        console.print("no controller: walking and neck from the keyboard")
-        return KeyboardInput(pad)
-
-
-def _leader_link(endpoint: str | None, robot):
-    from toddlerbot.tasks.space import ManipulationSpace
-    from toddlerbot.teleop.follower import ArmFollower
-    from toddlerbot.teleop.link import DEFAULT_ENDPOINT, LinkSubscriber
-
-    space = ManipulationSpace.of(robot.description)
-    return LinkSubscriber(endpoint or DEFAULT_ENDPOINT), ArmFollower(robot.motor_names, space.names)
-
-
-def _run(session, robot, source, seconds: float, viewer: bool) -> None:
-    handle = None
-    if viewer:
-        import mujoco.viewer
-
-        from toddlerbot.sim.render import show_visuals
-
-        handle = mujoco.viewer.launch_passive(robot.model, robot.data)
-        show_visuals(handle.opt)  # the robot as it looks; the viewer's group toggles (2, 3) switch to collision
-    session.reset()
-    dt = robot.control_dt
-    start = next_tick = time.monotonic()
-    console.print("teleoperating: Menu (or Return) marks episodes, Esc or Ctrl-C stops")
-    try:
-        while not seconds or time.monotonic() - start < seconds:
-            session.step()
-            if handle is not None:
-                handle.sync()
-            if getattr(source, "quit_requested", False):
-                break
-            next_tick += dt
-            time.sleep(max(0.0, next_tick - time.monotonic()))
-    except KeyboardInterrupt:
-        console.print("stopped")
-    finally:
-        if handle is not None:
-            handle.close()
-        robot.close()
-
-
-def _write(out: Path, recorder) -> None:
-    from toddlerbot.datasets.episode import resample
-    from toddlerbot.datasets.lerobot_writer import write_dataset
-    from toddlerbot.tasks.record import DATASET_FPS
-
-    if recorder.active:
-        console.print(recorder.toggle())
-    if not recorder.episodes:
-        console.print("no episode recorded (press Menu to start and end one)")
-        return
-    write_dataset(out, [resample(e, DATASET_FPS) for e in recorder.episodes], recorder.space.names, DATASET_FPS,
-                  raw_episodes=recorder.episodes)
-    console.print(f"wrote {out}: {len(recorder.episodes)} episode(s)")
+    robot = RealRobot(description, port, load_calibration(calibration, description))
+    walker = walking_policy(policy, robot)
+    robot.imu = open_robot_imu(imu, port, f"teleop --policy {policy}" if walker.needs_imu else None)
+    return TeleopRobot(robot, None, walks=True), walker
 
 
 @app.command()

@@ -9,6 +9,9 @@ returns motor targets and firmware gains (the runner applies `hold` and sends th
 * ``dp``: a diffusion-policy checkpoint drives the arm and gripper motors (torch is imported only here).
 * ``walk``: a walking policy (walk-zmp, walk-rl) with a fixed command.
 * ``hold``: every motor keeps the previous skill's last targets.
+
+A chain file names a kind; `SKILLS` (`toddlerbot.skills`) maps the name to its `SkillKind` (parameters and
+constructor), so a skill of your own is a `Skill` subclass registered under a new name (docs/extending.md).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import mujoco
 import numpy as np
@@ -101,9 +104,6 @@ def grasp_gains(description: RobotDescription, p: GraspParams) -> np.ndarray:
     return kp
 
 
-PARAMS: dict[str, type] = {"scripted_grasp": GraspParams, "dp": DPParams, "walk": WalkParams, "hold": HoldParams}
-
-
 @dataclass(frozen=True)
 class SkillEnv:
     """What a skill may use: the robot, a kinematic model with the grasp sites, and the base pose to solve IK in."""
@@ -123,6 +123,8 @@ class SkillEnv:
 
 
 class Skill(ABC):
+    """One phase of a chain; the chain (`runner.ChainRunner`, a `Policy`) runs its skills in order."""
+
     by = ""
     """What drives it, for reports (e.g. ``scripted (no checkpoint for task wagon)``)."""
 
@@ -134,8 +136,26 @@ class Skill(ABC):
     def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
         """(motor targets rad, firmware kp) for the next step, `elapsed` s after `start`."""
 
+    @property
+    def status(self) -> object | None:
+        """What its policy reports (a dp skill's inference statistics), an object with ``to_dict()``; None when it
+        has nothing to say."""
+        return None
+
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release threads or files."""
+
+
+@dataclass(frozen=True)
+class SkillKind:
+    """A ``kind`` of chain files: the dataclass its parameters fill (each chain-file key a field) and the
+    constructor of its skill, ``build(env, params)``."""
+
+    params: type
+    build: Callable[[SkillEnv, Any], Skill]
+
+    def __call__(self, env: SkillEnv, params: object) -> Skill:
+        return self.build(env, params)
 
 
 class ScriptedGrasp(Skill):
@@ -210,6 +230,10 @@ class DPSkill(Skill):
         self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated, seed=p.seed, kp=kp)
         self.by = f"dp ({path.name})"
 
+    @property
+    def status(self) -> object | None:
+        return self.live.status if self.live.runner is not None else None
+
     def start(self, obs: Observation, targets: np.ndarray) -> None:
         self.live.reset(obs)
 
@@ -241,7 +265,7 @@ class WalkSkill(Skill):
 class HoldSkill(Skill):
     by = "hold"
 
-    def __init__(self, env: SkillEnv) -> None:
+    def __init__(self, env: SkillEnv, p: HoldParams) -> None:
         self.kp = env.robot.description.default_kp.copy()
 
     def start(self, obs: Observation, targets: np.ndarray) -> None:
@@ -251,18 +275,19 @@ class HoldSkill(Skill):
         return self._targets.copy(), self.kp
 
 
-def make_skill(kind: str, params: object, env: SkillEnv) -> Skill:
-    if kind == "scripted_grasp":
-        task = params.checkpoint  # type: ignore[attr-defined]
-        shipped = task is not None and is_shipped(task)
-        if shipped and env.head_image is not None:
-            # at the scripted grasp's gains: the wagon task demonstrates and trains the policy at them
-            return DPSkill(env, DPParams(task), grasp_gains(env.robot.description, params))  # type: ignore[arg-type]
-        why = ("no checkpoint named" if task is None else f"no head camera for {task}.pt" if shipped
-               else f"no checkpoint for task {task}")
-        return ScriptedGrasp(env, params, why)  # type: ignore[arg-type]
-    if kind == "dp":
-        return DPSkill(env, params)  # type: ignore[arg-type]
-    if kind == "walk":
-        return WalkSkill(env, params)  # type: ignore[arg-type]
-    return HoldSkill(env)
+def grasp_skill(env: SkillEnv, p: GraspParams) -> Skill:
+    """The scripted grasp, or the shipped diffusion policy of the task ``checkpoint`` names where there is one and
+    a head camera to feed it."""
+    shipped = p.checkpoint is not None and is_shipped(p.checkpoint)
+    if shipped and env.head_image is not None:
+        # at the scripted grasp's gains: the wagon task demonstrates and trains the policy at them
+        return DPSkill(env, DPParams(p.checkpoint), grasp_gains(env.robot.description, p))  # type: ignore[arg-type]
+    why = ("no checkpoint named" if p.checkpoint is None else f"no head camera for {p.checkpoint}.pt" if shipped
+           else f"no checkpoint for task {p.checkpoint}")
+    return ScriptedGrasp(env, p, why)
+
+
+SCRIPTED_GRASP = SkillKind(GraspParams, grasp_skill)
+DP = SkillKind(DPParams, DPSkill)
+WALK = SkillKind(WalkParams, WalkSkill)
+HOLD = SkillKind(HoldParams, HoldSkill)

@@ -1,33 +1,46 @@
-"""A chain on any `Robot` in real time (the real robot): no scene probe, so only predicates with a hardware form,
-``after`` and buttons switch; the robot is closed (torque off) however the run ends."""
+"""A chain on any `Robot` in real time (the real robot), run by `runtime.run_policy` with a `WallClock`: no scene
+probe, so only predicates with a hardware form, ``after`` and buttons switch; a fall stops it (a failure); the robot
+is closed (torque off) however the run ends."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 from toddlerbot.robot.interface import Robot
-from toddlerbot.skills.runner import ChainRunner, ChainStatus
+from toddlerbot.runtime.runner import RunObserver, Step, WallClock, run_policy
+from toddlerbot.skills.runner import ChainRunner, ChainStatus, time_limit
 from toddlerbot.skills.spec import ChainSpec
 from toddlerbot.tasks.scenes import scene_model
+
+BUTTON_WAIT_S = 3600.0
+"""Longest a skill waiting for a button (or a predicate) without a timeout may run on a robot, s."""
+
+
+class SwitchReporter(RunObserver):
+    """Says each switch of the chain as it happens (``grasp -> wait at 0.90 s``)."""
+
+    def __init__(self, chain: ChainRunner, say: Callable[[str], None]) -> None:
+        self.chain, self.say, self.reported = chain, say, 0
+
+    def on_step(self, step: Step) -> None:
+        switches = self.chain.status.switches
+        for a, b, t in switches[self.reported:]:
+            self.say(f"{a} -> {b} at {t:.2f} s")
+        self.reported = len(switches)
 
 
 def run_on_robot(chain: ChainSpec, robot: Robot, buttons: Callable[[], frozenset[str]] = frozenset,
                  on_switch: Callable[[str], None] = lambda _: None) -> ChainStatus:
     """Reset, run the chain to its end at the control rate, close the robot; `buttons` gives the held buttons."""
     try:
-        runner = ChainRunner(chain, robot, scene_model(robot.description, chain.scene))
-        obs = robot.reset()
-        runner.start(obs, obs.motor_pos if robot.last_targets is None else robot.last_targets)
-        next_tick = time.monotonic()
-        reported = 0
-        while (command := runner.step(obs, buttons())) is not None:
-            obs = robot.step(*command)
-            for a, b, t in runner.status.switches[reported:]:
-                on_switch(f"{a} -> {b} at {t:.2f} s")
-            reported = len(runner.status.switches)
-            next_tick += robot.control_dt
-            time.sleep(max(0.0, next_tick - time.monotonic()))
-        return runner.status
+        runner = ChainRunner(chain, robot, scene_model(robot.description, chain.scene), buttons=buttons)
+        result = run_policy(robot, runner, seconds=time_limit(chain, BUTTON_WAIT_S), clock=WallClock(),
+                            observers=[SwitchReporter(runner, on_switch)])
+        status = runner.status
+        if result.fell:
+            status.failure = f"the robot fell at {result.fall_time:.2f} s (skill {status.skill})"
+        elif not status.done:
+            status.failure = "did not end in time"
+        return status
     finally:
         robot.close()

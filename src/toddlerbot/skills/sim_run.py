@@ -1,22 +1,26 @@
 """`toddlerbot chain run` in simulation: the chain's scene, perturbed by the seed (the wagon shifted; in the pick
-scene the pick task's start for the seed, as `dp eval` resets it), run to its end; the outcome is the chain's own
-success predicates plus what each skill was driven by, the switch times, displacements and lifts, how firmly each
-hand held its bar through the last skill (the margin of a `grasped` success) and each dp skill's policy status."""
+scene the pick task's start for the seed, as `dp eval` resets it), the chain run by `runtime.run_policy` to its end;
+the outcome is the chain's own success predicates plus what each skill was driven by, the switch times,
+displacements and lifts, how firmly each hand held its bar through the last skill (the margin of a `grasped`
+success) and each dp skill's policy status."""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 
 import mujoco
 import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import Observation
+from toddlerbot.runtime.runner import RunObserver, run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-from toddlerbot.skills.runner import ChainRunner
+from toddlerbot.skills.runner import ChainRunner, time_limit
+from toddlerbot.skills.sim_observers import ChainVideo, GripMargin, GripObserver
 from toddlerbot.skills.spec import ChainSpec
+from toddlerbot.tasks.pick import PickTask, TaskRobot
 from toddlerbot.tasks.predicates import GraspedParams, LiftedParams, MovedParams
 from toddlerbot.tasks.probe import SceneProbe
 from toddlerbot.tasks.scenes import SIDES, scene_model, shift_wagon
@@ -25,8 +29,6 @@ WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
 """Seeded shift of the wagon from its layout position: (x range, y range), m."""
 UNBOUNDED_SKILL_S = 60.0
 """Simulated time allowed to a skill with neither `after` nor `timeout` (a button it will never see in sim)."""
-VIDEO_CAMERA = "perspective"
-VIDEO_FPS = 25
 
 
 def wagon_shift(rng: np.random.Generator) -> np.ndarray:
@@ -43,28 +45,6 @@ class StartPerturbation:
     """Each motor starts up to this far off the home pose (uniform, drawn from the seed), rad."""
     wagon_shift: tuple[float, float] = (0.0, 0.0)
     """Added to the seed's wagon shift (x, y), m."""
-
-
-@dataclass
-class GripMargin:
-    """How firmly one hand held a bar through the chain's last skill."""
-
-    min_force_n: float = float("inf")
-    """The weaker finger pad's normal force, its minimum over the skill, N (0: a pad let go)."""
-    slide_m: float = 0.0
-    """Farthest the bar's axis moved along the fingers from `start_m`, m."""
-    to_end_m: float = float("inf")
-    """Least distance from the grasp point to the nearer end of the bar's straight part, m (the pads reach
-    `scenes.PAD_HALF_SIZE[0]` either side of it)."""
-    start_m: float | None = None
-    """Where the bar's axis was along the fingers (grasp-site y) when the skill began, m; None until measured."""
-
-    def update(self, probe: SceneProbe, side: str, bar: str) -> None:
-        self.min_force_n = min(self.min_force_n, float(probe.pad_forces(side, bar).min()))
-        in_hand = probe.bar_in_hand(side, bar)
-        self.start_m = in_hand.offset[1] if self.start_m is None else self.start_m
-        self.slide_m = max(self.slide_m, abs(in_hand.offset[1] - self.start_m))
-        self.to_end_m = min(self.to_end_m, in_hand.to_end)
 
 
 @dataclass
@@ -108,84 +88,106 @@ class SimChainResult:
         out.update(self.extra)
         return out
 
+    def summary(self) -> list[str]:
+        """The outcome in a few lines for a person."""
+        lines = [f"chain {self.chain} seed {self.seed}: {'success' if self.success else 'FAILED'}"
+                 + (f" ({self.failure})" if self.failure else "")]
+        lines += [f"  {skill}: {by}" for skill, by in self.driven_by.items()]
+        lines += [f"  {a} -> {b} at {t:.2f} s" for a, b, t in self.switches]
+        lines += [f"  {body} moved {moved:.3f} m" for body, moved in self.displacement_m.items()]
+        lines += [f"  {body} rose {rise:.3f} m" for body, rise in self.lift_m.items()]
+        lines.append(f"  checks {self.checks}; {self.sim_seconds:.1f} s simulated in {self.wall_seconds:.1f} s")
+        return lines
+
+
+class SceneRobot(MuJoCoRobot):
+    """The chain's scene with the seed's start: every `reset` puts the motors at their offsets and, in the wagon
+    scene, the wagon at its shift."""
+
+    def __init__(self, description: RobotDescription, model: mujoco.MjModel, motor_offset: np.ndarray,
+                 wagon_shift: np.ndarray | None) -> None:
+        self.wagon_shift = wagon_shift  # before the base class's first reset
+        super().__init__(description, model=model)
+        self.initial_motor_offset = motor_offset
+
+    def reset(self) -> Observation:
+        obs = super().reset()  # the robot senses the same wherever the wagon stands
+        if self.wagon_shift is not None:
+            shift_wagon(self.model, self.data, self.wagon_shift)
+            mujoco.mj_forward(self.model, self.data)
+        return obs
+
+
+class PickStart(TaskRobot):
+    """The pick task's robot starting at `start_pose` (the task's ready pose, perhaps perturbed)."""
+
+    def __init__(self, task: PickTask, seed: int, start_pose: np.ndarray) -> None:
+        super().__init__(task, seed)
+        self.start_pose = start_pose
+
+    def reset(self) -> Observation:
+        return self.task.reset(self.seed, self.start_pose)
+
+
+def scene_robot(chain: ChainSpec, seed: int, description: RobotDescription,
+                perturbation: StartPerturbation = StartPerturbation()) -> tuple[SceneRobot | PickStart, np.ndarray]:
+    """(robot, start targets): the chain's scene robot, which `run_policy`'s reset puts at the seed's start."""
+    rng = np.random.default_rng(seed)
+    shift = wagon_shift(rng)
+    offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
+    if chain.scene == "pick":  # the pick task's start, as `dp eval` resets it: cube placed for the seed, arm ready
+        task = PickTask(description)
+        start = task.ready_pose + offset
+        return PickStart(task, seed, start), start
+    shifted = shift + perturbation.wagon_shift if chain.scene == "wagon" else None
+    robot = SceneRobot(description, scene_model(description, chain.scene), offset, shifted)
+    return robot, description.home_motor_pos + offset
+
 
 def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
                description: RobotDescription | None = None,
                perturbation: StartPerturbation = StartPerturbation()) -> SimChainResult:
     description = description or RobotDescription.load(variant="gripper")
-    rng = np.random.default_rng(seed)
-    shift = wagon_shift(rng)
-    offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
-    if chain.scene == "pick":  # the pick task's start, as `dp eval` resets it: cube placed for the seed, arm ready
-        from toddlerbot.tasks.pick import PickTask, TaskRobot
-
-        task = PickTask(description)
-        robot = TaskRobot(task, seed)
-        model, start = task.model, task.ready_pose + offset
-        obs = task.reset(seed, start)
-    else:
-        model = scene_model(description, chain.scene)
-        robot = MuJoCoRobot(description, model=model)
-        robot.initial_motor_offset = offset
-        start = description.home_motor_pos + offset
-        obs = robot.reset()
-        if chain.scene == "wagon":
-            shift_wagon(model, robot.data, shift + perturbation.wagon_shift)
-            mujoco.mj_forward(model, robot.data)
+    robot, start = scene_robot(chain, seed, description, perturbation)
+    model = robot.model
     probe = SceneProbe(model, robot.data)
-    bars = [(side, p.target) for name, p in chain.success if isinstance(p, GraspedParams) and _is_bar(model, p.target)
-            for side in (SIDES if p.hands in ("both", "either") else (p.hands,))]
-    grip = {side: GripMargin() for side, _ in bars}
     camera = _head_camera(robot)
-    runner = ChainRunner(chain, robot, model, probe, camera.image)
-    recorder = None
-    if video is not None:
-        from toddlerbot.tasks.video import SideBySideVideo
-
-        # the tracking camera: a chain that walks leaves the fixed workspace camera's view
-        recorder = SideBySideVideo(SimpleNamespace(model=model, robot=robot), video, VIDEO_FPS, camera=VIDEO_CAMERA)
-    every = max(1, round(1.0 / (VIDEO_FPS * robot.control_dt)))
-    limit = sum(s.until.after or s.timeout or UNBOUNDED_SKILL_S for s in chain.skills) + 1.0
+    runner = ChainRunner(chain, robot, model, probe, camera.image, start_targets=start)
+    grip = GripObserver(runner, probe, _bars(chain, model))
+    recorder = None if video is None else ChainVideo(robot, video, camera.image)
+    observers: list[RunObserver] = [grip] if recorder is None else [grip, recorder]
+    limit = time_limit(chain, UNBOUNDED_SKILL_S)
     started = time.perf_counter()
-    try:
-        runner.start(obs, start)
-        k = 0
-        while obs.time < limit:
-            command = runner.step(obs)
-            if command is None:
-                break
-            obs = robot.step(*command)
-            if runner.status.skill == chain.skills[-1].name:
-                for side, bar in bars:
-                    grip[side].update(probe, side, bar)
-            if recorder is not None and k % every == 0:
-                recorder.add(camera.image())
-            k += 1
-        if not runner.status.done:
-            runner.status.failure = f"did not end within {limit:g} s of simulated time"
-        checks = runner.succeeded(obs)
+    try:  # a chain walking into the wagon may fall: `upright` is one of its checks, not a reason to stop
+        run_policy(robot, runner, seconds=limit, observers=observers, stop_on_fall=False)
     except BaseException:
         if recorder is not None:
             recorder.abort()
         raise
     finally:
-        runner.close()
         camera.close()
     if recorder is not None:
         recorder.close()
     status = runner.status
-    dp = {s.name: skill.live.status.to_dict() for s, skill in zip(chain.skills, runner.skills)
-          if getattr(skill, "live", None) is not None and skill.live.runner is not None}
+    if not status.done:
+        status.failure = f"did not end within {limit:g} s of simulated time"
+    obs = robot.observe()
+    checks = runner.succeeded(obs)
+    dp = runner.skill_status()
     moved = [p.body for name, p in chain.success if isinstance(p, MovedParams)]
     lifted = [p.body for name, p in chain.success if isinstance(p, LiftedParams)]
     return SimChainResult(
-        chain.name, seed, status.failure is None and all(checks.values()), checks,
-        {s.name: skill.by for s, skill in zip(chain.skills, runner.skills)},
+        chain.name, seed, status.failure is None and all(checks.values()), checks, dict(status.driven_by),
         status.switches[0][2] if status.switches else None, status.switches,
         {body: probe.displacement(body) for body in moved}, {body: probe.rise(body) for body in lifted},
-        status.failure, float(obs.time),
-        time.perf_counter() - started, grip, {"dp": dp} if dp else {},
+        status.failure, float(obs.time), time.perf_counter() - started, grip.grip, {"dp": dp} if dp else {},
     )
+
+
+def _bars(chain: ChainSpec, model: mujoco.MjModel) -> list[tuple[str, str]]:
+    """(hand, bar) of each `grasped` success predicate on a bar."""
+    return [(side, p.target) for name, p in chain.success if isinstance(p, GraspedParams) and _is_bar(model, p.target)
+            for side in (SIDES if p.hands in ("both", "either") else (p.hands,))]
 
 
 def _is_bar(model: mujoco.MjModel, geom: str) -> bool:

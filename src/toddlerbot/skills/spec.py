@@ -6,13 +6,13 @@
     success: {moved: {body: wagon, at_least: 0.5}, grasped: {target: wagon_handle}}   # optional, checked at the end
     skills:
       - name: grasp
-        kind: scripted_grasp         # scripted_grasp | dp | walk | hold; other keys are the kind's parameters
+        kind: scripted_grasp         # scripted_grasp | dp | walk | hold | registered; other keys: its parameters
         target: wagon_handle
         hold: [leg]                  # motor groups kept at the targets the previous skill ended with
         until: {predicate: grasped, target: wagon_handle}   # or {after: SECONDS} or {button: l1}
         timeout: 6                   # optional: fail if `until` has not held after this long, s
 
-Each kind's parameters are a dataclass in `skills` (`PARAMS`); a predicate's are in `predicates`.
+Each kind's parameters are a dataclass (its `SkillKind` in `skills.SKILLS`); a predicate's are in `predicates`.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ class SkillSpec:
     name: str
     kind: str
     params: object
-    """The kind's parameter dataclass (`skills.PARAMS`)."""
+    """The kind's parameter dataclass (`skills.skill_kind(kind).params`)."""
     until: Switch
     hold: tuple[str, ...] = ()
     timeout: float | None = None
@@ -92,7 +92,7 @@ def chain_path(name_or_path: str | Path) -> Path:
 
 def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> ChainSpec:
     """Read and validate a chain; `groups` are the motor groups `hold` may name (the description's)."""
-    from toddlerbot.skills.library import PARAMS
+    from toddlerbot.skills import SKILLS, skill_kind
     from toddlerbot.tasks.predicates import PREDICATES
     from toddlerbot.tasks.scenes import SCENES
 
@@ -116,7 +116,7 @@ def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> Chai
             raise ChainFileError(f"{src}: skill {name}: name: used twice")
         names.add(name)
         where = f"{src}: skill {name}"
-        kind = _choice(raw.get("kind"), tuple(PARAMS), where, "kind")
+        kind = _choice(raw.get("kind"), SKILLS.names(), where, "kind")
         hold = raw.get("hold", [])
         if not isinstance(hold, list) or any(g not in groups for g in hold):
             raise ChainFileError(f"{where}: hold: expected a list of motor groups from {', '.join(groups)}, "
@@ -125,7 +125,7 @@ def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> Chai
         if timeout is not None:
             timeout = _positive(timeout, where, "timeout")
         until = _switch(raw.get("until"), where, PREDICATES)
-        params = build_params(PARAMS[kind], {k: v for k, v in raw.items()
+        params = build_params(skill_kind(kind).params, {k: v for k, v in raw.items()
                                              if k not in ("name", "kind", "hold", "timeout", "until")}, where)
         skills.append(SkillSpec(name, kind, params, until, tuple(hold), timeout))
     success = []
