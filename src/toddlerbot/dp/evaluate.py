@@ -1,17 +1,18 @@
 """Closed-loop evaluation of a diffusion-policy checkpoint on a simulated task (``toddlerbot dp eval``).
 
-The checkpoint runs through `ChunkPolicyRunner` in synchronous mode (the simulation does not run in real time, so
-a worker's wall-clock latency would mean nothing): 50 Hz control, observations at the policy rate (10 Hz), each
-one the follower's arm and gripper motor angles and the head camera's 96x96 image, made exactly as the recorder
-makes a dataset row (`ManipulationSpace` indices, `HeadCamera.image`) and laid out by the same `channel_first` as
-the training windows. The policy drives the dataset's motors (arms and grippers); every other motor holds the
-task's start pose. Success is the task's own (`PickTask.succeeded`; the wagon task's is the wagon chain's
-``grasped`` check).
+An episode is a run of the checkpoint's runtime policy (`LiveDPPolicy`, in synchronous mode: the simulation does
+not run in real time, so a worker's wall-clock latency would mean nothing) on the task's `TaskRobot` through
+`run_policy`, whose reset is the task's reset for the seed: 50 Hz control, observations at the policy rate
+(10 Hz), each one the follower's arm and gripper motor angles and the head camera's 96x96 image, made as the
+recorder makes a dataset row (the checkpoint's motor names, which `check_fits` holds to the task's
+`ManipulationSpace`; `HeadCamera.image`). The policy drives the dataset's motors (arms and grippers) at the
+task's gains; every other motor holds the task's start pose. `EpisodeOutcome` stops the run on the task's own
+success (`PickTask.succeeded`; the wagon task's is the wagon chain's ``grasped`` check); `PolicyTickVideo`
+writes the optional video.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,15 +21,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from toddlerbot.dp.checkpoint import load_policy
-from toddlerbot.dp.chunker import ActionChunker
 from toddlerbot.dp.config import DPConfig
-from toddlerbot.dp.data import channel_first
 from toddlerbot.dp.inference import PolicyInference
-from toddlerbot.dp.policy import IMAGE, STATE
-from toddlerbot.dp.runner import ChunkPolicyRunner
+from toddlerbot.dp.live import LiveDPPolicy
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.base import Policy
+from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.tasks import make_task
-from toddlerbot.tasks.pick import PickTask
+from toddlerbot.tasks.pick import PickTask, TaskRobot
 
 if TYPE_CHECKING:  # PyAV (the manip extra) is needed only to write a video
     from toddlerbot.tasks.video import SideBySideVideo
@@ -72,20 +73,6 @@ class EvalResult:
                 "failed_seeds": [e.seed for e in self.episodes if not e.success]}
 
 
-class TimedInference:
-    """`PolicyInference` that keeps the wall time of every call."""
-
-    def __init__(self, inference: PolicyInference) -> None:
-        self.inference = inference
-        self.seconds: list[float] = []
-
-    def __call__(self, history: dict[str, np.ndarray]) -> np.ndarray:
-        start = time.perf_counter()
-        chunk = self.inference(history)
-        self.seconds.append(time.perf_counter() - start)
-        return chunk
-
-
 def check_fits(config: DPConfig, task: PickTask) -> None:
     """The checkpoint's state and action must be the task's arm and gripper motors, in the same order."""
     names = task.space.names
@@ -97,32 +84,60 @@ def check_fits(config: DPConfig, task: PickTask) -> None:
             raise EvalError(f"checkpoint {kind} names {list(got)} differ from task {task.name!r}'s {list(names)}")
 
 
-def run_episode(task: PickTask, infer: Callable[[dict[str, np.ndarray]], np.ndarray], config: DPConfig,
-                seed: int, seconds: float, video: SideBySideVideo | None = None) -> EpisodeResult:
-    """One closed-loop episode of at most ``seconds`` (simulated); stops early once the task has succeeded."""
-    obs = task.reset(seed)
-    indices = task.space.indices
-    hold = task.ready_pose.copy()
-    chunker = ActionChunker(config.latency_drop, config.n_action_steps, 1.0 / config.policy_hz,
-                            task.robot.control_dt)
-    runner = ChunkPolicyRunner(infer, chunker, config.n_obs_steps, hold[indices], synchronous=True)
-    targets = hold.copy()
-    offset = 0.0
-    for k in range(round(seconds / task.robot.control_dt)):
-        observation = {STATE: obs.motor_pos[indices].astype(np.float32)}
-        if k % chunker.substeps == 0:  # the runner keeps only the observations at the policy rate
-            image = task.head_image() if config.uses_images or video is not None else None
-            if config.uses_images:
-                observation[IMAGE] = channel_first(image)
-            if video is not None:
-                video.add(image)
-        targets[indices] = runner.step(observation)
-        offset = max(offset, float(np.abs(targets[indices] - hold[indices]).max()))
-        obs = task.step(targets)
-        if task.succeeded:
-            break
-    runner.close()
-    return EpisodeResult(seed, task.succeeded, float(obs.time), runner.status.chunks_used, offset)
+class EpisodeOutcome(RunObserver):
+    """Stops the run once the task has succeeded; keeps the simulated time at the end and how far the policy's
+    targets for the recorded motors moved from the task's start pose."""
+
+    def __init__(self, task: PickTask) -> None:
+        self.task = task
+        self.indices = task.space.indices
+        self.start = task.ready_pose[self.indices]
+        self.sim_seconds = 0.0
+        self.max_target_offset = 0.0
+
+    def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
+        self.sim_seconds = obs.time
+
+    def on_step(self, step: Step) -> None:
+        offset = float(np.abs(step.action.motor_targets[self.indices] - self.start).max())
+        self.max_target_offset = max(self.max_target_offset, offset)
+        self.sim_seconds = step.next_obs.time
+
+    @property
+    def stop_requested(self) -> bool:
+        return self.task.succeeded
+
+
+class PolicyTickVideo(RunObserver):
+    """Side-by-side video frames of the states the policy's ticks saw (the first step and every ``every``-th
+    after); none after the run's last step: the run ends after ``steps`` steps or once the task has succeeded."""
+
+    def __init__(self, task: PickTask, video: SideBySideVideo, every: int, steps: int) -> None:
+        self.task, self.video, self.every, self.steps = task, video, every, steps
+
+    def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
+        self.video.add(self.task.head_image())
+
+    def on_step(self, step: Step) -> None:
+        following = step.index + 1
+        if following % self.every == 0 and following < self.steps and not self.task.succeeded:
+            self.video.add(self.task.head_image())
+
+
+def run_episode(task: PickTask, robot: TaskRobot, policy: LiveDPPolicy, seed: int, seconds: float,
+                video: SideBySideVideo | None = None) -> EpisodeResult:
+    """One closed-loop episode from the task's start for ``seed`` (``robot`` is the task's, the one ``policy``
+    drives), at most ``seconds`` (simulated); stops early once the task has succeeded."""
+    robot.seed = seed
+    outcome = EpisodeOutcome(task)
+    observers: list[RunObserver] = [outcome]
+    if video is not None:
+        steps = round(seconds / robot.control_dt)
+        observers.append(PolicyTickVideo(task, video, policy.chunker.substeps, steps))
+    # a robot that tips over (the wagon task stands on the floor) is a failed episode, run to its end as before
+    run_policy(robot, policy, seconds=seconds, observers=observers, stop_on_fall=False)
+    return EpisodeResult(seed, task.succeeded, float(outcome.sim_seconds), policy.status.chunks_used,
+                         outcome.max_target_offset)
 
 
 def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float | None = None,
@@ -133,21 +148,23 @@ def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float | 
     e.g. ``cuda``)."""
     if episodes < 1:
         raise EvalError(f"--episodes must be >= 1, got {episodes}")
-    policy = load_policy(checkpoint).to(device)
+    network = load_policy(checkpoint).to(device)
     own_task = isinstance(task, str)
     task = make_task(task) if isinstance(task, str) else task
     seconds = task.episode_seconds if seconds is None else seconds
-    check_fits(policy.config, task)
-    infer = TimedInference(PolicyInference(policy, seed))
+    check_fits(network.config, task)
+    robot = TaskRobot(task, seed)
+    policy = LiveDPPolicy(robot, PolicyInference(network, seed), network.config, task.head_image, str(checkpoint),
+                          synchronous=True, kp=task.kp)
     result = EvalResult(task.name, str(checkpoint), seed)
     video = None
     if video_path is not None:
         from toddlerbot.tasks.video import SideBySideVideo
 
-        video = SideBySideVideo(task, video_path, round(policy.config.policy_hz))
+        video = SideBySideVideo(task, video_path, round(network.config.policy_hz))
     try:
         for s in range(seed, seed + episodes):
-            episode = run_episode(task, infer, policy.config, s, seconds, video)
+            episode = run_episode(task, robot, policy, s, seconds, video)
             result.episodes.append(episode)
             if on_episode:
                 on_episode(episode)
@@ -159,5 +176,5 @@ def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float | 
         video.close()
     if own_task:
         task.camera.close()
-    result.inference_seconds = infer.seconds
+    result.inference_seconds = policy.inference_seconds
     return result

@@ -140,9 +140,14 @@ class LiveDPPolicy(Policy):
         return Action(targets, self.transmission.motor_to_joint(targets), kp=self.kp)
 
     @property
+    def inference_seconds(self) -> list[float]:
+        """Wall time of every inference since the policy was made (over all its runs), s."""
+        return list(self._infer.seconds)  # a copy: the worker appends while we read
+
+    @property
     def status(self) -> LiveStatus:
         s = self.runner.status
-        seconds = list(self._infer.seconds)  # the worker appends while we read
+        seconds = self.inference_seconds
         return LiveStatus(s.chunks_used, self._holding_steps, s.failures, s.stale_dropped, self._camera_misses,
                           1e3 * float(np.mean(seconds)) if seconds else float("nan"), s.last_error)
 
