@@ -26,7 +26,7 @@ from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
 SECONDS = 2.0
 """Simulated time per round of each stepping loop."""
-ROUNDS = 5
+ROUNDS = 7
 
 
 def record_torques(robot: MuJoCoRobot, hold: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray]:

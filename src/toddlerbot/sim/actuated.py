@@ -54,19 +54,21 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     qpos, qvel = [d.qpos for d in datas], [d.qvel for d in datas]
     robots = list(enumerate(zip(models, datas, [d.ctrl for d in datas], strict=True)))
     qadr, dofs, actuators = motors.qpos, motors.dof, motors.actuator
-    torque, step, one = drive.torque, mujoco.mj_step, len(datas) == 1
+    torque, step, batch = drive.torque, mujoco.mj_step, len(datas)
+    if batch == 1:  # (n_motors,) arithmetic: broadcasting against (1, n_motors) costs more than the math
+        targets = targets[0]
     budget = drive.has_friction_excess
     frictionloss = [m.dof_frictionloss[dofs].copy() for m in models] if budget else []
     if sensors_last_only:
         for m in models:
             m.opt.disableflags |= _NO_SENSOR
     for k in range(n_substeps):
-        if one:  # (n_motors,) states broadcast against the (1, n_motors) targets
+        if batch == 1:
             q, q_dot = qpos[0][qadr], qvel[0][dofs]
         else:  # stack whole state vectors, then index once: one fancy index per robot costs more than the stack
             q, q_dot = np.stack(qpos)[:, qadr], np.stack(qvel)[:, dofs]
-        tau = torque(targets, q, q_dot)
-        excess = drive.friction_excess(q_dot, tau) if budget else None
+        tau = torque(targets, q, q_dot).reshape(batch, -1)
+        excess = drive.friction_excess(q_dot, tau).reshape(batch, -1) if budget else None
         if sensors_last_only and k == n_substeps - 1:
             for m in models:
                 m.opt.disableflags &= ~_NO_SENSOR
