@@ -16,9 +16,10 @@ from toddlerbot.hardware.calibration import Calibration, spec_label
 from toddlerbot.hardware.leader import LeaderArms
 from toddlerbot.hardware.real_robot import RealRobot
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.runtime.runner import RunObserver, run_policy
 from toddlerbot.tasks.space import follower_gains
 from toddlerbot.teleop.follower import ArmFollower, FollowerConfig
-from toddlerbot.teleop.leader_follower import FollowerLoop, stream_leader
+from toddlerbot.teleop.leader_follower import FollowerPolicy, stream_leader
 from toddlerbot.teleop.link import LinkError, LinkMessage, LinkPublisher, LinkSubscriber
 
 pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
@@ -82,6 +83,39 @@ def _calibration(emu) -> tuple[Calibration, dict[str, int]]:
     return Calibration("tb", spec_label(DESCRIPTION), offsets), offsets
 
 
+class _Operator(RunObserver):
+    """Watches the follower: until it follows (3 s at most), then 60 steps more; then stops the leader's stream and
+    ends the run 0.35 s later."""
+
+    def __init__(self, policy, follow, stop, streamer) -> None:
+        self.policy, self.follow, self.stop, self.streamer = policy, follow, stop, streamer
+        self.first_step = self.followed_steps = None
+        self.stopped_at = None
+
+    def on_start(self, robot, policy, obs) -> None:
+        self.start, self.began = policy.targets.copy(), time.monotonic()
+
+    def on_step(self, step) -> None:
+        if self.first_step is None:
+            if self.follow.status == "following leader" or time.monotonic() - self.began > 3:
+                self.first_step, self.followed_steps = np.abs(self.policy.targets - self.start).max(), 0
+        elif self.followed_steps < 60:
+            self.followed_steps += 1
+            if self.followed_steps == 60:
+                self.followed, self.obs = self.policy.targets.copy(), step.next_obs
+                self.stop.set()  # the leader stops sending
+                self.streamer.join(2)
+                self.held, self.stopped_at = self.policy.targets.copy(), time.monotonic()
+
+    @property
+    def stopped_by_leader(self) -> bool:
+        return self.stopped_at is not None
+
+    @property
+    def stop_requested(self) -> bool:
+        return self.stopped_at is not None and time.monotonic() - self.stopped_at >= 0.35
+
+
 def test_leader_follower_on_two_emulated_buses():
     endpoint = _endpoint()
     with emulated(SPEC, offsets_seed=1) as (leader_emu, leader_path), \
@@ -110,31 +144,19 @@ def test_leader_follower_on_two_emulated_buses():
         follow = ArmFollower(names, leader.names, FollowerConfig(max_step=0.05))
         try:
             with RealRobot(DESCRIPTION, follower_path, follower_cal, control_dt=0.02, reset_duration=0.2) as robot:
-                loop = FollowerLoop(robot, subscriber, follow, kp=follower_gains(DESCRIPTION, 0.5))
-                loop.start(robot.reset())
-                start = loop.targets.copy()
-                deadline = time.monotonic() + 3
-                while follow.status != "following leader" and time.monotonic() < deadline:
-                    loop.step()
-                first_step = np.abs(loop.targets - start).max()
-                for _ in range(60):
-                    obs = loop.step()
+                policy = FollowerPolicy(robot, subscriber, follow, kp=follower_gains(DESCRIPTION, 0.5))
+                operator = _Operator(policy, follow, stop, streamer)
+                run_policy(robot, policy, seconds=10.0, observers=[operator], stop_on_fall=False)
                 arm = follow.indices
                 # targets reached the leader; the follower's motors moved most of the way (emulated plant)
-                np.testing.assert_allclose(loop.targets[arm], pose[arm], atol=5e-3)
-                assert np.abs(obs.motor_pos[names.index("right_elbow_roll")] - 0.9) < 0.15
-                assert first_step <= 0.05 + 1e-9
+                np.testing.assert_allclose(operator.followed[arm], pose[arm], atol=5e-3)
+                assert np.abs(operator.obs.motor_pos[names.index("right_elbow_roll")] - 0.9) < 0.15
+                assert operator.first_step <= 0.05 + 1e-9
                 legs = DESCRIPTION.groups["leg"]
-                np.testing.assert_allclose(loop.targets[legs], start[legs])
-
-                stop.set()  # the leader stops sending: 0.2 s later the follower holds
-                streamer.join(2)
-                held = loop.targets.copy()
-                stopped = time.monotonic()
-                while time.monotonic() - stopped < 0.35:
-                    loop.step()
-                assert follow.holding and "leader stale" in follow.status
-                np.testing.assert_allclose(loop.targets, held)
+                np.testing.assert_allclose(operator.followed[legs], operator.start[legs])
+                # the leader stopped sending: 0.2 s later the follower holds
+                assert operator.stopped_by_leader and follow.holding and "leader stale" in follow.status
+                np.testing.assert_allclose(policy.targets, operator.held)
         finally:
             stop.set()
             publisher.close()

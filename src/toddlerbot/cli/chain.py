@@ -72,13 +72,12 @@ def _run_real(chain, description, port: str, calibration: Path, imu: str, video:
               say) -> tuple[bool, dict, list[str]]:
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.real_robot import RealRobot
-    from toddlerbot.skills.robot_run import run_on_robot
+    from toddlerbot.skills.robot_run import needs_imu, run_on_robot
 
     if video is not None:
         raise ToddlerbotError("--video records the simulator; it is not available on the real robot")
-    walks = any(skill.kind == "walk" for skill in chain.skills)
     robot = RealRobot(description, port, load_calibration(calibration, description),
-                      imu=open_robot_imu(imu, port, f"chain {chain.name} (it walks)" if walks else None))
+                      imu=open_robot_imu(imu, port, f"chain {chain.name} (it walks)" if needs_imu(chain) else None))
     status = run_on_robot(chain, robot, on_switch=say)
     outcome = {"chain": chain.name, "success": status.failure is None, "failure": status.failure,
                "switches": [{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in status.switches]}

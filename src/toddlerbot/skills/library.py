@@ -153,6 +153,8 @@ class SkillKind:
 
     params: type
     build: Callable[[SkillEnv, Any], Skill]
+    needs_imu: bool = False
+    """True for a skill that balances from the IMU (walking): on hardware its chain is refused without one."""
 
     def __call__(self, env: SkillEnv, params: object) -> Skill:
         return self.build(env, params)
@@ -289,5 +291,5 @@ def grasp_skill(env: SkillEnv, p: GraspParams) -> Skill:
 
 SCRIPTED_GRASP = SkillKind(GraspParams, grasp_skill)
 DP = SkillKind(DPParams, DPSkill)
-WALK = SkillKind(WalkParams, WalkSkill)
+WALK = SkillKind(WalkParams, WalkSkill, needs_imu=True)
 HOLD = SkillKind(HoldParams, HoldSkill)

@@ -8,12 +8,18 @@ from collections.abc import Callable
 
 from toddlerbot.robot.interface import Robot
 from toddlerbot.runtime.runner import RunObserver, Step, WallClock, run_policy
+from toddlerbot.skills import skill_kind
 from toddlerbot.skills.runner import ChainRunner, ChainStatus, time_limit
 from toddlerbot.skills.spec import ChainSpec
 from toddlerbot.tasks.scenes import scene_model
 
 BUTTON_WAIT_S = 3600.0
 """Longest a skill waiting for a button (or a predicate) without a timeout may run on a robot, s."""
+
+
+def needs_imu(chain: ChainSpec) -> bool:
+    """Does a skill of `chain` balance from the IMU (a walk)?"""
+    return any(skill_kind(s.kind).needs_imu for s in chain.skills)
 
 
 class SwitchReporter(RunObserver):

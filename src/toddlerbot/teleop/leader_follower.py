@@ -1,4 +1,5 @@
-"""Leader-follower loops: the leader side streams its arm angles, the follower side turns them into targets.
+"""Leader-follower: the leader side streams its arm angles (a loop reading the leader arms, torque off), the
+follower side turns them into targets (`follow_leader`; `FollowerPolicy`, run by `runtime.run_policy`).
 
 Both run at the control rate (50 Hz). The leader side reports a bus error (a message of kind ``"error"``) so the
 follower learns why it holds, and keeps trying, unless the leader's serial port itself is gone (unplugged): then
@@ -14,6 +15,7 @@ import numpy as np
 
 from toddlerbot.hardware.driver import BusLostError, HardwareError
 from toddlerbot.hardware.leader import LeaderArms
+from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.teleop.follower import ArmFollower
 from toddlerbot.teleop.link import LinkPublisher, LinkSubscriber
@@ -53,19 +55,23 @@ def follow_leader(subscriber: LinkSubscriber, follower: ArmFollower, current: np
     return follower.targets(current, message.names, message.values, subscriber.age())
 
 
-class FollowerLoop:
-    """One control step of the follower: newest leader message -> rate-limited targets -> `Robot.step`."""
+class FollowerPolicy(Policy):
+    """The follower's arms as a `Policy`: each control step the newest leader message -> rate-limited targets (the
+    motors the follower does not follow hold where they started), at firmware gains `kp` (None: the spec's)."""
+
+    name = "follower"
 
     def __init__(self, robot: Robot, subscriber: LinkSubscriber, follower: ArmFollower,
                  kp: np.ndarray | None = None) -> None:
-        self.robot, self.subscriber, self.follower, self.kp = robot, subscriber, follower, kp
+        super().__init__(robot)
+        self.subscriber, self.follower, self.kp = subscriber, follower, kp
         self.targets: np.ndarray | None = None
 
-    def start(self, obs: Observation) -> None:
+    def reset(self, obs: Observation) -> None:
         self.targets = obs.motor_pos.copy()
 
-    def step(self) -> Observation:
+    def act(self, obs: Observation, command: np.ndarray) -> Action:
         if self.targets is None:
-            raise RuntimeError("call start() with the robot's first observation")
+            raise RuntimeError("call reset() with the robot's first observation")
         self.targets = follow_leader(self.subscriber, self.follower, self.targets)
-        return self.robot.step(self.targets, kp=self.kp)
+        return Action(self.targets.copy(), self.transmission.motor_to_joint(self.targets), self.kp)
