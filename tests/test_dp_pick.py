@@ -83,6 +83,23 @@ def test_dp_eval_runs_the_trained_checkpoint_on_the_pick_task(pick_run, monkeypa
         assert episode.max_target_offset > 0.01
 
 
+@pytest.mark.parametrize(("steps", "success_after", "frames"), [(12, None, 3), (10, None, 2), (12, 6, 2)])
+def test_dp_eval_video_has_a_frame_per_policy_tick_and_none_after_the_last_step(steps, success_after, frames):
+    from types import SimpleNamespace
+
+    task = SimpleNamespace(head_image=lambda: np.zeros((96, 96, 3), np.uint8), succeeded=False)
+    video = SimpleNamespace(frames=0)
+    video.add = lambda image: setattr(video, "frames", video.frames + 1)
+    observer = dp_evaluate.PolicyTickVideo(task, video, every=5, steps=steps)  # ticks at steps 0, 5, 10
+    observer.on_start(None, None, None)
+    for index in range(steps):
+        task.succeeded = index == success_after  # the run stops after this step
+        observer.on_step(SimpleNamespace(index=index))
+        if task.succeeded:
+            break
+    assert video.frames == frames
+
+
 def test_dp_eval_without_a_checkpoint_says_none_is_shipped(tmp_path, monkeypatch):
     monkeypatch.setattr(shipped, "SHIPPED_DIR", tmp_path)
     result = runner.invoke(app, ["dp", "eval", "--task", "pick", "--episodes", "1"])

@@ -133,6 +133,34 @@ def test_task_robot_is_the_task_through_the_robot_interface(task):
     np.testing.assert_array_equal(robot.base_pos, task.robot.base_pos)
 
 
+@pytest.mark.parametrize(("steps", "image_steps"), [(7, [0, 3, 6]), (6, [0, 3])])
+def test_episode_recorder_images_the_states_acted_on_every_third_step(task, steps, image_steps):
+    from toddlerbot.policies.base import Action, Policy
+    from toddlerbot.tasks.record import CAMERA_EVERY, EpisodeRecorder
+
+    class Hold(Policy):  # the ready pose for `steps` steps
+        def reset(self, obs):
+            self.count = 0
+
+        def act(self, obs, command):
+            self.count += 1
+            return Action(task.ready_pose, task.ready_pose, kp=task.kp)
+
+        @property
+        def done(self):
+            return self.count >= steps
+
+    recorder = EpisodeRecorder(task)
+    run_policy(TaskRobot(task, 0), Hold(task.robot), seconds=1.0, observers=[recorder], stop_on_fall=False)
+    episode = recorder.episode(0)
+    dt = task.robot.control_dt
+    assert CAMERA_EVERY == 3 and episode.state.shape == episode.action.shape == (steps, 16)
+    np.testing.assert_allclose(episode.time, dt * np.arange(steps), atol=1e-9)
+    np.testing.assert_allclose(episode.image_time, dt * np.array(image_steps), atol=1e-9)  # none after the last
+    np.testing.assert_array_equal(episode.action[0], task.ready_pose[task.space.indices])
+    assert episode.images.shape == (len(image_steps), 96, 96, 3) and not episode.success
+
+
 @pytest.mark.slow
 def test_scripted_demonstrator_lifts_and_holds_the_cube(task):
     demo = ScriptedPicker(task)
