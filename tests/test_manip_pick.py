@@ -134,9 +134,9 @@ def test_task_robot_is_the_task_through_the_robot_interface(task):
 
 
 @pytest.mark.parametrize(("steps", "image_steps"), [(7, [0, 3, 6]), (6, [0, 3])])
-def test_episode_recorder_images_the_states_acted_on_every_third_step(task, steps, image_steps):
+def test_demo_recorder_images_the_states_acted_on_every_third_step(task, steps, image_steps):
     from toddlerbot.policies.base import Action, Policy
-    from toddlerbot.tasks.record import CAMERA_EVERY, EpisodeRecorder
+    from toddlerbot.tasks.record import CAMERA_EVERY, DemoRecorder
 
     class Hold(Policy):  # the ready pose for `steps` steps
         def reset(self, obs):
@@ -150,7 +150,7 @@ def test_episode_recorder_images_the_states_acted_on_every_third_step(task, step
         def done(self):
             return self.count >= steps
 
-    recorder = EpisodeRecorder(task)
+    recorder = DemoRecorder(task)
     run_policy(TaskRobot(task, 0), Hold(task.robot), seconds=1.0, observers=[recorder], stop_on_fall=False)
     episode = recorder.episode(0)
     dt = task.robot.control_dt

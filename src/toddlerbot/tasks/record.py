@@ -1,7 +1,7 @@
 """Record scripted demonstrations of a task into raw episodes and a LeRobot v3.0 dataset, with an optional video.
 
 An episode is a run of the task's demonstrator (a `Policy`) on the task's `TaskRobot` through `run_policy`, whose
-reset is the task's reset for the seed; `EpisodeRecorder` watches the run and builds the raw episode. Seeds run
+reset is the task's reset for the seed; `DemoRecorder` watches the run and builds the raw episode. Seeds run
 from `seed` upwards; only successful demonstrations enter the dataset (failed seeds are reported), up to a
 bounded number of attempts.
 """
@@ -45,7 +45,7 @@ class DemoReport:
         return len(self.succeeded_seeds) / attempts if attempts else 0.0
 
 
-class EpisodeRecorder(RunObserver):
+class DemoRecorder(RunObserver):
     """A run observer building the `RawEpisode` of a demonstration: the follower state and commanded targets of
     the task's recorded motors at every step, and (if `render`) the head-camera image of the state the policy
     acted on every `CAMERA_EVERY` steps from the first, each also a frame of `video` when one is given. The run
@@ -92,7 +92,7 @@ def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = Tru
              video: SideBySideVideo | None = None) -> RawEpisode:
     """One scripted episode of `task` for `seed` (the demonstrator run until done on the task's robot): 50 Hz
     follower state and commanded targets, head-camera images every `CAMERA_EVERY` steps (if `render`)."""
-    recorder = EpisodeRecorder(task, render, video)
+    recorder = DemoRecorder(task, render, video)
     # the demonstration runs its full length, as the dataset's episodes do, whatever the robot does
     run_policy(TaskRobot(task, seed), demo, seconds=demo.duration, observers=[recorder], stop_on_fall=False)
     return recorder.episode(seed)
