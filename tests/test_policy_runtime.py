@@ -12,7 +12,7 @@ from toddlerbot.policies import make_policy
 from toddlerbot.policies.motions import MotionError, builtin_motions, load_motion
 from toddlerbot.runtime.commands import CommandError, CommandSchedule
 from toddlerbot.runtime.log import RunLog
-from toddlerbot.runtime.runner import run_policy
+from toddlerbot.runtime.runner import PolicyError, RunObserver, SimulatedClock, WallClock, run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
 
@@ -121,3 +121,70 @@ def test_cli_stand_writes_summary_json(tmp_path):
     assert summary["fell"] is False
     assert set(summary["tracking"]) == {"position_m", "lin_vel_mps", "ang_vel_radps"}
     assert np.hypot(*summary["displacement_m"]) < 0.02
+
+
+def test_sim_run_takes_the_shared_robot_options(tmp_path):
+    """`sim run` builds its robot from --spec/--variant/--motor-params like every command: the gripper variant
+    stands with its 32 motors; a fixed-base variant is refused in one line (the simulator's robot is floating)."""
+    log = tmp_path / "run.npz"
+    result = CliRunner().invoke(app, ["sim", "run", "--policy", "stand", "--seconds", "0.5", "--variant", "gripper",
+                                      "--log", str(log)])
+    assert result.exit_code == 0, result.output
+    assert RunLog.load(log).motor_pos.shape == (25, 32)
+    refused = CliRunner().invoke(app, ["sim", "run", "--policy", "stand", "--variant", "fixed"])
+    assert isinstance(refused.exception, ToddlerbotError)
+    assert str(refused.exception) == ("sim run simulates the floating robot; --variant selects a fixed base (use a "
+                                      "floating variant: floating, gripper)")
+
+
+class _CountingStop(RunObserver):
+    """Stops the run once it has seen `after` steps; remembers the steps' indices and times."""
+
+    def __init__(self, after: int) -> None:
+        self.after, self.indices, self.times, self.started = after, [], [], 0
+
+    def on_start(self, robot, policy, obs) -> None:
+        self.started += 1
+
+    def on_step(self, step) -> None:
+        self.indices.append(step.index)
+        self.times.append(step.next_obs.time)
+
+    @property
+    def stop_requested(self) -> bool:
+        return len(self.indices) >= self.after
+
+
+def test_observers_see_every_step_and_can_end_the_run(robot):
+    stop = _CountingStop(after=7)
+    result = run_policy(robot, make_policy("stand", robot), seconds=1.0, observers=[stop])
+    assert stop.started == 1 and stop.indices == list(range(7))
+    np.testing.assert_allclose(np.diff(stop.times), robot.control_dt, atol=1e-9)
+    assert result.stopped_by == "_CountingStop" and result.completed and not result.fell
+    assert result.log.time.size == 7  # the run log is an observer too: one row per step
+
+
+def test_the_policy_is_closed_on_every_exit_path(robot):
+    class Failing(type(make_policy("stand", robot))):
+        closed = 0
+
+        def act(self, obs, command):
+            if obs.time > 0.05:
+                raise RuntimeError("boom")
+            return super().act(obs, command)
+
+        def close(self) -> None:
+            type(self).closed += 1
+
+    policy = Failing(robot)
+    with pytest.raises(PolicyError, match=r"failed at t=0\.060 s: RuntimeError: boom"):
+        run_policy(robot, policy, seconds=1.0)
+    run_policy(robot, policy, seconds=0.04)
+    assert Failing.closed == 2
+
+
+def test_wall_clock_locks_steps_to_real_time(robot):
+    simulated = run_policy(robot, make_policy("stand", robot), seconds=0.5, clock=SimulatedClock()).log
+    wall = run_policy(robot, make_policy("stand", robot), seconds=0.5, clock=WallClock()).log
+    assert simulated.time.size == wall.time.size == 25
+    assert wall.step_period.sum() >= 0.5 - 1e-3  # the steps together lasted at least the simulated time

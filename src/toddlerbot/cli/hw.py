@@ -12,29 +12,30 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.options import ImuOption, check_run_policy, duration, open_robot_imu, output_file, run_policy_names
+from toddlerbot.cli.options import (
+    ImuOption,
+    MotorParamsOption,
+    RobotOptions,
+    SpecOption,
+    VariantOption,
+    check_run_policy,
+    duration,
+    open_robot_imu,
+    output_file,
+    run_policy_names,
+)
 from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.files import json_text
-from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
 
-SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
-VariantOption = Annotated[str | None, typer.Option("--variant", help="Spec variant of this robot, e.g. gripper.")]
-MotorParamsOption = Annotated[list[Path] | None, typer.Option(
-    "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): fitted actuator parameters.")]
 PortOption = Annotated[str, typer.Option("--port", help="Serial device of the bus, e.g. /dev/ttyUSB0.")]
 BaudOption = Annotated[int, typer.Option("--baud", help="Bus baud rate.")]
 MAX_CONTROL_DT = 0.1
 """Longest control period of `hw run`, s: a goal at least every 100 ms keeps well inside the 0.5 s Bus Watchdog."""
 LatencyOption = Annotated[float, typer.Option("--latency-ms", help="USB-serial latency timer, ms: status packets "
                                               "are awaited 2 x this + 2 ms (raise it on a loaded machine).")]
-
-
-def _description(spec_path: Path | None, variant: str | None, motor_params: list[Path] | None = None
-                 ) -> RobotDescription:
-    return RobotDescription.load(spec_path, variant, motor_params or [])
 
 
 @app.command()
@@ -54,56 +55,18 @@ def emulate(
     """Serve the robot's motors on a pseudo-terminal: prints the device path as the first line, then serves until
     interrupted (Ctrl-C, SIGTERM, SIGHUP), then prints one JSON line of statistics. With --hil the simulated
     robot's IMU is published too, as the BNO08x reports it (`hw run --imu emulator` reads it)."""
-    from toddlerbot.hardware.driver import raise_on_stop_signals
-    from toddlerbot.hardware.emulator import EmulatedBus, Faults, PtyServer
-    from toddlerbot.hardware.imu_stream import ImuPublisher, imu_socket_path
-    from toddlerbot.hardware.plant import HilPlant
+    from toddlerbot.hardware.emulator import EmulatedBus, Faults
+    from toddlerbot.hardware.serve import serve_until_stopped, write_true_calibration
 
     parsed = Faults.parse(faults or [])
     if write_calibration is not None:
         output_file(write_calibration, "--write-calibration")
-    bus = EmulatedBus(_description(spec_path, variant, motor_params), hil=hil, faults=parsed,
+    bus = EmulatedBus(RobotOptions.of(spec_path, variant, motor_params).description(), hil=hil, faults=parsed,
                       fast_sync_read=not no_fast_sync_read, offsets_seed=offsets_seed)
     if write_calibration is not None:
-        from toddlerbot.hardware.calibration import Calibration, save_calibration, spec_label
-
-        offsets = {m.name: m.mounting_offset for m in bus.motors}
-        save_calibration(Calibration("emulated", spec_label(bus.description), offsets, {}), write_calibration)
-    server = PtyServer(bus)
-    plant = bus.plant
-    imu = (ImuPublisher(imu_socket_path(server.path), lambda: plant.imu_sample).start()
-           if isinstance(plant, HilPlant) else None)
-    raise_on_stop_signals()  # every stop signal ends serving, even a SIGINT a background shell job ignores
-    try:
-        print(server.path, flush=True)
-        server.serve_forever()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.stop()
-        if imu is not None:
-            imu.stop()
-    report = {"packets": bus.stats.packets_in, "bytes_in": bus.stats.bytes_in, "bytes_out": bus.stats.bytes_out,
-              "crc_errors": bus.stats.crc_errors}
-    if isinstance(bus.plant, HilPlant):
-        report |= {"sim_time": round(bus.plant.sim_time, 3), "realtime_factor": round(bus.plant.realtime_factor, 3),
-                   "torso_height": round(bus.plant.torso_height(), 4),
-                   "torso_upright": round(bus.plant.torso_uprightness(), 4),
-                   "powered_min_torso_height": _finite(bus.plant.powered_min_height),
-                   "powered_min_torso_upright": _finite(bus.plant.powered_min_upright),
-                   "powered_torso_motion": _rounded(bus.plant.powered_motion()), "imu_reports": imu.reports}
+        write_true_calibration(bus, write_calibration)
+    report = serve_until_stopped(bus, lambda path: print(path, flush=True))
     print(json_text(report), flush=True)
-
-
-def _finite(value: float) -> float:
-    """Rounded value (NaN, never measured, becomes JSON null)."""
-    return round(value, 4) if np.isfinite(value) else value
-
-
-def _rounded(motion: tuple[float, float, float] | None) -> dict | None:
-    """The torso's planar motion while powered as JSON (dx, dy m; yaw rad), None if never powered."""
-    return None if motion is None else dict(zip(("dx_m", "dy_m", "yaw_rad"), (round(v, 4) for v in motion),
-                                                strict=True))
 
 
 @app.command()
@@ -114,7 +77,7 @@ def scan(
     from toddlerbot.hardware.control_table import model_name
     from toddlerbot.hardware.driver import DynamixelBus, motors_of
 
-    description = _description(spec_path, variant)
+    description = RobotOptions.of(spec_path, variant).description()
     with DynamixelBus(port, motors_of(description), baudrate=baud) as bus:
         found = bus.scan()
         voltage = bus.check_voltage()
@@ -150,7 +113,7 @@ def calibrate(
     )
     from toddlerbot.hardware.driver import DynamixelBus, motors_of
 
-    description = _description(spec_path, variant)
+    description = RobotOptions.of(spec_path, variant).description()
     existing = load_calibration(output) if output.exists() else None
     output_file(output, "--output")
     cal = existing
@@ -164,99 +127,108 @@ def calibrate(
     console.print(f"wrote {output} ({len(cal.offsets)} of {description.n_motors} motors calibrated)")
 
 
+CalibrationOpt = Annotated[Path, typer.Option("--calibration", help="Per-robot calibration file.")]
+HwPolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())} (dp: a "
+                                          "diffusion policy: --checkpoint, --camera, --variant gripper).")]
+HwCommandOpt = Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")]
+MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")]
+WeightsOpt = Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz "
+                                                 "or .onnx from `toddlerbot rl export`), or a shipped one by name: "
+                                                 "walk_rl (default) or walk_rl_gpu.")]
+CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
+                                                    "`dp train` or `dp export`.")]
+CameraOpt = Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "
+                                               "(/dev/video0) or a video file (played at its frame rate).")]
+ThreadsOpt = Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")]
+SecondsOpt = Annotated[float, typer.Option("--seconds", help="Duration, s (at most an hour).")]
+DtOpt = Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")]
+LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")]
+
+
 @app.command()
-def run(
-    port: PortOption,
-    calibration: Annotated[Path, typer.Option("--calibration", help="Per-robot calibration file.")],
-    policy: Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())} (dp: a "
-                                        "diffusion policy: --checkpoint, --camera, --variant gripper).")] = "stand",
-    command: Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")] =
-        "0:0,0,0",
-    motion: Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")] = None,
-    weights: Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy "
-                                                 "(.npz or .onnx from `toddlerbot rl export`), or a shipped one by "
-                                                 "name: walk_rl (default) or walk_rl_gpu.")] = None,
-    checkpoint: Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
-                                                    "`dp train` or `dp export`.")] = None,
-    camera: Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "
-                                               "(/dev/video0) or a video file (played at its frame rate).")] = None,
-    threads: Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")] = 1,
-    seconds: Annotated[float, typer.Option("--seconds", help="Duration, s (at most an hour).")] = 5.0,
-    control_dt: Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")] \
-        = CONTROL_DT,
-    log: Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")] = None,
-    imu: ImuOption = "bno08x",
-    baud: BaudOption = 2_000_000,
-    latency_ms: LatencyOption = 16.0,
-    spec_path: SpecOption = None,
-    variant: VariantOption = None,
-    motor_params: MotorParamsOption = None,
-) -> None:
+def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "stand", command: HwCommandOpt = "0:0,0,0",
+        motion: MotionOpt = None, weights: WeightsOpt = None, checkpoint: CheckpointOpt = None,
+        camera: CameraOpt = None, threads: ThreadsOpt = 1, seconds: SecondsOpt = 5.0, control_dt: DtOpt = CONTROL_DT,
+        log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,
+        spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None) -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
     with 128 + its number, a fall (the IMU tilted past the simulator's threshold) with 1. A run that stops early
     keeps the steps so far: in --log, or, when the bus or a motor failed, in a temporary file whose name is
     printed."""
-    from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.driver import BusInterrupt, HardwareError, raise_on_stop_signals, raise_pending_stop
-    from toddlerbot.hardware.real_robot import RealRobot
-    from toddlerbot.policies import make_policy
+    from toddlerbot.hardware.driver import BusInterrupt, raise_on_stop_signals, raise_pending_stop
     from toddlerbot.runtime.commands import CommandSchedule
-    from toddlerbot.runtime.runner import RunLogObserver, run_policy
+    from toddlerbot.runtime.hardware_run import drive
 
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
-    run_log, pol, video = RunLogObserver(), None, None
     try:
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
-        check_run_policy(policy)
-        duration(seconds, "--seconds")
-        # longer periods would leave the motors' 0.5 s Bus Watchdog waiting for the next goal
-        duration(control_dt, "--dt", MAX_CONTROL_DT)
-        duration(latency_ms, "--latency-ms", 1000.0, "milliseconds")  # the driver's bound on the latency timer
-        if log is not None:
-            output_file(log, "--log")
-        description = _description(spec_path, variant, motor_params)
-        cal = load_calibration(calibration, description)
-        schedule = CommandSchedule.parse(command)
-        robot = RealRobot(description, port, cal, control_dt=control_dt, baudrate=baud,
-                          calibration_source=str(calibration), latency_ms=latency_ms)
-        # bad weights, motions, checkpoints or cameras fail before the bus opens
-        if policy == "dp":
-            from toddlerbot.cli.dp_live import hw_dp_policy
-
-            pol, video = hw_dp_policy(robot, checkpoint, camera, threads)
-            stack.callback(pol.close)
-            if video is not None:
-                stack.callback(video.close)
-        else:
-            pol = make_policy(policy, robot, motion, weights)
+        _check_run(policy, seconds, control_dt, latency_ms, log)
+        robot = _real_robot(RobotOptions.of(spec_path, variant, motor_params), port, calibration, control_dt, baud,
+                            latency_ms)
+        pol, video = _hw_policy(robot, policy, motion, weights, checkpoint, camera, threads, stack)
         robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
         stack.callback(robot.imu.close)
-        with robot:
-            result = run_policy(robot, pol, schedule, seconds, log=run_log)
-    except BaseException as exc:
-        if len(run_log.recorder) and (log is not None or isinstance(exc, HardwareError)):
-            partial = run_log.finish(robot, pol)
-            save_or_fallback(partial.save, log, f"the log of the {len(run_log.recorder)} steps before the stop")
-        if isinstance(exc, BusInterrupt):
-            console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
-            raise typer.Exit(128 + exc.signum) from None
-        raise
+        result = drive(robot, pol, CommandSchedule.parse(command), seconds, log, lambda partial: save_or_fallback(
+            partial.save, log, f"the log of the {partial.time.size} steps before the stop"))
+    except BusInterrupt as exc:
+        console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
+        raise typer.Exit(128 + exc.signum) from None
     finally:
         stack.close()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+    _report_run(policy, result, pol, video, camera, log)
+
+
+def _check_run(policy: str, seconds: float, control_dt: float, latency_ms: float, log: Path | None) -> None:
+    check_run_policy(policy)
+    duration(seconds, "--seconds")
+    # longer periods would leave the motors' 0.5 s Bus Watchdog waiting for the next goal
+    duration(control_dt, "--dt", MAX_CONTROL_DT)
+    duration(latency_ms, "--latency-ms", 1000.0, "milliseconds")  # the driver's bound on the latency timer
+    if log is not None:
+        output_file(log, "--log")
+
+
+def _real_robot(options: RobotOptions, port: str, calibration: Path, control_dt: float, baud: int,
+                latency_ms: float):
+    from toddlerbot.hardware.calibration import load_calibration
+    from toddlerbot.hardware.real_robot import RealRobot
+
+    description = options.description()
+    return RealRobot(description, port, load_calibration(calibration, description), control_dt=control_dt,
+                     baudrate=baud, calibration_source=str(calibration), latency_ms=latency_ms)
+
+
+def _hw_policy(robot, policy: str, motion, weights, checkpoint, camera, threads: int, stack: ExitStack):
+    """(policy, camera or None); bad weights, motions, checkpoints or cameras fail before the bus opens."""
+    if policy != "dp":
+        from toddlerbot.policies import make_policy
+
+        return make_policy(policy, robot, motion, weights), None
+    from toddlerbot.cli.dp_live import hw_dp_policy
+
+    pol, video = hw_dp_policy(robot, checkpoint, camera, threads)
+    stack.callback(pol.close)
+    if video is not None:
+        stack.callback(video.close)
+    return pol, video
+
+
+def _report_run(policy: str, result, pol, video, camera: str | None, log: Path | None) -> None:
+    """Print the run's rate and tracking, save the log; a fall exits 1."""
     steps = result.log.time.size
     error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)
     console.print(f"{policy}: {steps} steps at {steps / max(result.log.step_period.sum(), 1e-9):.0f} Hz; "
                   f"median largest tracking error {np.rad2deg(np.median(error)):.2f} deg")
-    if policy == "dp":
+    if pol.status is not None:
         from toddlerbot.cli.dp_live import describe_status
 
         console.print(describe_status(pol.status), highlight=False)
-        if video is not None and video.error:  # e.g. the USB camera was unplugged: the policy held meanwhile
-            console.print(f"camera {camera}: stopped after {video.frames} frames ({video.error})", highlight=False)
+    if video is not None and video.error:  # e.g. the USB camera was unplugged: the policy held meanwhile
+        console.print(f"camera {camera}: stopped after {video.frames} frames ({video.error})", highlight=False)
     if log:
         save_or_fallback(result.log.save, log, "the run log")
     if result.fell:

@@ -7,7 +7,18 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import check_run_policy, duration, output_dir, output_file, positive, run_policy_names
+from toddlerbot.cli.options import (
+    MotorParamsOption,
+    RobotOptions,
+    SpecOption,
+    VariantOption,
+    check_run_policy,
+    duration,
+    output_dir,
+    output_file,
+    positive,
+    run_policy_names,
+)
 from toddlerbot.cli.output import console
 from toddlerbot.cli.progress import RunProgress
 from toddlerbot.cli.sim_compare import compare_command
@@ -41,8 +52,6 @@ ViewerOpt = Annotated[bool, typer.Option("--viewer", help="Open the interactive 
                                          "implies --realtime).")]
 LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")]
 SummaryOpt = Annotated[Path | None, typer.Option("--summary-json", help="Write the summary as JSON.")]
-MotorParamsOpt = Annotated[list[Path] | None, typer.Option(
-    "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable): simulate fitted motors.")]
 TaskOpt = Annotated[str | None, typer.Option("--task", help="For --policy dp: the manipulation scene (pick; the "
                                              "gripper variant, the head camera as the policy's camera).")]
 CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
@@ -56,19 +65,19 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         motion: MotionOpt = None, weights: WeightsOpt = None, seconds: SecondsOpt = 10.0,
         control_hz: ControlHzOpt = 1.0 / CONTROL_DT, realtime: RealtimeOpt = False, video: VideoOpt = None,
         snapshot: SnapshotOpt = None, camera: CameraOpt = "perspective", viewer: ViewerOpt = False,
-        log: LogOpt = None, summary_json: SummaryOpt = None, motor_params: MotorParamsOpt = None,
-        task: TaskOpt = None, checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = 1) -> None:
+        log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,
+        checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = 1, spec: SpecOption = None,
+        variant: VariantOption = None, motor_params: MotorParamsOption = None) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
-    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.runner import SimulatedClock, WallClock, run_policy
 
     _check_options(policy, task, checkpoint, weights, seconds, control_hz,
                    {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json})
     schedule = _schedule(policy, command, command_file)
-    description = RobotDescription.load(motor_params=motor_params or [])
+    description, base = RobotOptions.of(spec, variant, motor_params).load()
     _check_control_rate(control_hz, description.spec.simulation.timestep)
     realtime = realtime or viewer
-    robot, pol, scene = _robot_and_policy(description, policy, motion, weights, task, checkpoint, seed, realtime,
+    robot, pol, scene = _robot_and_policy(description, base, policy, motion, weights, task, checkpoint, seed, realtime,
                                           1.0 / control_hz, threads)
     video_obs, render_skipped = _video(robot, camera, video, snapshot)
     viewer_obs = _viewer(robot) if viewer else None
@@ -104,7 +113,7 @@ def _schedule(policy: str, command: str | None, command_file: Path | None):
     return CommandSchedule.parse(command if command is not None else "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0")
 
 
-def _robot_and_policy(description, policy: str, motion, weights, task, checkpoint, seed: int, realtime: bool,
+def _robot_and_policy(description, base: str, policy: str, motion, weights, task, checkpoint, seed: int, realtime: bool,
                       control_dt: float, threads: int):
     """(robot, policy, scene observer or None): a diffusion policy gets its task's scene (`cli.dp_live`)."""
     if policy == "dp":
@@ -114,6 +123,9 @@ def _robot_and_policy(description, policy: str, motion, weights, task, checkpoin
     from toddlerbot.policies import make_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
+    if base != "floating":  # the simulator's robot stands on the floor; a fixed base is for `model build`
+        raise ToddlerbotError(f"sim run simulates the floating robot; --variant selects a {base} base "
+                              "(use a floating variant: floating, gripper)")
     robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
     return robot, make_policy(policy, robot, motion, weights), None
 

@@ -1,0 +1,30 @@
+"""A policy on the real robot (or the emulator behind the driver): the one run loop inside the robot's torque
+context, keeping the steps of a run that stops early."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from toddlerbot.hardware.driver import HardwareError
+from toddlerbot.hardware.real_robot import RealRobot
+from toddlerbot.policies.base import Policy
+from toddlerbot.runtime.log import RunLog
+from toddlerbot.runtime.runner import RunLogObserver, RunResult, run_policy
+
+
+def drive(robot: RealRobot, policy: Policy, commands: Callable[[float], np.ndarray], seconds: float,
+          log_path: Path | None, keep_partial: Callable[[RunLog], object]) -> RunResult:
+    """Run `policy` with torque on (off again on every exit path). A run that stops early (an error, a stop
+    signal) hands the steps so far to `keep_partial` when a log was asked for, or always when the bus or a motor
+    failed (the log is then the evidence), and re-raises."""
+    run_log = RunLogObserver()
+    try:
+        with robot:
+            return run_policy(robot, policy, commands, seconds, log=run_log)
+    except BaseException as exc:
+        if len(run_log.recorder) and (log_path is not None or isinstance(exc, HardwareError)):
+            keep_partial(run_log.finish(robot, policy))
+        raise
