@@ -12,6 +12,15 @@ from toddlerbot.sim.render import Recorder
 
 IMAGE_SIZE = 96
 """Side of the square policy image, px."""
+CAMERA_EVERY = 3
+"""Recorded episodes (scripted demonstrations, teleoperation) take a head-camera image every this many control
+steps: 16.7 Hz at 50 Hz control, above the 10 Hz dataset, which takes the nearest frame."""
+
+
+def blank_image() -> np.ndarray:
+    """The image an episode recorded without a camera carries (black, IMAGE_SIZE square, RGB uint8), so every
+    episode has at least one frame."""
+    return np.zeros((IMAGE_SIZE, IMAGE_SIZE, 3), np.uint8)
 
 
 @dataclass(frozen=True)

@@ -21,14 +21,12 @@ from toddlerbot.policies.base import Policy
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.tasks import make_task
+from toddlerbot.tasks.camera import CAMERA_EVERY, blank_image
 from toddlerbot.tasks.demonstrator import ScriptedPicker
 from toddlerbot.tasks.pick import PickTask, TaskRobot
 from toddlerbot.tasks.video import SideBySideVideo, write_png
 
 DATASET_FPS = 10
-CAMERA_EVERY = 3
-"""Render the head camera every this many control steps (16.7 Hz at 50 Hz control; the 10 Hz dataset takes
-the nearest frame)."""
 
 
 @dataclass
@@ -80,7 +78,7 @@ class DemoRecorder(RunObserver):
         """The recorded run as a raw episode; success is the task's."""
         images, image_times = self.images, self.image_times
         if not images:  # not rendered: one blank image keeps the episode's shape
-            images, image_times = [np.zeros((96, 96, 3), np.uint8)], [self.times[0]]
+            images, image_times = [blank_image()], [self.times[0]]
         return RawEpisode(
             task=self.task.instruction, names=self.task.space.names, time=np.array(self.times),
             state=np.array(self.states), action=np.array(self.actions), image_time=np.array(image_times),

@@ -12,6 +12,7 @@ from toddlerbot.datasets.episode import RawEpisode
 from toddlerbot.policies.base import Policy
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step
+from toddlerbot.tasks.camera import CAMERA_EVERY, blank_image
 from toddlerbot.tasks.space import ManipulationSpace
 
 
@@ -23,7 +24,7 @@ class EpisodeRecorder(RunObserver):
     task: str
     space: ManipulationSpace
     camera: Callable[[], np.ndarray] | None = None
-    camera_every: int = 3
+    camera_every: int = CAMERA_EVERY
     episodes: list[RawEpisode] = field(default_factory=list)
     active: bool = False
 
@@ -57,7 +58,7 @@ class EpisodeRecorder(RunObserver):
         self._action.append(np.asarray(targets)[self.space.indices])
 
     def _episode(self) -> RawEpisode:
-        images = self._images or [np.zeros((96, 96, 3), np.uint8)]
+        images = self._images or [blank_image()]
         image_time = self._image_time or [self._time[0]]
         return RawEpisode(self.task, self.space.names, np.array(self._time), np.array(self._state),
                           np.array(self._action), np.array(image_time), np.array(images))
