@@ -205,8 +205,9 @@ def _real_robot(options: RobotOptions, port: str, calibration: Path, control_dt:
 def _hw_policy(robot, policy: str, motion, weights, checkpoint, camera, threads: int, stack: ExitStack):
     """(policy, camera or None); bad weights, motions, checkpoints or cameras fail before the bus opens."""
     if policy != "dp":
-        from toddlerbot.policies import make_policy
+        from toddlerbot.policies import check_policy_options, make_policy
 
+        check_policy_options(policy, motion=motion, weights=weights)
         return make_policy(policy, robot, motion, weights), None
     from toddlerbot.cli.dp_live import hw_dp_policy
 

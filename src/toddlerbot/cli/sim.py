@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 from toddlerbot.cli.options import (
@@ -34,7 +35,7 @@ app.command("compare")(compare_command)
 PolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())}.")]
 CommandOpt = Annotated[str | None, typer.Option(
     "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
-    "'0:0.1,0,0; 5:0,0,0.3'. Default: 0.1 m/s forward for walk-zmp, zero otherwise.")]
+    "'0:0.1,0,0; 5:0,0,0.3'. Default: the policy's demo command (walk-zmp: 0.1 m/s forward), else zero.")]
 CommandFileOpt = Annotated[Path | None, typer.Option("--command-file", help="Schedule file (one entry per line); "
                                                      "overrides --command.")]
 MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around or a "
@@ -71,9 +72,9 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.runtime.runner import SimulatedClock, WallClock, run_policy
 
-    _check_options(policy, task, checkpoint, weights, seconds, control_hz,
+    _check_options(policy, task, checkpoint, seconds, control_hz,
                    {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json})
-    schedule = _schedule(policy, command, command_file)
+    schedule = _schedule(command, command_file)
     description, base = RobotOptions.of(spec, variant, motor_params).load()
     _check_control_rate(control_hz, description.spec.simulation.timestep)
     realtime = realtime or viewer
@@ -82,8 +83,9 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     video_obs, render_skipped = _video(robot, camera, video, snapshot)
     viewer_obs = _viewer(robot) if viewer else None
     watchers = [w for w in (scene, video_obs, viewer_obs) if w is not None]
+    commands = schedule or (lambda _t: np.array(pol.demo_command, dtype=float))
     with RunProgress(f"simulating {policy}", round(seconds / robot.control_dt)) as progress:
-        result = run_policy(robot, pol, schedule, seconds, clock=WallClock() if realtime else SimulatedClock(),
+        result = run_policy(robot, pol, commands, seconds, clock=WallClock() if realtime else SimulatedClock(),
                             observers=[*watchers, progress])
     if viewer_obs is not None:
         viewer_obs.close()
@@ -92,12 +94,10 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     _report(policy, result, pol, scene, log, summary_json, render_skipped)
 
 
-def _check_options(policy: str, task, checkpoint, weights, seconds: float, control_hz: float, outputs: dict) -> None:
+def _check_options(policy: str, task, checkpoint, seconds: float, control_hz: float, outputs: dict) -> None:
     check_run_policy(policy)
     if (task is not None or checkpoint is not None) and policy != "dp":
         raise ToddlerbotError("--task and --checkpoint are for --policy dp")
-    if weights is not None and policy != "walk-rl":
-        raise ToddlerbotError("--weights is for --policy walk-rl")
     duration(seconds, "--seconds")
     positive(control_hz, "--control-hz", "Hz")
     for option, path in outputs.items():
@@ -105,12 +105,13 @@ def _check_options(policy: str, task, checkpoint, weights, seconds: float, contr
             output_file(path, option)
 
 
-def _schedule(policy: str, command: str | None, command_file: Path | None):
+def _schedule(command: str | None, command_file: Path | None):
+    """The schedule asked for, or None for the policy's own `demo_command` (parsed before any work starts)."""
     from toddlerbot.runtime.commands import CommandSchedule
 
     if command_file:
         return CommandSchedule.from_file(command_file)
-    return CommandSchedule.parse(command if command is not None else "0:0.1,0,0" if policy == "walk-zmp" else "0:0,0,0")
+    return None if command is None else CommandSchedule.parse(command)
 
 
 def _robot_and_policy(description, base: str, policy: str, motion, weights, task, checkpoint, seed: int, realtime: bool,
@@ -120,8 +121,10 @@ def _robot_and_policy(description, base: str, policy: str, motion, weights, task
         from toddlerbot.cli.dp_live import sim_dp_policy
 
         return sim_dp_policy(description, task or "pick", checkpoint, seed, realtime, control_dt, threads)
-    from toddlerbot.policies import make_policy
+    from toddlerbot.policies import check_policy_options, make_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+
+    check_policy_options(policy, motion=motion, weights=weights)
 
     if base != "floating":  # the simulator's robot stands on the floor; a fixed base is for `model build`
         raise ToddlerbotError(f"sim run simulates the floating robot; --variant selects a {base} base "

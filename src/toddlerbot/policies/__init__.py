@@ -18,7 +18,8 @@ POLICY_REGISTRY = Registry("policy", entry_point_group="toddlerbot.policies")
 """Every policy `make_policy` builds and `sim run`, `hw run` and `eval tracking` offer: the built-in ones, those of
 installed packages (entry-point group ``toddlerbot.policies``) and those added with `register_policy`."""
 
-__all__ = ["POLICY_REGISTRY", "Action", "Policy", "make_policy", "policy_names", "register_policy"]
+__all__ = ["POLICY_REGISTRY", "Action", "Policy", "check_policy_options", "make_policy", "policy_names",
+           "register_policy"]
 
 
 def register_policy(name: str, factory: str | Callable[..., Policy] | None = None):
@@ -40,6 +41,15 @@ def make_policy(name: str, robot: Robot, motion: str | None = None, weights: str
     factory = POLICY_REGISTRY.get(name)
     options = {"motion": motion, "weights": weights}
     return factory(robot, **{k: v for k, v in options.items() if v is not None and _accepts(factory, k)})
+
+
+def check_policy_options(name: str, **given: object) -> None:
+    """One line when an option given (not None) is one the policy's factory does not take, e.g. ``--weights`` for
+    ``stand``: the CLI refuses it rather than ignore it."""
+    factory = POLICY_REGISTRY.get(name)
+    for option, value in given.items():
+        if value is not None and not _accepts(factory, option):
+            raise ToddlerbotError(f"--{option} is not an option of policy {name!r}")
 
 
 def _accepts(factory: Callable, option: str) -> bool:

@@ -33,6 +33,9 @@ class Policy(ABC):
     """The velocity commands the policy follows (None: it ignores commands); `within_reach` clamps to it."""
     needs_imu: bool = False
     """True for a policy that balances from the IMU: the hardware commands refuse it without one."""
+    demo_command: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """What `sim run` follows without ``--command`` (vx m/s, vy m/s, yaw rate rad/s): a walk to look at for a policy
+    that shows one by default, standing still otherwise."""
 
     def __init__(self, robot: Robot) -> None:
         self._warned_reach = False

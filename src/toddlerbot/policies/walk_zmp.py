@@ -86,6 +86,7 @@ class WalkZMPPolicy(Policy):
 
     name = "walk-zmp"
     needs_imu = True
+    demo_command = (0.1, 0.0, 0.0)
 
     def __init__(
         self,
