@@ -72,4 +72,4 @@ def test_a_policy_installed_as_the_guide_says_runs_from_the_command_line(tmp_pat
     assert 0.4 < swing < 0.65 and len(log.time) == 100  # 0.6 rad commanded peak to peak; 2 s at 50 Hz
     unknown = toddlerbot("sim", "run", "--policy", "fly")
     assert unknown.returncode == 2
-    assert "expected one of stand, replay, walk-zmp, walk-rl, nod, dp" in " ".join(unknown.stderr.split())
+    assert "expected one of stand, replay, walk-zmp, walk-rl, dp, nod" in " ".join(unknown.stderr.split())

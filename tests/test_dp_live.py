@@ -173,9 +173,9 @@ def test_sim_run_dp_on_the_pick_task_moves_the_arm_to_the_cube(tmp_path):
 
 def test_dp_options_are_checked_before_anything_runs():
     runner = CliRunner()
-    wrong_policy = runner.invoke(app, ["sim", "run", "--policy", "stand", "--task", "pick"])
-    assert str(wrong_policy.exception) == "--task and --checkpoint are for --policy dp"
-    unknown_task = runner.invoke(app, ["sim", "run", "--policy", "dp", "--task", "wagon"])
-    assert str(unknown_task.exception) == "--task 'wagon': expected one of pick"
+    wrong_policy = runner.invoke(app, ["sim", "run", "--policy", "stand", "--checkpoint", "pick.pt"])
+    assert str(wrong_policy.exception) == "--checkpoint is not an option of policy 'stand'"
+    unknown_task = runner.invoke(app, ["sim", "run", "--policy", "dp", "--task", "fly"])
+    assert str(unknown_task.exception) == "unknown task 'fly'; expected one of pick, wagon"
     unknown = runner.invoke(app, ["hw", "run", "--port", "/dev/null", "--calibration", "c.yaml", "--policy", "dpx"])
     assert str(unknown.exception) == "unknown policy 'dpx'; expected one of stand, replay, walk-zmp, walk-rl, dp"

@@ -197,3 +197,18 @@ def test_an_option_the_policy_does_not_take_is_refused(robot):
     result = CliRunner().invoke(app, ["sim", "run", "--policy", "stand", "--weights", "walk_rl"])
     assert isinstance(result.exception, ToddlerbotError)
     assert str(result.exception) == "--weights is not an option of policy 'stand'"
+
+
+def test_any_policy_runs_in_a_task_scene(tmp_path):
+    """`--task` puts the run in a task's scene (no policy named in the CLI): here stand on the pick task, whose
+    progress observer reports the cube's distance from the ready pose; a policy without a status adds nothing."""
+    out = tmp_path / "s.json"
+    result = CliRunner().invoke(app, ["sim", "run", "--policy", "stand", "--task", "pick", "--seed", "1000",
+                                      "--seconds", "0.5", "--summary-json", str(out)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(out.read_text())
+    assert summary["task"]["name"] == "pick" and summary["task"]["succeeded"] is False
+    assert 0.08 < summary["task"]["start_distance_m"] < 0.12  # the ready pose: about 10 cm from the cube
+    assert "stand" not in summary
+    refused = CliRunner().invoke(app, ["sim", "run", "--task", "pick", "--control-hz", "25"])
+    assert str(refused.exception) == "--task runs at the task's 50 Hz control rate; drop --control-hz"

@@ -139,7 +139,8 @@ CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --
                                                     "`dp train` or `dp export`.")]
 CameraOpt = Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "
                                                "(/dev/video0) or a video file (played at its frame rate).")]
-ThreadsOpt = Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")]
+ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch "
+                                                 "(default 1).")]
 SecondsOpt = Annotated[float, typer.Option("--seconds", help="Duration, s (at most an hour).")]
 DtOpt = Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")]
 LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")]
@@ -148,7 +149,7 @@ LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.n
 @app.command()
 def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "stand", command: HwCommandOpt = "0:0,0,0",
         motion: MotionOpt = None, weights: WeightsOpt = None, checkpoint: CheckpointOpt = None,
-        camera: CameraOpt = None, threads: ThreadsOpt = 1, seconds: SecondsOpt = 5.0, control_dt: DtOpt = CONTROL_DT,
+        camera: CameraOpt = None, threads: ThreadsOpt = None, seconds: SecondsOpt = 5.0, control_dt: DtOpt = CONTROL_DT,
         log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,
         spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None) -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
@@ -167,7 +168,8 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         _check_run(policy, seconds, control_dt, latency_ms, log)
         robot = _real_robot(RobotOptions.of(spec_path, variant, motor_params), port, calibration, control_dt, baud,
                             latency_ms)
-        pol, video = _hw_policy(robot, policy, motion, weights, checkpoint, camera, threads, stack)
+        pol = _hw_policy(robot, policy, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
+                                         "camera": camera, "threads": threads}, stack)
         robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
         stack.callback(robot.imu.close)
         result = drive(robot, pol, CommandSchedule.parse(command), seconds, log, lambda partial: save_or_fallback(
@@ -179,7 +181,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         stack.close()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    _report_run(policy, result, pol, video, camera, log)
+    _report_run(policy, result, pol, log)
 
 
 def _check_run(policy: str, seconds: float, control_dt: float, latency_ms: float, log: Path | None) -> None:
@@ -202,34 +204,25 @@ def _real_robot(options: RobotOptions, port: str, calibration: Path, control_dt:
                      baudrate=baud, calibration_source=str(calibration), latency_ms=latency_ms)
 
 
-def _hw_policy(robot, policy: str, motion, weights, checkpoint, camera, threads: int, stack: ExitStack):
-    """(policy, camera or None); bad weights, motions, checkpoints or cameras fail before the bus opens."""
-    if policy != "dp":
-        from toddlerbot.policies import check_policy_options, make_policy
+def _hw_policy(robot, policy: str, options: dict, stack: ExitStack):
+    """The policy, closed however the run ends; bad weights, motions, checkpoints or cameras fail before the bus
+    opens."""
+    from toddlerbot.policies import check_policy_options, make_policy
 
-        check_policy_options(policy, motion=motion, weights=weights)
-        return make_policy(policy, robot, motion, weights), None
-    from toddlerbot.cli.dp_live import hw_dp_policy
-
-    pol, video = hw_dp_policy(robot, checkpoint, camera, threads)
+    check_policy_options(policy, **options)
+    pol = make_policy(policy, robot, **options)
     stack.callback(pol.close)
-    if video is not None:
-        stack.callback(video.close)
-    return pol, video
+    return pol
 
 
-def _report_run(policy: str, result, pol, video, camera: str | None, log: Path | None) -> None:
+def _report_run(policy: str, result, pol, log: Path | None) -> None:
     """Print the run's rate and tracking, save the log; a fall exits 1."""
     steps = result.log.time.size
     error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)
     console.print(f"{policy}: {steps} steps at {steps / max(result.log.step_period.sum(), 1e-9):.0f} Hz; "
                   f"median largest tracking error {np.rad2deg(np.median(error)):.2f} deg")
-    if pol.status is not None:
-        from toddlerbot.cli.dp_live import describe_status
-
-        console.print(describe_status(pol.status), highlight=False)
-    if video is not None and video.error:  # e.g. the USB camera was unplugged: the policy held meanwhile
-        console.print(f"camera {camera}: stopped after {video.frames} frames ({video.error})", highlight=False)
+    if pol.status is not None:  # e.g. dp's inference, and how its camera stopped if it did
+        console.print(pol.status.describe(), highlight=False)
     if log:
         save_or_fallback(result.log.save, log, "the run log")
     if result.fell:

@@ -65,9 +65,8 @@ MAX_RUN_SECONDS = 3600.0
 
 
 def run_policy_names() -> tuple[str, ...]:
-    """What `sim run` and `hw run` accept: every registered policy and ``dp`` (a diffusion-policy checkpoint, which
-    the manipulation layer builds, above the policy registry)."""
-    return (*policy_names(), "dp")
+    """What `sim run` and `hw run` accept: every registered policy."""
+    return policy_names()
 
 
 def check_run_policy(name: str) -> str:

@@ -53,12 +53,13 @@ ViewerOpt = Annotated[bool, typer.Option("--viewer", help="Open the interactive 
                                          "implies --realtime).")]
 LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")]
 SummaryOpt = Annotated[Path | None, typer.Option("--summary-json", help="Write the summary as JSON.")]
-TaskOpt = Annotated[str | None, typer.Option("--task", help="For --policy dp: the manipulation scene (pick; the "
-                                             "gripper variant, the head camera as the policy's camera).")]
+TaskOpt = Annotated[str | None, typer.Option("--task", help="Run in a manipulation task's scene (pick, wagon: the "
+                                             "gripper variant; the head camera as the camera of --policy dp).")]
 CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
                                                     "`dp train`/`dp export` (default: the one shipped for --task).")]
 SeedOpt = Annotated[int, typer.Option("--seed", help="For --task: scene seed (the cube's pose).")]
-ThreadsOpt = Annotated[int, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch.")]
+ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch "
+                                                 "(default 1).")]
 
 
 @app.command()
@@ -67,19 +68,21 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         control_hz: ControlHzOpt = 1.0 / CONTROL_DT, realtime: RealtimeOpt = False, video: VideoOpt = None,
         snapshot: SnapshotOpt = None, camera: CameraOpt = "perspective", viewer: ViewerOpt = False,
         log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,
-        checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = 1, spec: SpecOption = None,
+        checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = None, spec: SpecOption = None,
         variant: VariantOption = None, motor_params: MotorParamsOption = None) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.runtime.runner import SimulatedClock, WallClock, run_policy
 
-    _check_options(policy, task, checkpoint, seconds, control_hz,
-                   {"--log": log, "--video": video, "--snapshot": snapshot, "--summary-json": summary_json})
+    _check_options(policy, seconds, control_hz, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
+                   "threads": threads}, {"--log": log, "--video": video, "--snapshot": snapshot,
+                                         "--summary-json": summary_json})
     schedule = _schedule(command, command_file)
     description, base = RobotOptions.of(spec, variant, motor_params).load()
     _check_control_rate(control_hz, description.spec.simulation.timestep)
     realtime = realtime or viewer
-    robot, pol, scene = _robot_and_policy(description, base, policy, motion, weights, task, checkpoint, seed, realtime,
-                                          1.0 / control_hz, threads)
+    options = {"motion": motion, "weights": weights, "checkpoint": checkpoint, "threads": threads,
+               "synchronous": not realtime}  # inference inline unless the loop keeps real time
+    robot, pol, scene = _robot_and_policy(description, base, policy, task, seed, 1.0 / control_hz, options)
     video_obs, render_skipped = _video(robot, camera, video, snapshot)
     viewer_obs = _viewer(robot) if viewer else None
     watchers = [w for w in (scene, video_obs, viewer_obs) if w is not None]
@@ -94,10 +97,11 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     _report(policy, result, pol, scene, log, summary_json, render_skipped)
 
 
-def _check_options(policy: str, task, checkpoint, seconds: float, control_hz: float, outputs: dict) -> None:
+def _check_options(policy: str, seconds: float, control_hz: float, policy_options: dict, outputs: dict) -> None:
+    from toddlerbot.policies import check_policy_options
+
     check_run_policy(policy)
-    if (task is not None or checkpoint is not None) and policy != "dp":
-        raise ToddlerbotError("--task and --checkpoint are for --policy dp")
+    check_policy_options(policy, **policy_options)
     duration(seconds, "--seconds")
     positive(control_hz, "--control-hz", "Hz")
     for option, path in outputs.items():
@@ -114,23 +118,28 @@ def _schedule(command: str | None, command_file: Path | None):
     return None if command is None else CommandSchedule.parse(command)
 
 
-def _robot_and_policy(description, base: str, policy: str, motion, weights, task, checkpoint, seed: int, realtime: bool,
-                      control_dt: float, threads: int):
-    """(robot, policy, scene observer or None): a diffusion policy gets its task's scene (`cli.dp_live`)."""
-    if policy == "dp":
-        from toddlerbot.cli.dp_live import sim_dp_policy
-
-        return sim_dp_policy(description, task or "pick", checkpoint, seed, realtime, control_dt, threads)
-    from toddlerbot.policies import check_policy_options, make_policy
+def _robot_and_policy(description, base: str, policy: str, task: str | None, seed: int, control_dt: float,
+                      options: dict):
+    """(robot, policy, task progress observer or None). In a task's scene (``--task``) the robot is the task's,
+    reset for ``seed``, and a policy that takes a camera sees the task's head camera."""
+    from toddlerbot.policies import accepts_option, make_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-
-    check_policy_options(policy, motion=motion, weights=weights)
 
     if base != "floating":  # the simulator's robot stands on the floor; a fixed base is for `model build`
         raise ToddlerbotError(f"sim run simulates the floating robot; --variant selects a {base} base "
                               "(use a floating variant: floating, gripper)")
-    robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
-    return robot, make_policy(policy, robot, motion, weights), None
+    if task is None:
+        robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
+        return robot, make_policy(policy, robot, **options), None
+    from toddlerbot.tasks import make_task
+    from toddlerbot.tasks.pick import TaskRobot
+
+    if abs(control_dt - CONTROL_DT) > 1e-12:
+        raise ToddlerbotError(f"--task runs at the task's {1 / CONTROL_DT:g} Hz control rate; drop --control-hz")
+    the_task = make_task(task, description)
+    robot = TaskRobot(the_task, seed)
+    camera = {"camera": the_task.head_image} if accepts_option(policy, "camera") else {}
+    return robot, make_policy(policy, robot, **options, **camera, task=task), the_task.progress()
 
 
 def _video(robot, camera: str, video: Path | None, snapshot: Path | None):
@@ -167,7 +176,8 @@ def _report(policy: str, result, pol, scene, log: Path | None, summary_json: Pat
         result.log.save(log)
         console.print(f"wrote {log}")
     if summary_json:
-        extra = {} if scene is None else {"dp": pol.status.to_dict(), "task": scene.to_dict()}
+        extra = (({} if scene is None else {"task": scene.to_dict()})
+                 | ({} if pol.status is None else {pol.name: pol.status.to_dict()}))
         atomic_write_text(summary_json, json_text(summary.to_dict() | extra, indent=2))
     t = summary.tracking
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
@@ -178,10 +188,9 @@ def _report(policy: str, result, pol, scene, log: Path | None, summary_json: Pat
         f"tracking errors: position {t.position_m:.3f} m, linear velocity {t.lin_vel_mps:.3f} m/s, "
         f"angular velocity {t.ang_vel_radps:.3f} rad/s; compute {summary.mean_compute_ms:.2f} ms/step"
     )
-    if scene is not None:
-        from toddlerbot.cli.dp_live import describe_status
-
-        console.print(f"{scene.describe()}\n{describe_status(pol.status)}", highlight=False)
+    for part in (scene, pol.status):
+        if part is not None:
+            console.print(part.describe(), highlight=False)
     if render_skipped:
         console.print(render_skipped, highlight=False, markup=False, soft_wrap=True)
     if summary.fell:

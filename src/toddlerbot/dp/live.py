@@ -29,10 +29,12 @@ from toddlerbot.dp.config import DPConfig
 from toddlerbot.dp.data import channel_first
 from toddlerbot.dp.policy import IMAGE, STATE
 from toddlerbot.dp.runner import ChunkPolicyRunner, Infer
+from toddlerbot.dp.shipped import shipped_checkpoint
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.tasks.space import follower_gains
+from toddlerbot.tasks.video_camera import VideoCamera
 
 CAMERA_FRESH = "camera_fresh"
 """Observation key: whether this tick's image is a current camera frame."""
@@ -68,9 +70,19 @@ class LiveStatus:
     inference_ms: float
     """Mean wall time of one inference, ms (NaN before the first)."""
     last_error: str | None
+    camera_stopped: str | None = None
+    """How a camera the policy opened stopped (``after N frames (error)``), None while it delivers."""
 
     def to_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in self.__dict__.items()}
+
+    def describe(self) -> str:
+        """One line for people."""
+        ms = "-" if self.inference_ms != self.inference_ms else f"{self.inference_ms:.1f} ms"
+        line = (f"dp: {self.chunks_used} chunks used, {self.holding_steps} steps held, {self.failures} failed "
+                f"inferences, {self.stale_dropped} stale chunks, {self.camera_misses} camera misses, inference {ms}")
+        line = line if self.last_error is None else f"{line}; last error: {self.last_error}"
+        return line if self.camera_stopped is None else f"{line}; camera stopped {self.camera_stopped}"
 
 
 class _TimedInfer:
@@ -114,9 +126,11 @@ class LiveDPPolicy(Policy):
         self._infer = _TimedInfer(infer)
         self._blank = np.zeros((3, config.image_size, config.image_size), np.uint8)
         self.runner: ChunkPolicyRunner | None = None
+        self.owned_camera: VideoCamera | None = None
+        """A camera `dp_policy` opened for this policy (closed with it)."""
 
     def reset(self, obs: Observation) -> None:
-        self.close()
+        self._stop_worker()
         start = self.robot.last_targets
         self.hold = np.array(obs.motor_pos if start is None else start, dtype=float)
         self.runner = ChunkPolicyRunner(self._infer, self.chunker, self.config.n_obs_steps,
@@ -148,11 +162,18 @@ class LiveDPPolicy(Policy):
     def status(self) -> LiveStatus:
         s = self.runner.status
         seconds = self.inference_seconds
+        video = self.owned_camera
+        stopped = None if video is None or not video.error else f"after {video.frames} frames ({video.error})"
         return LiveStatus(s.chunks_used, self._holding_steps, s.failures, s.stale_dropped, self._camera_misses,
-                          1e3 * float(np.mean(seconds)) if seconds else float("nan"), s.last_error)
+                          1e3 * float(np.mean(seconds)) if seconds else float("nan"), s.last_error, stopped)
 
     def close(self) -> None:
-        """Stop the inference worker."""
+        """Stop the inference worker and a camera the policy opened."""
+        self._stop_worker()
+        if self.owned_camera is not None:
+            self.owned_camera.close()
+
+    def _stop_worker(self) -> None:
         if self.runner is not None:
             self.runner.close()
 
@@ -166,3 +187,26 @@ def load_live_policy(robot: Robot, checkpoint: str | Path, camera: Camera | None
 
     inference = PolicyInference.from_checkpoint(checkpoint, seed)
     return LiveDPPolicy(robot, inference, inference.policy.config, camera, str(checkpoint), synchronous, kp)
+
+
+def dp_policy(robot: Robot, checkpoint: str | Path | None = None, camera: Camera | str | None = None,
+              threads: int | None = None, synchronous: bool = False, task: str | None = None) -> LiveDPPolicy:
+    """The registered ``dp`` policy (`sim run`, `hw run --policy dp`): ``checkpoint`` (default: the one shipped
+    for ``task``), images from ``camera`` (a function returning the latest image, e.g. a task's head camera, or a
+    V4L2 device or video file, opened here and closed with the policy), torch on ``threads`` CPU threads (1 by
+    default), inference inline when ``synchronous`` (a simulation not run in real time) else on a worker thread.
+    Everything is checked before the robot moves."""
+    if checkpoint is None:
+        if task is None:
+            raise LivePolicyError("--policy dp needs --checkpoint (a checkpoint from `dp train` or `dp export`)")
+        checkpoint = shipped_checkpoint(task)
+    require_torch(threads or 1)
+    video = VideoCamera(camera) if isinstance(camera, str) else None
+    try:
+        policy = load_live_policy(robot, checkpoint, video if video is not None else camera, synchronous)
+    except BaseException:
+        if video is not None:
+            video.close()
+        raise
+    policy.owned_camera = video
+    return policy

@@ -34,13 +34,20 @@ def policy_names() -> tuple[str, ...]:
     return POLICY_REGISTRY.names()
 
 
-def make_policy(name: str, robot: Robot, motion: str | None = None, weights: str | Path | None = None) -> Policy:
+def make_policy(name: str, robot: Robot, motion: str | None = None, weights: str | Path | None = None,
+                **options: object) -> Policy:
     """Build a registered policy by name; ``motion`` (a built-in name or a file) is required by ``replay``;
-    ``weights`` is an exported RL policy for ``walk-rl`` (default: the shipped one). A factory that names neither
-    option ignores it, as ``stand`` always has."""
+    ``weights`` is an exported RL policy for ``walk-rl`` (default: the shipped one); further ``options`` go to a
+    factory that names them (``dp``: checkpoint, camera, threads, synchronous, task). A factory that does not name
+    an option ignores it, as ``stand`` always has (the CLI refuses such an option first: `check_policy_options`)."""
     factory = POLICY_REGISTRY.get(name)
-    options = {"motion": motion, "weights": weights}
+    options = {"motion": motion, "weights": weights, **options}
     return factory(robot, **{k: v for k, v in options.items() if v is not None and _accepts(factory, k)})
+
+
+def accepts_option(name: str, option: str) -> bool:
+    """Whether the policy registered as `name` takes `option` (e.g. a ``camera`` a task scene can give it)."""
+    return _accepts(POLICY_REGISTRY.get(name), option)
 
 
 def check_policy_options(name: str, **given: object) -> None:
@@ -80,7 +87,8 @@ def _walk_rl(robot: Robot, weights: str | Path | None = None) -> Policy:
 
 
 _BUILT_IN = {"stand": "toddlerbot.policies.stand:StandPolicy", "replay": _replay, "walk-zmp": _walk_zmp,
-             "walk-rl": _walk_rl}
+             "walk-rl": _walk_rl, "dp": "toddlerbot.dp.live:dp_policy"}
+"""``dp`` (a diffusion-policy checkpoint, extra ``[dp]``) is built in the dp package, imported only when chosen."""
 for _name, _factory in _BUILT_IN.items():
     POLICY_REGISTRY.register(_name, _factory)
 

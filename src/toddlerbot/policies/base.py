@@ -74,7 +74,8 @@ class Policy(ABC):
     @property
     def status(self) -> object | None:
         """What the policy reports about itself during or after a run (a diffusion policy's inference statistics,
-        a chain's phases), an object with ``to_dict()`` for JSON; None when it has nothing to say."""
+        a chain's phases), an object with ``to_dict()`` (JSON) and ``describe()`` (one line for people); None when it
+        has nothing to say."""
         return None
 
     def close(self) -> None:  # noqa: B027 (most policies hold nothing to release)

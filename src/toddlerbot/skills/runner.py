@@ -37,6 +37,12 @@ class ChainStatus:
         return {"skill": self.skill, "done": self.done, "failure": self.failure, "driven_by": self.driven_by,
                 "switches": [{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in self.switches]}
 
+    def describe(self) -> str:
+        """One line for people."""
+        ended = "running " + str(self.skill) if not self.done else "failed: " + self.failure if self.failure else "done"
+        switches = ", ".join(f"{a} -> {b} at {t:.2f} s" for a, b, t in self.switches) or "no switch"
+        return f"chain {ended}; {switches}"
+
 
 def time_limit(chain: ChainSpec, unbounded_skill_s: float) -> float:
     """Robot time a run of `chain` may take, s: every skill's ``after`` or ``timeout``, `unbounded_skill_s` for a

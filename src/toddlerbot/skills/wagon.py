@@ -15,6 +15,7 @@ import numpy as np
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
+from toddlerbot.runtime.runner import RunObserver, Step
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.skills.library import GraspParams, ScriptedGrasp, SkillEnv, grasp_gains
 from toddlerbot.skills.sim_run import wagon_shift
@@ -58,6 +59,10 @@ class WagonTask:
         self.camera = HeadCamera(self.model, self.robot.data, description.handles.head_camera or "head_camera")
         self.probe = SceneProbe(self.model, self.robot.data)
         self.succeeded = False
+
+    def progress(self) -> GraspProgress:
+        """A run observer reporting whether the chain's grasp check held (`sim run --task wagon`)."""
+        return GraspProgress(self)
 
     def demonstrator(self) -> ScriptedWagonGrasp:
         """The task's scripted demonstrator (`manip demo --task wagon`)."""
@@ -121,3 +126,22 @@ class ScriptedWagonGrasp(Policy):
         targets, _ = self.skill.act(obs, obs.time - self._start_time)
         self._step += 1
         return Action(targets, self.transmission.motor_to_joint(targets), kp=self.task.kp)
+
+
+class GraspProgress(RunObserver):
+    """A run observer: whether the wagon task's grasp check has held, and when first."""
+
+    def __init__(self, task: WagonTask) -> None:
+        self.task = task
+        self.grasped_at: float | None = None
+
+    def on_step(self, step: Step) -> None:
+        if self.grasped_at is None and self.task.succeeded:
+            self.grasped_at = step.next_obs.time
+
+    def to_dict(self) -> dict:
+        return {"name": self.task.name, "succeeded": self.grasped_at is not None, "grasped_at_s": self.grasped_at}
+
+    def describe(self) -> str:
+        held = "not grasped" if self.grasped_at is None else f"grasped at {self.grasped_at:.2f} s"
+        return f"{self.task.name}: {held}"

@@ -17,6 +17,7 @@ from functools import cached_property
 import mujoco
 import numpy as np
 
+from toddlerbot.policies.base import Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, GroundTruth, Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step
@@ -121,6 +122,10 @@ class PickTask:
         self.seed: int | None = None
         """The seed of the last `reset` (the demonstrator draws its waypoint noise from it)."""
 
+    def progress(self) -> PickProgress:
+        """A run observer reporting how the arm did (`sim run --task pick`)."""
+        return PickProgress(self)
+
     def demonstrator(self, config: DemoConfig | None = None) -> ScriptedPicker:
         """The task's scripted demonstrator (`manip demo`)."""
         return ScriptedPicker(self, config)
@@ -223,11 +228,14 @@ class PickProgress(RunObserver):
     success."""
 
     task: PickTask
-    start_distance_m: float
+    start_distance_m: float = float("nan")
     min_distance_m: float = float("inf")
     end_distance_m: float = float("nan")
     max_lift_m: float = 0.0
     succeeded: bool = False
+
+    def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
+        self.start_distance_m = self.task.grasp_distance()
 
     def on_step(self, step: Step) -> None:
         self.end_distance_m = self.task.grasp_distance()
@@ -244,7 +252,6 @@ class PickProgress(RunObserver):
         return (f"{self.task.name}: grasp point to cube {self.start_distance_m:.3f} m -> {self.end_distance_m:.3f} m "
                 f"(closest {self.min_distance_m:.3f} m), cube lifted {1e3 * self.max_lift_m:.0f} mm, "
                 f"{'succeeded' if self.succeeded else 'not succeeded'}")
-
 
 
 class TaskRobot(Robot, GroundTruth):
