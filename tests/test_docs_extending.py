@@ -1,8 +1,8 @@
 """docs/extending.md stays correct: its Python blocks run, in order, in one namespace (they assert their own
 figures: the catalogue entry loads, a fitted params.json reaches the description, the example policy nods the
 head by the commanded amount, the example variant adds exactly its mass and is registered for `--variant`, the
-example skill turns the head by the commanded amount in a chain), and its policy, installed as it says, runs from
-the command line."""
+example task is touched by the pick demonstrator, the example skill turns the head by the commanded amount in a
+chain), and its policy, installed as it says, runs from the command line."""
 
 import os
 import re
@@ -20,6 +20,16 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "extending.md"
 
 
 @pytest.fixture
+def restored_tasks(monkeypatch):
+    """The task the guide registers, only for the test."""
+    from toddlerbot.tasks import TASKS
+
+    TASKS.names()
+    monkeypatch.setattr(TASKS, "_targets", dict(TASKS._targets))
+    monkeypatch.setattr(TASKS, "_resolved", dict(TASKS._resolved))
+
+
+@pytest.fixture
 def restored_skills(monkeypatch):
     """The skill kinds the guide registers last only for the test (as `restored_registries` does for policies)."""
     from toddlerbot.skills import SKILLS
@@ -29,9 +39,10 @@ def restored_skills(monkeypatch):
     monkeypatch.setattr(SKILLS, "_resolved", dict(SKILLS._resolved))
 
 
-def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, restored_registries, restored_skills):
+def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, restored_registries, restored_skills,
+                                                        restored_tasks):
     blocks = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), flags=re.S | re.M)
-    assert len(blocks) == 8  # motor model (3), policy (2), variant (1), skill (2)
+    assert len(blocks) == 10  # motor model (3), policy (2), variant (1), task (2), skill (2)
     monkeypatch.chdir(tmp_path)  # the blocks write their example files to the current folder
     namespace: dict = {"__name__": "extending_guide"}
     for number, block in enumerate(blocks, 1):
@@ -40,6 +51,7 @@ def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, r
     from toddlerbot.skills import SKILLS
 
     assert "look" in SKILLS  # registered by the guide, for chain files
+    assert namespace["progress"].succeeded and namespace["touch"].grasp_distance() < 0.02
 
 
 def _block(language: str, containing: str) -> str:

@@ -15,11 +15,11 @@ import numpy as np
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
-from toddlerbot.runtime.runner import RunObserver, Step
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.skills.library import GraspParams, ScriptedGrasp, SkillEnv, grasp_gains
 from toddlerbot.skills.sim_run import wagon_shift
 from toddlerbot.skills.spec import load_chain
+from toddlerbot.tasks.base import Task
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.predicates import Context, holds
 from toddlerbot.tasks.probe import SceneProbe
@@ -33,7 +33,7 @@ HOLD_S = 0.6
 (the chain's check fires at the ramp's end, a policy that reopens right after would drop the handle)."""
 
 
-class WagonTask:
+class WagonTask(Task):
     """Grasp the wagon handle with both hands (gripper variant, floating robot standing on the floor)."""
 
     name = "wagon"
@@ -58,11 +58,12 @@ class WagonTask:
         """Start pose: the chain's (home)."""
         self.camera = HeadCamera(self.model, self.robot.data, description.handles.head_camera or "head_camera")
         self.probe = SceneProbe(self.model, self.robot.data)
-        self.succeeded = False
+        self._succeeded = False
 
-    def progress(self) -> GraspProgress:
-        """A run observer reporting whether the chain's grasp check held (`sim run --task wagon`)."""
-        return GraspProgress(self)
+    @property
+    def succeeded(self) -> bool:
+        """The chain's grasp check has held (it latches, as the chain switches on it)."""
+        return self._succeeded
 
     def demonstrator(self) -> ScriptedWagonGrasp:
         """The task's scripted demonstrator (`manip demo --task wagon`)."""
@@ -74,7 +75,7 @@ class WagonTask:
         shift_wagon(self.model, self.robot.data, wagon_shift(np.random.default_rng(seed)))
         mujoco.mj_forward(self.model, self.robot.data)
         self.probe.mark()
-        self.succeeded = False
+        self._succeeded = False
         return self.robot.observe()
 
     def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
@@ -83,12 +84,8 @@ class WagonTask:
         once the chain's check holds, as the chain ends its grasp phase there."""
         obs = self.robot.step(motor_targets, kp=self.kp if kp is None else kp, kd=kd)
         context = Context(self.robot, obs, np.asarray(motor_targets, dtype=float), self.probe)
-        self.succeeded = self.succeeded or holds(self.check.predicate, self.check.params, context)
+        self._succeeded = self._succeeded or holds(self.check.predicate, self.check.params, context)
         return obs
-
-    def head_image(self) -> np.ndarray:
-        """The head camera's 96x96 RGB image (uint8) of the current state."""
-        return self.camera.image()
 
 
 class ScriptedWagonGrasp(Policy):
@@ -126,22 +123,3 @@ class ScriptedWagonGrasp(Policy):
         targets, _ = self.skill.act(obs, obs.time - self._start_time)
         self._step += 1
         return Action(targets, self.transmission.motor_to_joint(targets), kp=self.task.kp)
-
-
-class GraspProgress(RunObserver):
-    """A run observer: whether the wagon task's grasp check has held, and when first."""
-
-    def __init__(self, task: WagonTask) -> None:
-        self.task = task
-        self.grasped_at: float | None = None
-
-    def on_step(self, step: Step) -> None:
-        if self.grasped_at is None and self.task.succeeded:
-            self.grasped_at = step.next_obs.time
-
-    def to_dict(self) -> dict:
-        return {"name": self.task.name, "succeeded": self.grasped_at is not None, "grasped_at_s": self.grasped_at}
-
-    def describe(self) -> str:
-        held = "not grasped" if self.grasped_at is None else f"grasped at {self.grasped_at:.2f} s"
-        return f"{self.task.name}: {held}"

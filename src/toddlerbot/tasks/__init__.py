@@ -12,8 +12,9 @@ from toddlerbot.registry import Registry
 if TYPE_CHECKING:
     from toddlerbot.robot.description import RobotDescription
 
-TASKS = Registry("task")
-"""Task name -> constructor taking an optional description."""
+TASKS = Registry("task", entry_point_group="toddlerbot.tasks")
+"""Task name -> a `tasks.base.Task` subclass (or factory) taking an optional description; installed packages add
+names through the entry-point group ``toddlerbot.tasks``."""
 TASKS.register("pick", "toddlerbot.tasks.pick:PickTask")
 TASKS.register("wagon", "toddlerbot.skills.wagon:WagonTask")
 

@@ -22,6 +22,7 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, GroundTruth, Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+from toddlerbot.tasks.base import Task
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.demonstrator import DemoConfig, ScriptedPicker
 from toddlerbot.tasks.ik import ArmIK, top_down_rotation
@@ -88,7 +89,7 @@ class SuccessTracker:
         return self.succeeded
 
 
-class PickTask:
+class PickTask(Task):
     """Lift a 3 cm cube from the table and hold it between both fingers for 1 s (gripper variant)."""
 
     name = "pick"
@@ -210,9 +211,6 @@ class PickTask:
     def succeeded(self) -> bool:
         return self.tracker.succeeded
 
-    def head_image(self) -> np.ndarray:
-        """The head camera's 96x96 RGB image (uint8) of the current state."""
-        return self.camera.image()
 
     def _set_motor_pos(self, q_motor: np.ndarray) -> None:
         tmap = self.description.transmission
