@@ -30,9 +30,9 @@ from toddlerbot.hardware.control_table import (
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
 from toddlerbot.hardware.imu import ImuReading
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import FALL_TILT_RAD, GroundTruth
+from toddlerbot.robot.interface import FALL_TILT_RAD
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
-from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoTruth
+from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
 
 LOAD_INERTIA = 0.002
@@ -140,7 +140,7 @@ def publish(motors: list[EmulatedMotor], q: np.ndarray, qd: np.ndarray, tau: np.
         m.set("moving", int(abs(qd[i]) > 0.02))
 
 
-class HilPlant(GroundTruth):
+class HilPlant(TorsoGroundTruth):
     """The whole robot in MuJoCo (floating base, floor), motors driven by the actuator model every physics step.
 
     The simulation holds still (robot hanging on its stand) until the first motor's torque is enabled, then
@@ -158,7 +158,7 @@ class HilPlant(GroundTruth):
         mujoco.mj_forward(self.model, self.data)
         self._motors = MotorAddresses.of(self.model, [mo.name for mo in motors])
         self.qadr, self.vadr = self._motors.qpos, self._motors.dof
-        self._truth = TorsoTruth(self.model, self.data, description.handles.torso)
+        self.torso_truth = TorsoTruth(self.model, self.data, description.handles.torso)
         self.standing_height = self.torso_height()
         """Torso height at the home pose, m: the reference of the fall test."""
         self._imu = [self.model.sensor(name) for name in ("imu_quat", "imu_gyro", "imu_accel")]
@@ -188,26 +188,12 @@ class HilPlant(GroundTruth):
 
     # -- GroundTruth (read between physics batches; the physics thread replaces the state in place) -----------
     @property
-    def base_pos(self) -> np.ndarray:
-        return self._truth.base_pos()
-
-    @property
-    def base_quat(self) -> np.ndarray:
-        return self._truth.base_quat()
-
-    def torso_height(self) -> float:
-        return self._truth.height_and_uprightness()[0]
-
-    def torso_uprightness(self) -> float:
-        return self._truth.height_and_uprightness()[1]
-
-    @property
     def fallen(self) -> bool:
-        return self._truth.fallen(self.standing_height, FALL_TILT_RAD, FALL_HEIGHT_FRACTION)
+        return self.torso_truth.fallen(self.standing_height, FALL_TILT_RAD, FALL_HEIGHT_FRACTION)
 
     def torso_planar_pose(self) -> tuple[np.ndarray, float]:
         """Torso (x, y) position, m, and heading (yaw of its x axis), rad."""
-        return self._truth.planar_pose()
+        return self.torso_truth.planar_pose()
 
     def powered_motion(self) -> tuple[float, float, float] | None:
         """(dx, dy, yaw change) of the torso between the first and the last powered step (None if never

@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 
 from toddlerbot.robot.builder import FREEJOINT
+from toddlerbot.robot.interface import GroundTruth
 
 FALL_HEIGHT_FRACTION = 0.6
 """Torso height below this fraction of its standing height counts as a fall."""
@@ -45,3 +46,24 @@ class TorsoTruth:
         """Torso frame (x, y) position, m, and heading (yaw of its x axis), rad."""
         xmat = self._data.xmat[self._body]
         return self._data.xpos[self._body, :2].copy(), float(np.arctan2(xmat[3], xmat[0]))
+
+
+class TorsoGroundTruth(GroundTruth):
+    """`GroundTruth` read from a `TorsoTruth` (``self.torso_truth``), for every backend simulating the floating robot
+    in MuJoCo; each keeps its own `fallen` (its thresholds)."""
+
+    torso_truth: TorsoTruth
+
+    @property
+    def base_pos(self) -> np.ndarray:
+        return self.torso_truth.base_pos()
+
+    @property
+    def base_quat(self) -> np.ndarray:
+        return self.torso_truth.base_quat()
+
+    def torso_height(self) -> float:
+        return self.torso_truth.height_and_uprightness()[0]
+
+    def torso_uprightness(self) -> float:
+        return self.torso_truth.height_and_uprightness()[1]

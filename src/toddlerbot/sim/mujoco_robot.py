@@ -25,9 +25,9 @@ import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, GroundTruth, Observation, Robot
+from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, Robot
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
-from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoTruth
+from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
 
 MAX_JOINT_SPEED = 200.0
@@ -52,7 +52,7 @@ class SimConfig:
             raise ValueError(f"control_dt must be > 0 s, got {self.control_dt}")
 
 
-class MuJoCoRobot(Robot, GroundTruth):
+class MuJoCoRobot(Robot, TorsoGroundTruth):
     """The floating-base robot on a floor, stepped with the actuator model."""
 
     def __init__(
@@ -81,7 +81,7 @@ class MuJoCoRobot(Robot, GroundTruth):
         handles = description.handles
         self._foot_geoms = [m.geom(g).id for g in handles.feet_geoms]
         self._floor = m.geom("floor").id
-        self._truth = TorsoTruth(m, self.data, handles.torso)
+        self.torso_truth = TorsoTruth(m, self.data, handles.torso)
         self._home_key = m.key("home").id
         self._targets = np.zeros(len(self.motor_names))
         self._torque = np.zeros(len(self.motor_names))
@@ -149,20 +149,6 @@ class MuJoCoRobot(Robot, GroundTruth):
 
     # -- GroundTruth -----------------------------------------------------------------------------------------
     @property
-    def base_pos(self) -> np.ndarray:
-        return self._truth.base_pos()
-
-    @property
-    def base_quat(self) -> np.ndarray:
-        return self._truth.base_quat()
-
-    def torso_height(self) -> float:
-        return self._truth.height_and_uprightness()[0]
-
-    def torso_uprightness(self) -> float:
-        return self._truth.height_and_uprightness()[1]
-
-    @property
     def base_lin_vel(self) -> np.ndarray:
         """Torso linear velocity in the world frame, m/s."""
         return self.data.qvel[0:3].copy()
@@ -174,7 +160,8 @@ class MuJoCoRobot(Robot, GroundTruth):
 
     @property
     def fallen(self) -> bool:
-        return self._truth.fallen(self.standing_height, self.config.fall_tilt_rad, self.config.fall_height_fraction)
+        c = self.config
+        return self.torso_truth.fallen(self.standing_height, c.fall_tilt_rad, c.fall_height_fraction)
 
     def _check_stable(self) -> None:
         d = self.data

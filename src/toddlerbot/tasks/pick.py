@@ -19,8 +19,9 @@ import numpy as np
 
 from toddlerbot.policies.base import Policy
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import CONTROL_DT, GroundTruth, Observation, Robot
+from toddlerbot.robot.interface import CONTROL_DT, Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step
+from toddlerbot.sim.ground_truth import TorsoGroundTruth
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 from toddlerbot.tasks.base import Task
 from toddlerbot.tasks.camera import HeadCamera
@@ -252,7 +253,7 @@ class PickProgress(RunObserver):
                 f"{'succeeded' if self.succeeded else 'not succeeded'}")
 
 
-class TaskRobot(Robot, GroundTruth):
+class TaskRobot(Robot, TorsoGroundTruth):
     """A task episode's robot for the run loop: `reset` is the task's reset for ``seed`` (a pick: cube placed, arm
     ready), `step` is the task's step (its gains unless ``kp`` is given; success tracked). The task's simulated
     robot is `sim`; ground truth and the scene (`model`, `data`, for rendering and probes) are its own."""
@@ -260,6 +261,7 @@ class TaskRobot(Robot, GroundTruth):
     def __init__(self, task: PickTask, seed: int) -> None:  # or any task with reset(seed), step, kp, robot
         super().__init__(task.description, task.robot.control_dt)
         self.task, self.seed, self.sim = task, seed, task.robot
+        self.torso_truth = task.robot.torso_truth
         self.default_kp = task.kp  # what the task steps at when a policy sends no gains
 
     @property
@@ -288,20 +290,6 @@ class TaskRobot(Robot, GroundTruth):
 
     def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
         raise NotImplementedError("a TaskRobot steps through its task's `step`")
-
-    @property
-    def base_pos(self) -> np.ndarray:
-        return self.sim.base_pos
-
-    @property
-    def base_quat(self) -> np.ndarray:
-        return self.sim.base_quat
-
-    def torso_height(self) -> float:
-        return self.sim.torso_height()
-
-    def torso_uprightness(self) -> float:
-        return self.sim.torso_uprightness()
 
     @property
     def fallen(self) -> bool:
