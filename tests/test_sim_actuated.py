@@ -100,3 +100,22 @@ def test_hil_plant_steps_with_each_motors_torque_enable_and_current_limit(descri
     assert abs(tau[7]) == pytest.approx(20 * t.current_unit_a * t.torque_per_amp, rel=1e-12)  # 0.070 N*m
     assert np.count_nonzero(tau[1:]) == len(tau) - 1
     assert plant.powered_min_upright > 0.99  # bookkeeping of the powered motion ran
+
+
+def test_one_robot_with_its_own_parameter_row_steps_like_the_shared_parameters(description):
+    """A batch of one with per-robot parameter rows ((1, n_motors), as the RL environment's chunks pass them) takes
+    the 2-D path and gives the shared-parameter torques exactly, also when the drive limit clamps (targets 1 rad
+    off: every motor at its limit)."""
+    model = description.model("floating", scene=True)
+    motors = MotorAddresses.of(model, description.motor_names)
+    shared = description.actuator_arrays()
+    rows = type(shared)(*(np.asarray(x)[None] for x in shared))
+    taus = []
+    for params in (shared, rows):
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+        targets = (description.home_motor_pos + 1.0)[None]
+        taus.append(step_actuated([model], [data], motors, targets, MotorDrive(params), 3))
+    assert MotorDrive(rows).per_robot and not MotorDrive(shared).per_robot
+    assert np.abs(taus[0]).max() > 0.1
+    np.testing.assert_array_equal(taus[0], taus[1])

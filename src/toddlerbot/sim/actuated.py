@@ -55,7 +55,8 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     robots = list(enumerate(zip(models, datas, [d.ctrl for d in datas], strict=True)))
     qadr, dofs, actuators = motors.qpos, motors.dof, motors.actuator
     torque, step, batch = drive.torque, mujoco.mj_step, len(datas)
-    if batch == 1:  # (n_motors,) arithmetic: broadcasting against (1, n_motors) costs more than the math
+    single = batch == 1 and not drive.per_robot
+    if single:  # (n_motors,) arithmetic: broadcasting against (1, n_motors) costs more than the math
         targets = targets[0]
     budget = drive.has_friction_excess
     frictionloss = [m.dof_frictionloss[dofs].copy() for m in models] if budget else []
@@ -63,7 +64,7 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
         for m in models:
             m.opt.disableflags |= _NO_SENSOR
     for k in range(n_substeps):
-        if batch == 1:
+        if single:
             q, q_dot = qpos[0][qadr], qvel[0][dofs]
         else:  # stack whole state vectors, then index once: one fancy index per robot costs more than the stack
             q, q_dot = np.stack(qpos)[:, qadr], np.stack(qvel)[:, dofs]

@@ -39,6 +39,9 @@ class MotorDrive:
         limit = None if torque_limit is None else np.asarray(torque_limit, dtype=float)
         self._limit = None if limit is None else (-limit, limit)
         self._plain = not (self._shaped or self._back_emf or self._off is not None or self._limit is not None)
+        self.per_robot = any(np.ndim(x) > 1 for x in p)
+        """Whether the parameters are rows, one per robot of a batch (the RL environment's randomised motors),
+        rather than one (n_motors,) set shared by the batch."""
         self.has_friction_excess = has_friction_excess(p)
         """Whether the load-dependent friction budget (`friction_excess`) is more than zero for some motor."""
 
