@@ -84,3 +84,18 @@ def test_fitted_motor_params_reach_the_simulated_joints_and_actuator_model(tmp_p
     assert fitted.model.dof_armature[knee.dofadr[0]] == pytest.approx(0.0031)
     knee_motor = fitted.motor_names.index("left_knee_drive")
     assert fitted.description.actuator_params[knee_motor].tau_max == pytest.approx(1.23)
+
+
+def test_the_same_gains_every_step_keep_the_drive_and_new_gains_replace_it():
+    """A policy sending its gains every step (the tasks, dp) costs no rebuild of the actuator arrays; other gains
+    do take effect."""
+    robot = MuJoCoRobot()
+    kp = robot.default_kp * 0.5
+    robot.step(robot.description.home_motor_pos, kp=kp)
+    drive = robot._drive
+    robot.step(robot.description.home_motor_pos, kp=kp.copy())
+    assert robot._drive is drive
+    robot.step(robot.description.home_motor_pos, kp=kp * 2)
+    assert robot._drive is not drive
+    np.testing.assert_array_equal(robot._drive.params.kp, robot.description.actuator_arrays(kp * 2,
+                                                                                           robot.default_kd).kp)

@@ -87,6 +87,7 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         self._torque = np.zeros(len(self.motor_names))
         self.initial_motor_offset = np.zeros(len(self.motor_names))
         """Motor angles added to the home keyframe at `reset`, rad (a perturbation; zero by default)."""
+        self._gains: tuple[np.ndarray, np.ndarray] | None = None
         self.set_gains(self.default_kp, self.default_kd)
         self.reset()
         self.standing_height = self.torso_height()
@@ -122,7 +123,7 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         if kp is not None or kd is not None:
             self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
         self._targets = motor_targets
-        if self._drive.params is not self._params:
+        if self._drive.params is not self._params:  # parameters replaced from outside (the RL backend test)
             self._drive = MotorDrive(self._params)
         # the robot owns its model, and only the last substep's sensors are observed
         self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive,
@@ -133,6 +134,10 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
     # -- helpers ---------------------------------------------------------------------------------------------
     def set_gains(self, kp: np.ndarray, kd: np.ndarray) -> None:
         """Firmware gains (Dynamixel units) used by the actuator model from now on."""
+        kp, kd = np.array(kp, dtype=float), np.array(kd, dtype=float)
+        if self._gains is not None and np.array_equal(kp, self._gains[0]) and np.array_equal(kd, self._gains[1]):
+            return  # a policy sending the same gains every step: the drive is a function of them, keep it
+        self._gains = (kp, kd)
         self._params = self.description.actuator_arrays(kp, kd)
         self._drive = MotorDrive(self._params)
 
