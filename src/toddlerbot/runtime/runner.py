@@ -38,7 +38,8 @@ class PolicyError(ToddlerbotError):
 
 @dataclass(frozen=True)
 class RunResult:
-    log: RunLog
+    log: RunLog | None
+    """One row per step; None for a run that kept no log (``record_log=False``)."""
     fell: bool
     fall_time: float | None
     """s since reset when the fall was detected."""
@@ -148,13 +149,15 @@ def run_policy(
     observers: Sequence[RunObserver] = (),
     stop_on_fall: bool = True,
     log: RunLogObserver | None = None,
+    record_log: bool = True,
 ) -> RunResult:
     """Run ``policy`` on ``robot`` for ``seconds`` (or until the policy is done, an observer stops the run or the
     robot falls), following the velocity ``commands`` (a function of time; none: stand still). Steps are logged
-    into ``log`` (a new one if None)."""
-    log = RunLogObserver() if log is None else log
+    into ``log`` (a new one if None), unless ``record_log`` is False (hours of teleoperation at 50 Hz would fill
+    the memory with rows nobody reads)."""
+    log = (RunLogObserver() if log is None else log) if record_log else None
     clock = SimulatedClock() if clock is None else clock
-    watchers = (log, *observers)
+    watchers = (*observers,) if log is None else (log, *observers)
     try:
         obs = robot.reset()
         policy.reset(obs)
@@ -165,8 +168,8 @@ def run_policy(
     finally:
         policy.close()
     fell = fall_time is not None
-    return RunResult(log=log.finish(robot, policy), fell=fell, fall_time=fall_time, completed=not fell,
-                     stopped_by=stopped_by)
+    return RunResult(log=None if log is None else log.finish(robot, policy), fell=fell, fall_time=fall_time,
+                     completed=not fell, stopped_by=stopped_by)
 
 
 def _loop(robot: Robot, policy: Policy, commands: Callable[[float], np.ndarray], n_steps: int, clock: Clock,

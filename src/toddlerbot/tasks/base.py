@@ -77,8 +77,12 @@ class TaskProgress(RunObserver):
         if self.succeeded_at is None and self.task.succeeded:
             self.succeeded_at = step.next_obs.time
 
+    @property
+    def succeeded(self) -> bool:
+        return self.succeeded_at is not None
+
     def to_dict(self) -> dict:
-        return {"name": self.task.name, "succeeded": self.succeeded_at is not None, "succeeded_at_s": self.succeeded_at}
+        return {"name": self.task.name, "succeeded": self.succeeded, "succeeded_at_s": self.succeeded_at}
 
     def describe(self) -> str:
         ended = "not succeeded" if self.succeeded_at is None else f"succeeded at {self.succeeded_at:.2f} s"

@@ -20,10 +20,10 @@ import numpy as np
 from toddlerbot.policies.base import Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, Observation, Robot
-from toddlerbot.runtime.runner import RunObserver, Step
+from toddlerbot.runtime.runner import Step
 from toddlerbot.sim.ground_truth import TorsoGroundTruth
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-from toddlerbot.tasks.base import Task
+from toddlerbot.tasks.base import Task, TaskProgress
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.demonstrator import DemoConfig, ScriptedPicker
 from toddlerbot.tasks.ik import ArmIK, top_down_rotation
@@ -221,36 +221,33 @@ class PickTask(Task):
         mujoco.mj_forward(self.model, d)
 
 
-@dataclass
-class PickProgress(RunObserver):
+class PickProgress(TaskProgress):
     """A run observer: how the arm did on the pick task: grasp-point-to-cube distance (start, closest, end), lift,
-    success."""
+    and success (`TaskProgress`)."""
 
-    task: PickTask
-    start_distance_m: float = float("nan")
-    min_distance_m: float = float("inf")
-    end_distance_m: float = float("nan")
-    max_lift_m: float = 0.0
-    succeeded: bool = False
+    def __init__(self, task: PickTask) -> None:
+        super().__init__(task)
+        self.task: PickTask = task
+        self.start_distance_m = self.end_distance_m = float("nan")
+        self.min_distance_m, self.max_lift_m = float("inf"), 0.0
 
     def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
         self.start_distance_m = self.task.grasp_distance()
 
     def on_step(self, step: Step) -> None:
+        super().on_step(step)
         self.end_distance_m = self.task.grasp_distance()
         self.min_distance_m = min(self.min_distance_m, self.end_distance_m)
         self.max_lift_m = max(self.max_lift_m, self.task.cube_lift())
-        self.succeeded = self.task.succeeded
 
     def to_dict(self) -> dict:
-        return {"name": self.task.name, "start_distance_m": self.start_distance_m,
-                "min_distance_m": self.min_distance_m, "end_distance_m": self.end_distance_m,
-                "max_lift_m": self.max_lift_m, "succeeded": self.succeeded}
+        return super().to_dict() | {"start_distance_m": self.start_distance_m, "min_distance_m": self.min_distance_m,
+                                    "end_distance_m": self.end_distance_m, "max_lift_m": self.max_lift_m}
 
     def describe(self) -> str:
         return (f"{self.task.name}: grasp point to cube {self.start_distance_m:.3f} m -> {self.end_distance_m:.3f} m "
                 f"(closest {self.min_distance_m:.3f} m), cube lifted {1e3 * self.max_lift_m:.0f} mm, "
-                f"{'succeeded' if self.succeeded else 'not succeeded'}")
+                f"{'not succeeded' if self.succeeded_at is None else f'succeeded at {self.succeeded_at:.2f} s'}")
 
 
 class TaskRobot(Robot, TorsoGroundTruth):

@@ -13,7 +13,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.base import Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Robot
-from toddlerbot.runtime.runner import RunLogObserver, RunObserver, Step, WallClock, run_policy
+from toddlerbot.runtime.runner import RunObserver, WallClock, run_policy
 from toddlerbot.teleop.follower import ArmFollower
 from toddlerbot.teleop.link import LinkSubscriber
 from toddlerbot.teleop.session import CommandSource
@@ -103,14 +103,6 @@ def leader_link(endpoint: str | None, robot: Robot) -> tuple[LinkSubscriber, Arm
     return LinkSubscriber(endpoint or DEFAULT_ENDPOINT), ArmFollower(robot.motor_names, space.names)
 
 
-class NoRunLog(RunLogObserver):
-    """Keeps no run log: hours of teleoperation at 50 Hz would fill the memory with rows nobody reads (the recorded
-    episodes are the session's record)."""
-
-    def on_step(self, step: Step) -> None:
-        pass
-
-
 def run_teleop(robot: Robot, policy: Policy, seconds: float, observers: Sequence[RunObserver] = (),
                viewer: bool = False, log: Callable[[str], None] = print) -> None:
     """Run `policy` (a teleop session, perhaps with chains) in real time for `seconds` (0: until Esc or Ctrl-C),
@@ -125,7 +117,7 @@ def run_teleop(robot: Robot, policy: Policy, seconds: float, observers: Sequence
     try:
         run_policy(robot, policy, seconds=seconds or MAX_TELEOP_SECONDS, clock=WallClock(),
                    observers=[*observers, shown] if shown is not None else observers, stop_on_fall=False,
-                   log=NoRunLog())
+                   record_log=False)  # the recorded episodes are the session's record
     except KeyboardInterrupt:
         log("stopped")
     finally:
