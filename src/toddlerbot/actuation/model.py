@@ -1,6 +1,7 @@
-"""The actuator model, written once for numpy and JAX: the appendix's (Eq. 8-10) and the DC-motor model.
+"""The actuator model, written once for numpy, JAX and numba: the appendix's (Eq. 8-10) and the DC-motor model.
 
-Every function takes the array namespace ``xp`` (``numpy`` by default, ``jax.numpy`` for MJX training), and
+Every function takes the array namespace ``xp`` (``numpy`` when None, ``jax.numpy`` for MJX training; the
+simulator's substep loop compiles the numpy form with numba, which needs the namespace left out), and
 the parameters as an `ActuatorArrays` (a NamedTuple, hence a JAX pytree), one entry per motor. Both models are
 one torque law with per-motor coefficients, so a robot can mix them (e.g. one fitted DC-motor file):
 
@@ -74,8 +75,9 @@ def actuator_arrays(
                              for name in ActuatorArrays._fields})
 
 
-def at_voltage(p: ActuatorArrays, voltage_ratio, xp: ModuleType = np) -> ActuatorArrays:
+def at_voltage(p: ActuatorArrays, voltage_ratio, xp: ModuleType | None = None) -> ActuatorArrays:
     """The parameters at supply voltage ``voltage_ratio`` x the catalogue's rated voltage (see module docstring)."""
+    xp = np if xp is None else xp
     s = xp.asarray(voltage_ratio)
     return p._replace(
         kp=p.kp * s, kd=p.kd * s, tau_max=p.tau_max * s, q_dot_tau_max=p.q_dot_tau_max * s,
@@ -83,58 +85,65 @@ def at_voltage(p: ActuatorArrays, voltage_ratio, xp: ModuleType = np) -> Actuato
     )
 
 
-def acceleration_limit(q_dot, p: ActuatorArrays, xp: ModuleType = np):
+def acceleration_limit(q_dot, p: ActuatorArrays, xp: ModuleType | None = None):
     """Largest drive torque (N*m, >= 0) in the direction of the motion at speed q_dot (rad/s), before back-EMF."""
+    xp = np if xp is None else xp
     speed = xp.abs(q_dot)
     fraction = xp.clip((speed - p.q_dot_tau_max) / (p.q_dot_max - p.q_dot_tau_max), 0.0, 1.0)
     return p.tau_max + fraction * (p.tau_q_dot_max - p.tau_max)
 
 
-def pd_torque(q_target, q, q_dot, p: ActuatorArrays, xp: ModuleType = np):
+def pd_torque(q_target, q, q_dot, p: ActuatorArrays, xp: ModuleType | None = None):
     """Unlimited PD torque of Eq. 8, N*m."""
     return p.kp * (q_target - q) - (p.kd_min + p.kd) * q_dot
 
 
-def drive_bounds(q_dot, p: ActuatorArrays, xp: ModuleType = np):
+def drive_bounds(q_dot, p: ActuatorArrays, xp: ModuleType | None = None):
     """(lower, upper) limit of the drive torque at speed q_dot (rad/s), N*m (Eq. 9-10): along the motion the
     acceleration limit, against it the braking limit tau_brake; at rest both directions accelerate."""
+    xp = np if xp is None else xp
     accel = acceleration_limit(q_dot, p, xp)
     upper = xp.where(q_dot < 0, p.tau_brake, accel)
     lower = -xp.where(q_dot > 0, p.tau_brake, accel)
     return lower, upper
 
 
-def torque_bounds(q_dot, p: ActuatorArrays, xp: ModuleType = np):
+def torque_bounds(q_dot, p: ActuatorArrays, xp: ModuleType | None = None):
     """(lower, upper) torque the motor can apply at speed q_dot (rad/s), N*m: the drive limit shifted by the
     back-EMF (the appendix's Eq. 9-10 exactly where there is none)."""
+    xp = np if xp is None else xp
     lower, upper = drive_bounds(q_dot, p, xp)
     return lower - p.back_emf_damping * q_dot, upper - p.back_emf_damping * q_dot
 
 
-def limit_torque(tau, q_dot, p: ActuatorArrays, xp: ModuleType = np):
+def limit_torque(tau, q_dot, p: ActuatorArrays, xp: ModuleType | None = None):
     """Clamp a commanded torque to the drive limit: acceleration limit along the motion, tau_brake against it."""
+    xp = np if xp is None else xp
     lower, upper = drive_bounds(q_dot, p, xp)
     return xp.clip(tau, lower, upper)
 
 
-def pwm_shape(tau, p: ActuatorArrays, xp: ModuleType = np):
+def pwm_shape(tau, p: ActuatorArrays, xp: ModuleType | None = None):
     """Drive torque of a PWM duty tau / tau_max raised to pwm_exponent, N*m; tau itself, bit for bit, where the
     exponent is 1 (the appendix's model)."""
+    xp = np if xp is None else xp
     duty = xp.abs(tau) / p.tau_max
     return xp.where(p.pwm_exponent == 1.0, tau, xp.sign(tau) * p.tau_max * duty**p.pwm_exponent)
 
 
-def motor_torque(q_target, q, q_dot, p: ActuatorArrays, xp: ModuleType = np):
+def motor_torque(q_target, q, q_dot, p: ActuatorArrays, xp: ModuleType | None = None):
     """Torque the motor applies to its joint (before MuJoCo's passive resistance and the Coulomb friction budget),
     N*m: the limited, PWM-shaped PD torque minus the back-EMF damping (the appendix's limited PD torque exactly
     where there is neither)."""
+    xp = np if xp is None else xp
     tau = pwm_shape(limit_torque(pd_torque(q_target, q, q_dot, p, xp), q_dot, p, xp), p, xp)
     return tau - p.back_emf_damping * q_dot
 
 
-def friction_excess(q_dot, tau, p: ActuatorArrays, xp: ModuleType = np):
+def friction_excess(q_dot, tau, p: ActuatorArrays, xp: ModuleType | None = None):
     """Coulomb friction (N*m, >= 0) on top of the joint's frictionloss, for a motor applying torque ``tau``
     (0 when unpowered): Stribeck static friction plus load-dependent gearbox friction. 0 in the appendix model."""
+    xp = np if xp is None else xp
     return p.stiction * xp.exp(-((q_dot / p.stribeck_velocity) ** 2)) + p.load_friction * xp.abs(tau)
 
 
@@ -143,6 +152,7 @@ def has_friction_excess(p: ActuatorArrays) -> bool:
     return bool(np.any(np.asarray(p.stiction)) or np.any(np.asarray(p.load_friction)))
 
 
-def resistance_torque(q_dot, damping, frictionloss, xp: ModuleType = np):
+def resistance_torque(q_dot, damping, frictionloss, xp: ModuleType | None = None):
     """Passive resistance of Eq. 6 (N*m, opposing positive q_dot): frictionloss * sign(q_dot) + damping * q_dot."""
+    xp = np if xp is None else xp
     return frictionloss * xp.sign(q_dot) + damping * q_dot

@@ -1,81 +1,97 @@
-"""`MotorDrive`: the actuator model's torque for fixed parameters, cheap enough to evaluate every physics substep.
+"""`MotorDrive`: the actuator model as every physics substep evaluates it, plus what the servo firmware adds.
 
-`toddlerbot.actuation.model.motor_torque` is written once for numpy and JAX and recomputes every derived constant
-on each call; the simulator evaluates it every 1 ms, where those numpy calls cost as much as a third of
-``mj_step``. A drive computes the constants once (the same floating-point operations, so its torque equals
-`motor_torque` bit for bit), skips the PWM shape and the back-EMF where they are the identity (the appendix's
-model), and adds what the hardware's firmware does on top: per-motor torque enable and a torque limit.
+The torque is `toddlerbot.actuation.model.motor_torque` itself (the one implementation, which the MJX training
+environment evaluates in JAX), followed by the firmware's per-motor torque enable and torque limit
+(`firmware_torque`). With numba (`toddlerbot.sim.native`) it is compiled into the substep loop and evaluated
+motor by motor; without, the same functions run on arrays. A drive keeps each robot's parameters as one
+contiguous (fields, n_motors) table, ready for the compiled loop.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from toddlerbot.actuation.model import ActuatorArrays, friction_excess, has_friction_excess, pwm_shape
+from toddlerbot.actuation import model as actuator_model
+from toddlerbot.actuation.model import ActuatorArrays, friction_excess, has_friction_excess, motor_torque
+from toddlerbot.sim.native import HAVE_NUMBA, compilable, compiled
+
+for _function in (actuator_model.acceleration_limit, actuator_model.pd_torque, actuator_model.drive_bounds,
+                  actuator_model.limit_torque, actuator_model.pwm_shape, motor_torque, friction_excess):
+    compilable(_function)
+
+
+@compilable
+def parameters_of(columns: np.ndarray) -> ActuatorArrays:
+    """`ActuatorArrays` from one robot's (fields, n_motors) parameter array (arrays), or one motor's (fields,)
+    column (floats), in field order (compiled code cannot splat an array into a NamedTuple, so the fields are
+    spelled out; a new field makes this fail loudly)."""
+    c = columns
+    return ActuatorArrays(c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12])
+
+
+@compilable
+def firmware_torque(targets, q, q_dot, p: ActuatorArrays, torque_on, limit):
+    """The actuator model's torque (N*m), zero where the torque is off, then clamped to +-limit (inf: none);
+    elementwise, for arrays or for one motor's floats."""
+    return np.clip(np.where(torque_on, motor_torque(targets, q, q_dot, p), 0.0), -limit, limit)
+
+
+if HAVE_NUMBA:
+    @compiled
+    def drive_torque(targets: np.ndarray, q: np.ndarray, q_dot: np.ndarray, table: np.ndarray,
+                     torque_on: np.ndarray, limit: np.ndarray) -> np.ndarray:
+        """`firmware_torque` for one robot's motors ((n_motors,) rad, rad/s; parameters `MotorDrive.table`),
+        N*m: compiled, motor by motor."""
+        tau = np.empty(len(targets))
+        for j in range(len(targets)):
+            tau[j] = firmware_torque(targets[j], q[j], q_dot[j], parameters_of(table[:, j]), torque_on[j],
+                                     limit[j])
+        return tau
+else:
+    def drive_torque(targets: np.ndarray, q: np.ndarray, q_dot: np.ndarray, table: np.ndarray,
+                     torque_on: np.ndarray, limit: np.ndarray) -> np.ndarray:
+        """`firmware_torque` for one robot's motors ((n_motors,) rad, rad/s; parameters `MotorDrive.table`),
+        N*m: interpreted, as arrays."""
+        return firmware_torque(targets, q, q_dot, parameters_of(table), torque_on, limit)
 
 
 class MotorDrive:
     """The torque each motor applies for given targets and state, for one set of actuator parameters.
 
-    ``torque_on``: per motor, False where the motor's torque is disabled (it applies no torque; default: all on).
-    ``torque_limit``: per motor |torque| bound after the actuator model, N*m (the firmware's goal current in
-    current-based position mode; default: none). Both broadcast against the targets, like the parameters."""
+    ``params``: (n_motors,) arrays shared by a batch of robots, or (batch, n_motors) rows, one per robot (the RL
+    environment's randomised motors). ``torque_on``: per motor, False where the motor's torque is disabled (it
+    applies no torque; default: all on). ``torque_limit``: per motor |torque| bound after the actuator model, N*m
+    (the firmware's goal current in current-based position mode; default: none)."""
 
     def __init__(self, params: ActuatorArrays, torque_on: np.ndarray | None = None,
                  torque_limit: np.ndarray | None = None) -> None:
         if torque_limit is not None and not np.all(np.asarray(torque_limit) >= 0):
             raise ValueError(f"torque_limit must be >= 0 N*m (inf: none), got {np.min(torque_limit)}")
-        p = params
-        self.params = p
-        self._kp, self._damping = p.kp, p.kd_min + p.kd
-        self._knee, self._span = p.q_dot_tau_max, p.q_dot_max - p.q_dot_tau_max
-        self._tau_max, self._drop, self._brake = p.tau_max, p.tau_q_dot_max - p.tau_max, p.tau_brake
-        # the least drive limit at any speed, computed as `torque` computes the limit at the knee speed and at
-        # q_dot_max (rounding is monotonic, so every limit in between is at least this): below it nothing clamps
-        self._never_clamped = np.minimum(np.minimum(self._tau_max, self._tau_max + self._drop), self._brake)
-        self._shaped = bool(np.any(np.asarray(p.pwm_exponent) != 1.0))
-        self._back_emf = bool(np.any(np.asarray(p.back_emf_damping)))
-        self._off = None if torque_on is None or np.all(torque_on) else ~np.asarray(torque_on, dtype=bool)
-        limit = None if torque_limit is None else np.asarray(torque_limit, dtype=float)
-        self._limit = None if limit is None else (-limit, limit)
-        self._plain = not (self._shaped or self._back_emf or self._off is not None or self._limit is not None)
-        self.per_robot = any(np.ndim(x) > 1 for x in p)
-        """Whether the parameters are rows, one per robot of a batch (the RL environment's randomised motors),
-        rather than one (n_motors,) set shared by the batch."""
-        self.has_friction_excess = has_friction_excess(p)
+        self.params = params
+        self.per_robot = any(np.ndim(x) > 1 for x in params)
+        """Whether the parameters are rows, one per robot of a batch, rather than one set shared by the batch."""
+        self.has_friction_excess = has_friction_excess(params)
         """Whether the load-dependent friction budget (`friction_excess`) is more than zero for some motor."""
+        shape = np.broadcast_shapes(*(np.shape(x) for x in params))
+        n = shape[-1]
+        stacked = np.stack([np.broadcast_to(np.asarray(x, dtype=float), shape) for x in params]).reshape(len(params),
+                                                                                                        -1, n)
+        self._tables = np.ascontiguousarray(stacked.transpose(1, 0, 2))  # (robots, fields, motors)
+        self.torque_on = np.ones(n, dtype=bool) if torque_on is None else np.broadcast_to(torque_on, n).astype(bool)
+        self.limit = np.full(n, np.inf) if torque_limit is None else np.broadcast_to(
+            np.asarray(torque_limit, dtype=float), n).copy()
+
+    def table(self, i: int) -> np.ndarray:
+        """Robot ``i``'s parameters as one contiguous (fields, n_motors) array, in `ActuatorArrays` order."""
+        return self._tables[i if self.per_robot else 0]
 
     def torque(self, targets: np.ndarray, q: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
-        """Motor torques, N*m, for motor targets and angles (rad) and speeds (rad/s)."""
-        tau = self._kp * (targets - q) - self._damping * q_dot
-        # the common case holding a pose: no motor at its limit (the ufunc's reduce: ndarray.all's wrapper costs more)
-        if np.logical_and.reduce(np.abs(tau) <= self._never_clamped, axis=None):
-            return tau if self._plain else self._after_limit(tau, q_dot)
-        # the drive limit (Eq. 9-10): tau_max up to the knee speed, then linear to tau_q_dot_max at q_dot_max
-        fraction = np.abs(q_dot)
-        fraction -= self._knee
-        fraction /= self._span
-        np.maximum(fraction, 0.0, out=fraction)
-        np.minimum(fraction, 1.0, out=fraction)
-        accel = self._tau_max + fraction * self._drop
-        np.maximum(tau, -np.where(q_dot > 0, self._brake, accel), out=tau)
-        np.minimum(tau, np.where(q_dot < 0, self._brake, accel), out=tau)
-        return self._after_limit(tau, q_dot)
-
-    def _after_limit(self, tau: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
-        """The drive-limited torque shaped by the PWM, less the back-EMF, then the firmware's enable and limit."""
-        if self._shaped:
-            tau = pwm_shape(tau, self.params)
-        if self._back_emf:
-            tau = tau - self.params.back_emf_damping * q_dot
-        if self._off is not None:
-            np.copyto(tau, 0.0, where=self._off)
-        if self._limit is not None:
-            np.maximum(tau, self._limit[0], out=tau)
-            np.minimum(tau, self._limit[1], out=tau)
-        return tau
-
-    def friction_excess(self, q_dot: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """Coulomb friction on top of the joints' frictionloss for motors applying ``tau``, N*m (see
-        `toddlerbot.actuation.model.friction_excess`)."""
-        return friction_excess(q_dot, tau, self.params)
+        """Motor torques, N*m, for motor targets and angles (rad) and speeds (rad/s): (n_motors,) or
+        (batch, n_motors) arrays."""
+        targets, q, q_dot = (np.asarray(x, dtype=float) for x in (targets, q, q_dot))
+        if targets.ndim == 1 and not self.per_robot:
+            return drive_torque(targets, q, q_dot, self.table(0), self.torque_on, self.limit)
+        targets, q, q_dot = np.broadcast_arrays(np.atleast_2d(targets), np.atleast_2d(q), np.atleast_2d(q_dot))
+        return np.stack([drive_torque(np.ascontiguousarray(t), np.ascontiguousarray(a), np.ascontiguousarray(v),
+                                      self.table(i), self.torque_on, self.limit)
+                         for i, (t, a, v) in enumerate(zip(targets, q, q_dot, strict=True))])

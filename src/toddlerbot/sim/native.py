@@ -1,0 +1,116 @@
+"""Compiled code next to MuJoCo: numba where it is installed, and MuJoCo's own ``mj_step`` as a C function.
+
+The actuated plant calls ``mj_step`` every 1 ms physics substep with the actuator model in between. Run from
+Python, that interleaving costs a third of ``mj_step`` again (numpy calls and the interpreter evicting MuJoCo's
+caches); compiled with numba, the whole substep loop runs in machine code and calls the C ``mj_step`` directly.
+
+* `compiled`: numba's ``njit`` (no GIL, cached on disk) when numba is installed (the ``fast`` extra); without it
+  the very same Python runs interpreted, with the same results, only slower.
+* `compilable`: lets compiled code call a plain function (the actuator model, written once for numpy and JAX),
+  which stays an ordinary Python function for everyone else. The model is elementwise, and compiled code
+  evaluates it motor by motor on floats (no array temporaries: a quarter of the time), so numba is taught the
+  float forms of ``np.clip`` and ``np.where`` it lacks (numpy's semantics, signed zeros included).
+* `mj_step`: ``mj_step(model_address, data_address)`` in the MuJoCo library the ``mujoco`` package loaded.
+  Unlike ``mujoco.mj_step`` it turns no MuJoCo error into a Python exception: a fatal MuJoCo error (which a
+  compiled, well-sized model does not raise while stepping) ends the process with MuJoCo's own message.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import hashlib
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+try:
+    import numba
+except ImportError:  # the same code runs interpreted
+    numba = None
+
+HAVE_NUMBA = numba is not None
+"""Whether the substep loop runs compiled."""
+
+
+def _cache_folder() -> str:
+    """Where numba keeps the compiled code: one folder per state of the sources it compiles from (numba checks
+    only the file of the compiled function itself, and the actuator model lives in another)."""
+    package = Path(__file__).resolve().parents[1]
+    stamp = hashlib.sha256()
+    for source in sorted([*(package / "actuation").glob("*.py"), *(package / "sim").glob("*.py")]):
+        info = source.stat()
+        stamp.update(f"{source.name} {info.st_size} {info.st_mtime_ns}".encode())
+    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return str(root / "toddlerbot" / "numba" / stamp.hexdigest()[:16])
+
+
+def compiled(function: Callable) -> Callable:
+    """``function`` compiled by numba (releasing the GIL, so threads may step disjoint robots; cached on disk),
+    else itself."""
+    if not HAVE_NUMBA:
+        return function
+    previous, numba.config.CACHE_DIR = numba.config.CACHE_DIR, _cache_folder()
+    try:  # the cache's folder is chosen now, when the dispatcher is made
+        return numba.njit(nogil=True, cache=True)(function)
+    finally:
+        numba.config.CACHE_DIR = previous
+
+
+def compilable(function: Callable) -> Callable:
+    """Make ``function`` callable from `compiled` code; it stays the same Python function for other callers."""
+    if HAVE_NUMBA:
+        from numba.extending import register_jitable
+
+        register_jitable(function)
+    return function
+
+
+if HAVE_NUMBA:
+    from numba import types
+    from numba.extending import overload
+
+    def _floats(*values) -> bool:
+        return all(isinstance(v, types.Float) for v in values)
+
+    @overload(np.clip)
+    def _clip_floats(a, a_min, a_max):
+        if _floats(a, a_min, a_max):
+            return lambda a, a_min, a_max: a_min if a < a_min else (a_max if a > a_max else a)
+        return None
+
+    @overload(np.where)
+    def _where_floats(condition, x, y):
+        if isinstance(condition, types.Boolean) and _floats(x, y):
+            return lambda condition, x, y: x if condition else y
+        return None
+
+
+def _mujoco_library_path() -> str:
+    """The MuJoCo shared library shipped inside the ``mujoco`` package (the one its bindings already loaded)."""
+    folder = os.path.dirname(mujoco.__file__)
+    for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
+        found = sorted(glob.glob(os.path.join(folder, pattern)))
+        if found:
+            return found[0]
+    raise ImportError(f"no MuJoCo shared library (libmujoco.so*, libmujoco*.dylib or mujoco.dll) in {folder}")
+
+
+def _mj_step() -> Callable[[int, int], None]:
+    """``mj_step(model_address, data_address)``: a symbol numba links to (so compiled code can be cached), or a
+    ctypes function for interpreted code. Addresses are passed as integers, as pointers are."""
+    path = _mujoco_library_path()
+    if HAVE_NUMBA:
+        import llvmlite.binding
+
+        llvmlite.binding.load_library_permanently(path)
+        return numba.types.ExternalFunction("mj_step", numba.types.void(numba.types.intp, numba.types.intp))
+    step = ctypes.CDLL(path).mj_step
+    step.argtypes, step.restype = [ctypes.c_ssize_t, ctypes.c_ssize_t], None
+    return step
+
+
+mj_step = _mj_step()
