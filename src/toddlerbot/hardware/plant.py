@@ -31,7 +31,7 @@ from toddlerbot.hardware.emulated_motor import EmulatedMotor
 from toddlerbot.hardware.imu import ImuReading
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import FALL_TILT_RAD
-from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.actuated import MotorAddresses, compile_substeps, step_actuated
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
 
@@ -62,6 +62,7 @@ class SimplePlant:
         self.qd = np.zeros(len(motors))
         self.tau = np.zeros(len(motors))
         self.dt = 0.001
+        commands(motors, params).drive().compile()  # now, not in the first update
         self._last = time.perf_counter()
 
     def start(self, lock: threading.Lock) -> None:
@@ -158,6 +159,8 @@ class HilPlant(TorsoGroundTruth):
         mujoco.mj_forward(self.model, self.data)
         self._motors = MotorAddresses.of(self.model, [mo.name for mo in motors])
         self.qadr, self.vadr = self._motors.qpos, self._motors.dof
+        # compiled now, not in the first physics batch of a wall-clock run
+        compile_substeps(self.model, self.data, self._motors, commands(motors, self.params).drive())
         self.torso_truth = TorsoTruth(self.model, self.data, description.handles.torso)
         self.standing_height = self.torso_height()
         """Torso height at the home pose, m: the reference of the fall test."""

@@ -20,7 +20,7 @@ import numpy as np
 
 from toddlerbot.actuation.model import friction_excess
 from toddlerbot.sim.motor_drive import MotorDrive, drive_torque, parameters_of
-from toddlerbot.sim.native import compiled, mj_step
+from toddlerbot.sim.native import compile_now, compiled, mj_step
 
 
 @dataclass(frozen=True)
@@ -54,13 +54,10 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
         raise ValueError(f"n_substeps must be >= 1, got {n_substeps}")
     targets = np.asarray(targets, dtype=float)
     torques = np.empty(targets.shape)
-    dofs, budget = motors.dof, drive.has_friction_excess
+    dofs = motors.dof
     for i, (m, d) in enumerate(zip(models, datas, strict=True)):
-        frictionloss = m.dof_frictionloss
-        own = frictionloss[dofs]  # a copy (fancy index): restored on return
-        loop = (m._address, d._address, d.qpos, d.qvel, d.ctrl, frictionloss, own, motors.qpos, dofs,
-                motors.actuator, np.ascontiguousarray(targets[i]), drive.table(i), drive.torque_on, drive.limit,
-                budget)
+        own = m.dof_frictionloss[dofs]  # a copy (fancy index), restored on return
+        loop = _loop_arguments(m, d, motors, np.ascontiguousarray(targets[i]), drive, i, own)
         try:
             if sensors_last_only and n_substeps > 1:
                 m.opt.disableflags |= _NO_SENSOR
@@ -70,9 +67,25 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
             else:
                 torques[i] = _substeps(*loop, n_substeps)
         finally:
-            if budget:
-                frictionloss[dofs] = own
+            if drive.has_friction_excess:
+                m.dof_frictionloss[dofs] = own
     return torques
+
+
+def compile_substeps(model: mujoco.MjModel, data: mujoco.MjData, motors: MotorAddresses, drive: MotorDrive) -> None:
+    """Compile the substep loop for this robot, or load it from numba's disk cache, without stepping
+    (`toddlerbot.sim.native.compile_now`): otherwise the first `step_actuated` does it (seconds the first time),
+    which a wall-clock run must not spend mid-run."""
+    own = model.dof_frictionloss[motors.dof]
+    compile_now(_substeps, *_loop_arguments(model, data, motors, np.zeros(len(motors.qpos)), drive, 0, own), 0)
+
+
+def _loop_arguments(m: mujoco.MjModel, d: mujoco.MjData, motors: MotorAddresses, targets: np.ndarray,
+                    drive: MotorDrive, i: int, own_frictionloss: np.ndarray) -> tuple:
+    """`_substeps`' arguments for robot ``i`` of a batch, less the substep count."""
+    return (m._address, d._address, d.qpos, d.qvel, d.ctrl, m.dof_frictionloss, own_frictionloss, motors.qpos,
+            motors.dof, motors.actuator, targets, drive.table(i), drive.torque_on, drive.limit,
+            drive.has_friction_excess)
 
 
 @compiled

@@ -13,7 +13,7 @@ import numpy as np
 
 from toddlerbot.actuation import model as actuator_model
 from toddlerbot.actuation.model import ActuatorArrays, friction_excess, has_friction_excess, motor_torque
-from toddlerbot.sim.native import HAVE_NUMBA, compilable, compiled
+from toddlerbot.sim.native import HAVE_NUMBA, compilable, compile_now, compiled
 
 for _function in (actuator_model.acceleration_limit, actuator_model.pd_torque, actuator_model.drive_bounds,
                   actuator_model.limit_torque, actuator_model.pwm_shape, motor_torque, friction_excess):
@@ -84,6 +84,11 @@ class MotorDrive:
     def table(self, i: int) -> np.ndarray:
         """Robot ``i``'s parameters as one contiguous (fields, n_motors) array, in `ActuatorArrays` order."""
         return self._tables[i if self.per_robot else 0]
+
+    def compile(self) -> None:
+        """Compile the torque for these parameters now, not in the first call (`toddlerbot.sim.native.compile_now`)."""
+        zeros = np.zeros(len(self.limit))
+        compile_now(drive_torque, zeros, zeros, zeros, self.table(0), self.torque_on, self.limit)
 
     def torque(self, targets: np.ndarray, q: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
         """Motor torques, N*m, for motor targets and angles (rad) and speeds (rad/s): (n_motors,) or

@@ -26,7 +26,7 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, Robot
-from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.actuated import MotorAddresses, compile_substeps, step_actuated
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
 
@@ -89,6 +89,7 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         """Motor angles added to the home keyframe at `reset`, rad (a perturbation; zero by default)."""
         self._gains: tuple[np.ndarray, np.ndarray] | None = None
         self.set_gains(self.default_kp, self.default_kd)
+        compile_substeps(self.model, self.data, self._motors, self._drive)  # not in the first (wall-clock) step
         self.reset()
         self.standing_height = self.torso_height()
 
