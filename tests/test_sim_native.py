@@ -1,0 +1,72 @@
+"""The compiled substep loop (`toddlerbot.sim.native`): numba's float forms of np.clip and np.where follow numpy,
+and the compiled loop steps the robot exactly as the same code run interpreted (numba hidden) does."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from toddlerbot.sim import native
+
+numba = pytest.importorskip("numba")
+
+_RUN = """
+import json, sys
+import numpy as np
+{hide}
+from toddlerbot.sim import native
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+robot = MuJoCoRobot(RobotDescription.load())
+home = robot.reset().motor_pos
+n = len(home)
+if {dc_motor}:  # PWM shape, back-EMF and a friction budget: every term of the model
+    robot._params = robot._params._replace(pwm_exponent=np.full(n, 0.8), back_emf_damping=np.full(n, 0.03),
+                                           stiction=np.full(n, 0.01), load_friction=np.full(n, 0.2))
+for k in range(15):  # swinging every motor far enough that the drive limit clamps
+    robot.step(home + 0.4 * np.sin(0.5 * k + np.arange(n)))
+print(json.dumps({{"compiled": native.HAVE_NUMBA, "qpos": robot.data.qpos.tolist(),
+                  "torque": robot.observe().motor_torque.tolist()}}))
+"""
+
+
+def _run(hide_numba: bool, dc_motor: bool) -> dict:
+    hide = "sys.modules['numba'] = None" if hide_numba else ""
+    out = subprocess.run([sys.executable, "-c", _RUN.format(hide=hide, dc_motor=dc_motor)], capture_output=True,
+                         text=True, check=True, timeout=300)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("dc_motor", [False, True], ids=["appendix", "dc_motor"])
+def test_compiled_loop_steps_like_the_interpreted_one(dc_motor):
+    compiled, interpreted = _run(False, dc_motor), _run(True, dc_motor)
+    assert compiled["compiled"] and not interpreted["compiled"]
+    assert np.max(np.abs(compiled["torque"])) > 0.3  # the motors really push (some at their drive limit)
+    if dc_motor:  # numpy's and the C library's exp and pow may differ in the last bit
+        np.testing.assert_allclose(compiled["qpos"], interpreted["qpos"], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(compiled["torque"], interpreted["torque"], rtol=0, atol=1e-9)
+    else:  # the appendix model has neither: the same operations, the same bits
+        assert compiled == {**interpreted, "compiled": True}
+
+
+def test_compiled_float_clip_and_where_follow_numpy_signed_zeros_included():
+    @numba.njit
+    def clip_where(a, lo, hi, condition):
+        return np.clip(a, lo, hi), np.where(condition, a, lo)
+
+    values = [-np.inf, -2.0, -1.0, -0.0, 0.0, 0.5, 1.0, 2.0, np.inf]
+    for a in values:
+        for lo in values:
+            for hi in values:
+                if lo > hi:
+                    continue
+                got = clip_where(a, lo, hi, a > 0)
+                want = (np.clip(np.array([a]), lo, hi)[0], np.where(a > 0, a, lo))
+                for g, w in zip(got, want, strict=True):
+                    assert g == w and np.signbit(g) == np.signbit(w), (a, lo, hi, got, want)
+    assert native.HAVE_NUMBA
