@@ -81,6 +81,9 @@ def test_cli_prints_json_and_saves_plot(tmp_path):
      "error: --policy: unknown policy 'dance'; expected one of stand, replay, walk-zmp, walk-rl, dp"),
     (["--policy", "walk-zmp", "--commands", "0:0.1,0"],
      "error: --commands: malformed command '0:0.1,0'; expected 'time: vx,vy,yaw_rate' like '0:0.1,0,0' with time >= 0"),
+    (["--policy", "stand"],  # registered, but it ignores velocity commands
+     "error: policy 'stand' does not follow velocity commands; tracking needs a walking policy (walk-rl, walk-zmp "
+     "or a registered one with a command reach)"),
     (["--policy", "walk-rl", "--weights", "walk_rl_tpu"],  # neither a file nor a shipped policy's name
      "error: walk_rl_tpu: exported policy not found (run `toddlerbot rl export`)"),
 ])

@@ -103,8 +103,9 @@ def test_hil_plant_steps_with_each_motors_torque_enable_and_current_limit(descri
 
 
 def test_one_robot_with_its_own_parameter_row_steps_like_the_shared_parameters(description):
-    """A batch of one with per-robot parameter rows ((1, n_motors), as the RL environment's chunks pass them) gives the shared-parameter torques exactly, also when the drive limit clamps (targets 1 rad
-    off: every motor at its limit)."""
+    """A batch of one with per-robot parameter rows ((1, n_motors), as the RL environment's chunks pass them) gives
+    the shared-parameter torques exactly, also when the drive limit clamps (targets 1 rad off: every motor at its
+    limit)."""
     model = description.model("floating", scene=True)
     motors = MotorAddresses.of(model, description.motor_names)
     shared = description.actuator_arrays()

@@ -19,7 +19,8 @@ app = typer.Typer(help="Evaluate policies in simulation (appendix Table 7).", no
 @app.command()
 def tracking(
     policy: Annotated[str, typer.Option(
-        help=f"One of: {', '.join(policy_names())} (usually walk-rl or walk-zmp).")] = "walk-rl",
+        help="A walking policy, one that follows velocity commands: walk-rl, walk-zmp or a registered one "
+             "(stand, replay and dp are refused).")] = "walk-rl",
     commands: Annotated[str | None, typer.Option(
         help="Command schedule in the runtime syntax, e.g. '0:0.1,0,0; 5:0,0,0.3' (default: the documented "
              "evaluation schedule).")] = None,

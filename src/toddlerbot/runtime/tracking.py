@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import save_figure
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.robot.description import RobotDescription
@@ -103,8 +104,8 @@ def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray,
 
 def evaluate_policy(description: RobotDescription, policy_name: str, commands: str = DEFAULT_COMMANDS,
                     seconds: float = DEFAULT_SECONDS, weights: Path | None = None) -> TrackingResult:
-    """Run a registered policy (e.g. ``walk-rl``, ``walk-zmp``) through a command schedule on the simulated robot of
-    `description` (its fitted motor parameters included) and score it."""
+    """Run a registered walking policy (e.g. ``walk-rl``, ``walk-zmp``: one with a command reach) through a command
+    schedule on the simulated robot of `description` (its fitted motor parameters included) and score it."""
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
@@ -113,6 +114,10 @@ def evaluate_policy(description: RobotDescription, policy_name: str, commands: s
     schedule = CommandSchedule.parse(commands, source="--commands")
     robot = MuJoCoRobot(description)
     policy = make_policy(policy_name, robot, weights=weights)
+    if policy.command_reach is None:
+        policy.close()
+        raise ToddlerbotError(f"policy {policy_name!r} does not follow velocity commands; tracking needs a walking "
+                              "policy (walk-rl, walk-zmp or a registered one with a command reach)")
     result = run_policy(robot, policy, schedule, seconds, stop_on_fall=True)
     log = result.log
     return tracking_errors(np.asarray(log.time), np.asarray(log.command), np.asarray(log.base_pos),
