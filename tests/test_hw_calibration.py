@@ -20,6 +20,7 @@ from toddlerbot.hardware.control_table import RAD_PER_PULSE
 from toddlerbot.hardware.driver import DynamixelBus, motors_of
 from toddlerbot.hardware.real_robot import RealRobot, StartupCheckError
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.safety import SLEW_SPEEDS
 from toddlerbot.robot.spec import load_spec
 
 pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
@@ -138,7 +139,7 @@ def test_real_robot_reset_reaches_home_and_step_writes_new_gains():
             wild = home.copy()
             wild[0] = 10.0  # beyond neck yaw's joint range: slew-limited, then clipped to the range
             step = robot.guard.max_step[0]
-            assert step == pytest.approx(6.5 * 0.01)  # XC330 no-load speed x control period
+            assert step == pytest.approx(SLEW_SPEEDS * 6.5 * 0.01)  # XC330 no-load speed x control period
             goals = []
             for _ in range(80):
                 robot.step(wild)

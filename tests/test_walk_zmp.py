@@ -263,3 +263,22 @@ def test_velocity_correction_is_bounded_held_per_step_and_waits_for_a_steady_com
     assert np.all((changes - settle) % cfg.step_ticks == 0)  # only when a step starts
     assert np.all(corrections[:, 1] == 0.0) and corrections[:, 0].max() == pytest.approx(0.04)
     assert abs(loop.error_sum[0]) <= vt.limit[0] / vt.ki[0] + 1e-12  # anti-windup: the integral stops growing
+
+
+@pytest.mark.slow
+def test_targets_stay_within_the_hardware_slew_limit(description):
+    """On hardware the command guard slew-limits each target (`robot.safety.SLEW_SPEEDS` x the motor's no-load
+    speed); at 1 x it clipped walk-zmp's knee targets in 8 % of the steps and it fell in hardware-in-the-loop.
+    Across the top of its reach (0.15 m/s forward, 0.08 m/s sideways, 0.4 rad/s turning) the gait moves no target
+    more than 0.8 x the limit per control step (measured: 0.69 x, a knee), so the guard leaves it as the simulator
+    walks it."""
+    from toddlerbot.robot.safety import SLEW_SPEEDS
+
+    robot = MuJoCoRobot(description)
+    schedule = CommandSchedule.parse("0:0,0,0; 1:0.15,0,0; 5:0,0.08,0; 8:0,0,0.4", "test")
+    result = run_policy(robot, WalkZMPPolicy(robot), schedule, 11.0, stop_on_fall=True)
+    assert not result.fell
+    change = np.abs(np.diff(np.asarray(result.log.motor_target), axis=0))
+    limit = SLEW_SPEEDS * description.max_motor_speed * robot.control_dt
+    assert (change / limit).max() < 0.8
+    assert (change / (limit / SLEW_SPEEDS)).max() > 1.0  # at 1 x it would clip (the knees, at 0.15 m/s)
