@@ -67,9 +67,10 @@ class AttitudeFeedback:
     the start minus the IMU yaw change)."""
     heading_integral: float = 0.0
     """rad/s of yaw-rate command per rad*s of integrated heading error (removes a steady yaw slip)."""
-    dcm_ankle_x: float = 3.0
+    dcm_ankle_x: float = 2.0
     """rad of ankle pitch per m of forward DCM error (measured minus planned capture point, relative to the feet in
-    contact, torso-heading frame): the feet push the ZMP towards the error (ankle strategy)."""
+    contact, torso-heading frame): the feet push the ZMP towards the error (ankle strategy). 3.0 overshot with the
+    10-20 ms loop delay of hardware-in-the-loop (`benchmarks/bench_hil_like.py`)."""
     dcm_ankle_y: float = 1.5
     """rad of ankle roll per m of sideways DCM error."""
     dcm_velocity_filter: float = 0.5
