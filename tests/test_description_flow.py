@@ -56,7 +56,7 @@ def test_sim_run_walk_zmp_derives_each_object_once(monkeypatch, tmp_path):
 
 @pytest.mark.parametrize("command", [
     ["sim", "run", "--policy", "stand", "--seconds", "0.1"],
-    ["eval", "tracking", "--policy", "stand", "--commands", "0:0,0,0", "--seconds", "0.1", "--json"],
+    ["eval", "tracking", "--policy", "walk-zmp", "--commands", "0:0,0,0", "--seconds", "0.1", "--json"],
 ])
 def test_motor_params_reach_the_simulated_robot(monkeypatch, tmp_path, command):
     """A fitted params.json given on the command line is in the simulated robot's model and actuator model."""
