@@ -4,8 +4,11 @@ The actuated plant calls ``mj_step`` every 1 ms physics substep with the actuato
 Python, that interleaving costs a third of ``mj_step`` again (numpy calls and the interpreter evicting MuJoCo's
 caches); compiled with numba, the whole substep loop runs in machine code and calls the C ``mj_step`` directly.
 
-* `compiled`: numba's ``njit`` (no GIL, cached on disk) when numba is installed (the ``fast`` extra); without it
-  the very same Python runs interpreted, with the same results, only slower.
+* `compiled`: numba's ``njit`` (no GIL, cached on disk) when numba is installed (a dependency of the package);
+  where it is missing (a Python it does not support yet) the very same Python runs interpreted, with the same
+  results, only slower.
+* `compile_now`: compile (or load) before a time-critical loop, then keep numba's bookkeeping away from the
+  garbage collector.
 * `compilable`: lets compiled code call a plain function (the actuator model, written once for numpy and JAX),
   which stays an ordinary Python function for everyone else. The model is elementwise, and compiled code
   evaluates it motor by motor on floats (no array temporaries: a quarter of the time), so numba is taught the
