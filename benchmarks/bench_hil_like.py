@@ -3,10 +3,10 @@
 `hw run` against `hw emulate --hil` differs from the simulator in five measured ways, each reproduced here on
 `MuJoCoRobot`: the targets take effect ``late`` ms after the observation (bus read, policy, bus write); each
 control period lasts 20 +- ``jitter`` ms (HIL's own: 15.9-24.3 ms, 1st-99th percentile); the IMU reading is
-``imu_age`` ms old (10 ms reports, each 5 ms late); motor angles come in 4,096 ticks per turn; and the command
-guard slew-limits targets as on hardware (`robot.safety.SLEW_SPEEDS` x the no-load speed, or ``--slew``). Printed:
-falls over seeds with all effects, then with each one left out (the ablation that found the slew limit's part in
-walk-zmp's HIL falls; docs/hardware.md).
+``imu_age`` ms old (on average: 10 ms reports, each 5 ms late); motor angles come in 4,096 ticks per turn; and the
+command guard slew-limits targets as on hardware (`robot.safety.SLEW_SPEEDS` x the no-load speed, or
+``--slew``). Printed: falls over seeds with all effects, then with each one left out (the ablation that found the
+slew limit's part in walk-zmp's HIL falls; docs/hardware.md).
 
 Run: PYTHONPATH=src python benchmarks/bench_hil_like.py [--policy walk-zmp] [--seeds 5] [--slew 2.0]
 """
@@ -21,18 +21,21 @@ import time
 
 import numpy as np
 
+from toddlerbot.hardware.control_table import RAD_PER_PULSE
+from toddlerbot.hardware.imu import REPORT_INTERVAL_S
+from toddlerbot.hardware.imu_stream import LATENCY_S
 from toddlerbot.policies import make_policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
-from toddlerbot.robot.safety import SLEW_SPEEDS
+from toddlerbot.robot.safety import SLEW_SPEEDS, slew_step
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS
-from toddlerbot.sim.actuated import step_actuated
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
 EFFECTS = ("late", "jitter", "imu_age", "ticks", "slew")
-TICK = 2 * np.pi / 4096
+IMU_AGE_MS = round(1000 * (LATENCY_S + REPORT_INTERVAL_S / 2))
+"""Mean age of the emulated IMU's newest report when read: its latency plus half its report interval (10 ms)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,7 +44,7 @@ class HilEffects:
     """ms (physics steps) the previous targets still act after an observation."""
     jitter: int = 4
     """Each control period lasts 20 +- this many ms, uniformly."""
-    imu_age: int = 10
+    imu_age: int = IMU_AGE_MS
     """ms by which the IMU reading precedes the observation."""
     ticks: bool = True
     """Motor angles rounded to the bus's 4,096 ticks per turn."""
@@ -56,25 +59,21 @@ class HilLikeRobot(MuJoCoRobot):
         super().__init__(description)
         self.effects, self.rng = effects, np.random.default_rng(seed)
         if effects.slew:
-            self.guard = dataclasses.replace(self.guard,
-                                             max_step=effects.slew * description.max_motor_speed * self.control_dt)
+            self.guard = dataclasses.replace(self.guard, max_step=slew_step(description.max_motor_speed,
+                                                                            self.control_dt, effects.slew))
 
     def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
         e = self.effects
-        if kp is not None or kd is not None:
-            self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
         period = self.n_substeps + (int(self.rng.integers(-e.jitter, e.jitter + 1)) if e.jitter else 0)
         if e.late:
-            step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive, e.late)
-        self._targets = motor_targets
-        step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive,
-                      period - e.late - e.imu_age, sensors_last_only=True)
+            self.advance(e.late)  # the previous targets still act
+        self.command(motor_targets, kp, kd)
+        self.advance(period - e.late - e.imu_age)
         imu = self.data.sensordata.copy()
         if e.imu_age:
-            self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive,
-                                         e.imu_age, sensors_last_only=True)[0]
+            self.advance(e.imu_age)
         obs = self.observe()
-        q = np.round(obs.motor_pos / TICK) * TICK if e.ticks else obs.motor_pos
+        q = np.round(obs.motor_pos / RAD_PER_PULSE) * RAD_PER_PULSE if e.ticks else obs.motor_pos
         s = self._imu
         return dataclasses.replace(obs, motor_pos=q, joint_pos=self._A @ q, imu_quat=imu[s["imu_quat"]],
                                    imu_ang_vel=imu[s["imu_gyro"]], imu_lin_acc=imu[s["imu_accel"]])

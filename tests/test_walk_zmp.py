@@ -272,13 +272,13 @@ def test_targets_stay_within_the_hardware_slew_limit(description):
     Across the top of its reach (0.15 m/s forward, 0.08 m/s sideways, 0.4 rad/s turning) the gait moves no target
     more than 0.8 x the limit per control step (measured: 0.69 x, a knee), so the guard leaves it as the simulator
     walks it."""
-    from toddlerbot.robot.safety import SLEW_SPEEDS
+    from toddlerbot.robot.safety import slew_step
 
     robot = MuJoCoRobot(description)
     schedule = CommandSchedule.parse("0:0,0,0; 1:0.15,0,0; 5:0,0.08,0; 8:0,0,0.4", "test")
     result = run_policy(robot, WalkZMPPolicy(robot), schedule, 11.0, stop_on_fall=True)
     assert not result.fell
     change = np.abs(np.diff(np.asarray(result.log.motor_target), axis=0))
-    limit = SLEW_SPEEDS * description.max_motor_speed * robot.control_dt
+    limit = slew_step(description.max_motor_speed, robot.control_dt)
     assert (change / limit).max() < 0.8
-    assert (change / (limit / SLEW_SPEEDS)).max() > 1.0  # at 1 x it would clip (the knees, at 0.15 m/s)
+    assert (change / slew_step(description.max_motor_speed, robot.control_dt, 1.0)).max() > 1.0  # 1 x would clip

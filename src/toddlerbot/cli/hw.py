@@ -22,10 +22,10 @@ from toddlerbot.cli.options import (
     duration,
     open_robot_imu,
     output_file,
-    run_policy_names,
 )
 from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.files import json_text
+from toddlerbot.policies import policy_names
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
@@ -128,7 +128,7 @@ def calibrate(
 
 
 CalibrationOpt = Annotated[Path, typer.Option("--calibration", help="Per-robot calibration file.")]
-HwPolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())} (dp: a "
+HwPolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(policy_names())} (dp: a "
                                           "diffusion policy: --checkpoint, --camera, --variant gripper).")]
 HwCommandOpt = Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")]
 MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")]

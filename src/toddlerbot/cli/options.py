@@ -64,15 +64,10 @@ MAX_RUN_SECONDS = 3600.0
 """Longest run a command accepts, s: an hour (the battery's run time; a simulated hour logs about 180,000 steps)."""
 
 
-def run_policy_names() -> tuple[str, ...]:
-    """What `sim run` and `hw run` accept: every registered policy."""
-    return policy_names()
-
-
 def check_run_policy(name: str) -> str:
     """`name` if `sim run` and `hw run` accept it, else one line listing what they accept."""
-    if name not in run_policy_names():
-        raise ToddlerbotError(f"unknown policy {name!r}; expected one of {', '.join(run_policy_names())}")
+    if name not in policy_names():
+        raise ToddlerbotError(f"unknown policy {name!r}; expected one of {', '.join(policy_names())}")
     return name
 
 

@@ -18,13 +18,13 @@ from toddlerbot.cli.options import (
     output_dir,
     output_file,
     positive,
-    run_policy_names,
 )
 from toddlerbot.cli.output import console
 from toddlerbot.cli.progress import RunProgress
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text, json_text
+from toddlerbot.policies import policy_names
 from toddlerbot.robot.interface import CONTROL_DT
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
@@ -32,7 +32,7 @@ app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motio
 app.command("compare")(compare_command)
 
 
-PolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(run_policy_names())}.")]
+PolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(policy_names())}.")]
 CommandOpt = Annotated[str | None, typer.Option(
     "--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...' (s: m/s, m/s, rad/s), e.g. "
     "'0:0.1,0,0; 5:0,0,0.3'. Default: the policy's demo command (walk-zmp: 0.1 m/s forward), else zero.")]

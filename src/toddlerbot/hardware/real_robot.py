@@ -30,7 +30,7 @@ from toddlerbot.hardware.driver import (
 from toddlerbot.hardware.imu import Imu, StaticImu
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, Observation, Robot
-from toddlerbot.robot.safety import SLEW_SPEEDS
+from toddlerbot.robot.safety import slew_step
 
 STARTUP_MARGIN = 0.25
 """How far (rad) outside its joint range a limp motor may read at start-up before the calibration or the
@@ -58,8 +58,7 @@ class RealRobot(Robot):
         startup_margin: float = STARTUP_MARGIN,
         latency_ms: float | None = None,
     ) -> None:
-        # slew limit: no target moves faster than SLEW_SPEEDS x the motor's no-load speed
-        super().__init__(description, control_dt, max_step=SLEW_SPEEDS * description.max_motor_speed * control_dt)
+        super().__init__(description, control_dt, max_step=slew_step(description.max_motor_speed, control_dt))
         self.offsets = calibration.offsets_for(description, calibration_source)
         self.calibration_source = calibration_source
         self.bus = DynamixelBus(port, motors_of(description), baudrate=baudrate, retries=retries,

@@ -26,6 +26,12 @@ measured angle of a motor running near full speed, and walk-zmp's knee targets m
 at 0.15 m/s (at a limit of 1.0, clipping 8 % of its steps made it fall in hardware-in-the-loop)."""
 
 
+def slew_step(max_motor_speed: np.ndarray, control_dt: float, speeds: float = SLEW_SPEEDS) -> np.ndarray:
+    """The hardware's slew limit per control step, rad per motor: ``speeds`` x each motor's no-load speed (rad/s)
+    x the control period (s)."""
+    return speeds * np.asarray(max_motor_speed) * control_dt
+
+
 class UnsafeCommandError(ToddlerbotError):
     """A policy asked for a non-finite or malformed target or gain; nothing was sent to the motors."""
 

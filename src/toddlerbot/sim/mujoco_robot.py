@@ -121,16 +121,25 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         )
 
     def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
+        self.command(motor_targets, kp, kd)
+        self.advance(self.n_substeps)
+        self._check_stable()
+        return self.observe()
+
+    def command(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> None:
+        """Hold already-checked motor targets (rad) and firmware gains from now on, without stepping (`step` is
+        `command` then `advance` by one control period)."""
         if kp is not None or kd is not None:
             self.set_gains(self.default_kp if kp is None else kp, self.default_kd if kd is None else kd)
         self._targets = motor_targets
         if self._drive.params is not self._params:  # parameters replaced from outside (the RL backend test)
             self._drive = MotorDrive(self._params)
-        # the robot owns its model, and only the last substep's sensors are observed
+
+    def advance(self, n_substeps: int) -> None:
+        """``n_substeps`` physics steps holding the commanded targets (MuJoCo's sensors evaluated in the last:
+        the robot owns its model, and only the last substep's are observed)."""
         self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive,
-                                     self.n_substeps, sensors_last_only=True)[0]
-        self._check_stable()
-        return self.observe()
+                                     n_substeps, sensors_last_only=True)[0]
 
     # -- helpers ---------------------------------------------------------------------------------------------
     def set_gains(self, kp: np.ndarray, kd: np.ndarray) -> None:
