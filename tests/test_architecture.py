@@ -1,6 +1,10 @@
-"""Imports point down the layers, and the runtime core never imports JAX or PyTorch (ARCHITECTURE.md)."""
+"""Imports point down the layers, the runtime core never imports JAX or PyTorch, and the CLI starts without any
+optional extra (ARCHITECTURE.md)."""
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -64,3 +68,42 @@ robot runs with numpy, scipy and mujoco alone; `walk-rl` imports onnxruntime onl
 def test_optional_runtimes_are_imported_lazily(area, path):
     for name in _imports(path, module_level_only=True):
         assert name.split(".")[0] not in LAZY_ONLY, f"{path.name} ({area}) imports {name} at module level"
+
+
+EXTRA_MODULES = ("jax", "jaxlib", "flax", "brax", "optax", "orbax", "mujoco.mjx", "tensorboardX", "onnx",
+                 "onnxruntime", "torch", "wandb", "dynamixel_sdk", "serial", "adafruit_bno08x", "pyarrow", "av",
+                 "pygame", "zmq", "msgpack", "viser", "rerun")
+"""Top-level modules of the optional extras (pyproject.toml): `pip install toddlerbot` alone has none of them."""
+
+_CLI_WITHOUT_EXTRAS = """
+import sys
+class Missing:  # importing an extra raises ModuleNotFoundError, as on a core install
+    def find_spec(self, name, path=None, target=None):
+        if name in {hidden!r}:
+            raise ModuleNotFoundError(f"No module named {{name!r}}", name=name)
+sys.meta_path.insert(0, Missing())
+from toddlerbot.cli.main import main
+sys.argv = ["toddlerbot", *{argv!r}]
+main()
+"""
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["rl", "train", "--help"], ["teleop", "--help"], ["sim", "run", "--help"],
+                                  ["hw", "run", "--help"], ["dp", "--help"], ["manip", "--help"]], ids=" ".join)
+def test_the_cli_starts_on_a_core_install(argv):
+    """Every area loads with the core dependencies alone (a GPU image without pyzmq could not start `rl train`):
+    an extra is imported by the command that needs it, which then names the extra."""
+    out = subprocess.run([sys.executable, "-c", _CLI_WITHOUT_EXTRAS.format(hidden=EXTRA_MODULES, argv=argv)],
+                         capture_output=True, text=True, timeout=120, env={**os.environ, "COLUMNS": "200"})
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "Usage: toddlerbot" in out.stdout
+
+
+def test_the_leader_link_without_its_extra_names_the_extra():
+    script = _CLI_WITHOUT_EXTRAS.split("from toddlerbot.cli.main")[0] + (
+        "from toddlerbot.teleop.link import LinkSubscriber\n"
+        "try:\n    LinkSubscriber()\nexcept Exception as exc:\n    print(type(exc).__name__, exc)\n")
+    out = subprocess.run([sys.executable, "-c", script.format(hidden=EXTRA_MODULES)], capture_output=True,
+                         text=True, timeout=120)
+    assert out.stdout.strip() == ("ToddlerbotError the leader-follower link needs pyzmq and msgpack: "
+                                  "pip install 'toddlerbot[manip]'"), out.stderr[-2000:]

@@ -12,17 +12,26 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import msgpack
 import numpy as np
-import zmq
 
 from toddlerbot.errors import ToddlerbotError
+
+try:  # the [manip] extra: the CLI loads this module on a core install too
+    import msgpack
+    import zmq
+except ImportError:
+    msgpack = zmq = None
 
 DEFAULT_ENDPOINT = "tcp://127.0.0.1:5591"
 
 
 class LinkError(ToddlerbotError):
     """A malformed message arrived on the teleoperation link."""
+
+
+def _require_link_packages() -> None:
+    if msgpack is None or zmq is None:
+        raise ToddlerbotError("the leader-follower link needs pyzmq and msgpack: pip install 'toddlerbot[manip]'")
 
 
 @dataclass(frozen=True)
@@ -35,11 +44,13 @@ class LinkMessage:
     kind: str = "leader"
 
     def encode(self) -> bytes:
+        _require_link_packages()
         return msgpack.packb({"seq": self.seq, "t": self.sent_at, "names": list(self.names),
                               "q": [float(v) for v in self.values], "kind": self.kind})
 
     @classmethod
     def decode(cls, payload: bytes) -> LinkMessage:
+        _require_link_packages()
         try:
             raw = msgpack.unpackb(payload, raw=False, strict_map_key=True)
             message = cls(int(raw["seq"]), float(raw["t"]), tuple(str(n) for n in raw["names"]),
@@ -56,6 +67,7 @@ class LinkPublisher:
     """Sends leader readings; every `send` gets the next sequence number."""
 
     def __init__(self, endpoint: str = DEFAULT_ENDPOINT, context: zmq.Context | None = None) -> None:
+        _require_link_packages()
         self._context = context or zmq.Context.instance()
         self.socket = self._context.socket(zmq.PUB)
         self.socket.setsockopt(zmq.CONFLATE, 1)  # a slow link drops old readings, never the newest
@@ -77,6 +89,7 @@ class LinkSubscriber:
     """Receives the newest leader message without blocking."""
 
     def __init__(self, endpoint: str = DEFAULT_ENDPOINT, context: zmq.Context | None = None) -> None:
+        _require_link_packages()
         self._context = context or zmq.Context.instance()
         self.socket = self._context.socket(zmq.SUB)
         self.socket.setsockopt(zmq.CONFLATE, 1)
