@@ -70,3 +70,19 @@ def test_compiled_float_clip_and_where_follow_numpy_signed_zeros_included():
                 for g, w in zip(got, want, strict=True):
                     assert g == w and np.signbit(g) == np.signbit(w), (a, lo, hi, got, want)
     assert native.HAVE_NUMBA
+
+
+def test_stale_cache_folders_are_pruned_to_the_most_recently_used(tmp_path):
+    import os
+
+    from toddlerbot.sim.native import prune_stale_caches
+
+    for age in range(12):  # folder k was last used k hours ago
+        folder = tmp_path / f"state{age:02d}"
+        folder.mkdir()
+        (folder / "index.nbi").write_bytes(b"x")
+        os.utime(folder, (1e9 - 3600 * age, 1e9 - 3600 * age))
+    deleted = prune_stale_caches(str(tmp_path / "state11"), keep=3)  # the current one is the oldest: kept
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["state00", "state01", "state02", "state11"]
+    assert len(deleted) == 8
+    assert prune_stale_caches(str(tmp_path / "missing" / "x")) == []

@@ -7,6 +7,7 @@ caches); compiled with numba, the whole substep loop runs in machine code and ca
 * `compiled`: numba's ``njit`` (no GIL, cached on disk) when numba is installed (a dependency of the package);
   where it is missing (a Python it does not support yet) the very same Python runs interpreted, with the same
   results, only slower.
+* `prune_stale_caches`: the disk cache keeps one folder per state of the sources; old ones are deleted.
 * `compile_now`: compile (or load) before a time-critical loop, then keep numba's bookkeeping away from the
   garbage collector.
 * `compilable`: lets compiled code call a plain function (the actuator model, written once for numpy and JAX),
@@ -25,6 +26,7 @@ import gc
 import glob
 import hashlib
 import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
@@ -52,12 +54,39 @@ def _cache_folder() -> str:
     return str(root / "toddlerbot" / "numba" / stamp.hexdigest()[:16])
 
 
+KEPT_CACHES = 8
+"""Cache folders of other source states kept beside the current one (other checkouts, recent versions)."""
+
+
+def prune_stale_caches(current: str, keep: int = KEPT_CACHES) -> list[str]:
+    """Delete all but the `keep` most recently used sibling folders of `current` (each edit of the sources makes a
+    new one of about 1 MB); returns the deleted folders. A folder deleted under another process only costs it a
+    compile."""
+    root = Path(current).parent
+    if not root.is_dir():
+        return []
+    others = sorted((p for p in root.iterdir() if p.is_dir() and p.name != Path(current).name),
+                    key=lambda p: p.stat().st_mtime, reverse=True)
+    stale = [str(p) for p in others[keep:]]
+    for folder in stale:
+        shutil.rmtree(folder, ignore_errors=True)
+    return stale
+
+
+_pruned = False
+
+
 def compiled(function: Callable) -> Callable:
     """``function`` compiled by numba (releasing the GIL, so threads may step disjoint robots; cached on disk),
     else itself."""
+    global _pruned
     if not HAVE_NUMBA:
         return function
-    previous, numba.config.CACHE_DIR = numba.config.CACHE_DIR, _cache_folder()
+    folder = _cache_folder()
+    if not _pruned:
+        prune_stale_caches(folder)
+        _pruned = True
+    previous, numba.config.CACHE_DIR = numba.config.CACHE_DIR, folder
     try:  # the cache's folder is chosen now, when the dispatcher is made
         return numba.njit(nogil=True, cache=True)(function)
     finally:
