@@ -5,9 +5,9 @@ the handle's end) and the wall time of one run (no video); then the success rate
 `--wagon-shift` perturb the start to show the margin.
 
 Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 20] [--pose-offset 0.01] [--wagon-shift 0.01,0]
-                                                    [--dp-grasp]
-The grasp is the chain's script, or with `--dp-grasp` the shipped wagon diffusion policy (`dp/checkpoints/wagon.pt`,
-torch: the [dp] extra).
+                                                    [--scripted-grasp]
+The grasp is the chain's: the shipped wagon diffusion policy (`dp/checkpoints/wagon.pt`, torch: the [dp] extra; its
+sampling noise seeded by the run's seed), or with `--scripted-grasp` the script.
 """
 
 from __future__ import annotations
@@ -28,14 +28,14 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--pose-offset", type=float, default=0.0, help="rad, each motor's start off home, at most")
     parser.add_argument("--wagon-shift", default="0,0", help="x,y m, added to the seed's wagon shift")
-    parser.add_argument("--dp-grasp", action="store_true", help="grasp with the shipped policy, not the script")
+    parser.add_argument("--scripted-grasp", action="store_true", help="grasp by script, not with the chain's policy")
     args = parser.parse_args()
     shift = tuple(float(v) for v in args.wagon_shift.split(","))
     perturbation = StartPerturbation(args.pose_offset, (shift[0], shift[1]))
     description = RobotDescription.load(variant="gripper")
     chain = load_chain("wagon", tuple(description.groups))
-    if args.dp_grasp:
-        chain = chain.with_dp_grasps()
+    if args.scripted_grasp:
+        chain = chain.with_scripted_grasps()
     print(f"wagon chain, {perturbation}")
     print("seed  outcome                  moved m  switch s  grip N (L/R)   slide mm (L/R)  to end mm (L/R)  wall s")
     results = []

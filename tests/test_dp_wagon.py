@@ -118,8 +118,8 @@ def test_the_wagon_chain_grasps_by_script_unless_told_to_use_the_shipped_policy_
         return ChainRunner(spec, robot, model, SceneProbe(model, robot.data),
                            lambda: np.zeros((96, 96, 3), np.uint8)).skills[0]
 
-    assert grasp_skill(chain).by == "scripted (no checkpoint named)"  # 20/20 chains; the policy's: 4/10
-    policy = grasp_skill(chain.with_dp_grasps())
+    assert grasp_skill(chain.with_scripted_grasps()).by == "scripted (no checkpoint named)"  # 20/20 chains
+    policy = grasp_skill(chain)  # the chain's default: 18/20 chains
     assert policy.by == "dp (wagon.pt)"
     np.testing.assert_array_equal(policy.live.kp, grasp_gains(description, chain.skills[0].params))
     arm = description.groups["arm"]
@@ -128,10 +128,10 @@ def test_the_wagon_chain_grasps_by_script_unless_told_to_use_the_shipped_policy_
 
 
 @pytest.mark.slow
-def test_chain_run_wagon_dp_grasp_is_driven_by_the_policy_and_reports_its_outcome():
-    """`--dp-grasp`: the policy drives the grasp (4/10 chains succeed, so one seed's outcome is not asserted, only
+def test_chain_run_wagon_is_grasped_by_the_policy_and_reports_its_outcome():
+    """By default the policy drives the grasp (18/20 chains succeed, so one seed's outcome is not asserted, only
     that the report is the chain's own checks; where it succeeds, the wagon moved 0.68 m with 14 N pads)."""
-    result = runner.invoke(app, ["chain", "run", "wagon", "--dp-grasp", "--seed", "1000", "--json"])
+    result = runner.invoke(app, ["chain", "run", "wagon", "--seed", "1000", "--json"])
     out = json.loads(result.output)
     assert result.exit_code == (0 if out["success"] else 1)
     assert out["grasp_by"] == "dp (wagon.pt)"
@@ -142,3 +142,11 @@ def test_chain_run_wagon_dp_grasp_is_driven_by_the_policy_and_reports_its_outcom
         assert out["wagon_displacement_m"] >= 0.5
         for grip in out["grip"].values():
             assert grip["min_force_n"] >= 10.0 and grip["slide_mm"] <= 8.0 and grip["to_end_mm"] >= 20.0
+
+
+@pytest.mark.slow
+def test_chain_run_wagon_scripted_grasp_grasps_by_script():
+    result = runner.invoke(app, ["chain", "run", "wagon", "--scripted-grasp", "--seed", "0", "--json"])
+    out = json.loads(result.output)
+    assert result.exit_code == 0 and out["success"] and out["wagon_displacement_m"] >= 0.5
+    assert out["grasp_by"] == "scripted (no checkpoint named)" and "dp" not in out

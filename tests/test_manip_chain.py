@@ -33,7 +33,7 @@ WAGON_SEEDS = (0, 1, 2, 3)
 def wagon_runs():
     from toddlerbot.skills.sim_run import run_in_sim
 
-    chain = load_chain("wagon", GROUPS)  # the scripted grasp (the dp grasp: test_dp_wagon)
+    chain = load_chain("wagon", GROUPS).with_scripted_grasps()  # (the chain's own, the dp grasp: test_dp_wagon)
     return [run_in_sim(chain, seed, description=DESCRIPTION).as_json() for seed in WAGON_SEEDS]
 
 
@@ -89,6 +89,14 @@ def test_the_wagon_grip_holds_the_handle_with_margin_through_the_push(wagon_runs
      "skill a: arm_kp_scale: expected a number in [1, 3], got 5.0"),
     ("scene: pick\nskills: [{name: a, kind: dp, checkpoint: pick, threads: 0, until: {after: 1}}]\n",
      "skill a: threads: expected a positive number of threads, got 0"),
+    ("scene: wagon\nskills: [{name: a, kind: pose, motors: {neck_pitch_drive: down}, until: {after: 1}}]\n",
+     "skill a: motors.neck_pitch_drive: expected float, got 'down'"),
+    ("scene: wagon\nskills: [{name: a, kind: pose, motors: {}, until: {after: 1}}]\n",
+     "skill a: motors, grip: expected motor angles (name: rad) or a grip fraction"),
+    ("scene: wagon\nskills: [{name: a, kind: pose, grip: 1.5, until: {after: 1}}]\n",
+     "skill a: grip: expected a fraction of the grippers' range in [0, 1], got 1.5"),
+    ("scene: wagon\nskills: [{name: a, kind: pose, motors: {neck_pitch_drive: -0.9}, seconds: 0, until: {after: 1}}]\n",
+     "skill a: seconds: expected a positive duration, got 0.0"),
 ])
 def test_bad_chain_files_get_one_line_errors_naming_file_skill_and_field(tmp_path, body, message):
     path = _chain_file(tmp_path, body)
@@ -465,10 +473,11 @@ def test_on_hardware_the_grasp_aims_at_the_handle_where_the_scene_layout_puts_it
 
     model = scene_model(DESCRIPTION, "wagon")
     robot = MuJoCoRobot(DESCRIPTION, model=model)  # stands in for a RealRobot: no probe, so no sensed scene
-    runner = ChainRunner(load_chain("wagon", GROUPS).with_dp_grasps(), robot, model, probe=None)
-    assert runner.skills[0].by == "scripted (no head camera for wagon.pt)"  # the shipped policy needs the camera
+    runner = ChainRunner(load_chain("wagon", GROUPS), robot, model, probe=None)
+    grasp = runner.skills[0]
+    assert grasp.by == "scripted (no head camera for wagon.pt)"  # the shipped policy needs the camera
     layout = WagonLayout()
-    np.testing.assert_allclose(runner.skills[0]._bar(), [layout.handle_x, 0.0, layout.handle_height], atol=1e-9)
+    np.testing.assert_allclose(grasp._bar(), [layout.handle_x, 0.0, layout.handle_height], atol=1e-9)
 
 
 def test_wagon_demonstrations_start_the_reach_from_seeded_pre_grasp_points_and_end_at_the_same_grasp():
@@ -491,3 +500,72 @@ def test_wagon_demonstrations_start_the_reach_from_seeded_pre_grasp_points_and_e
     np.testing.assert_array_equal(again, [p for p, _ in plans[3]])  # a seed's offsets repeat
     spread = np.std([[p for p, _ in plans[seed]] for seed in plans], axis=0)
     assert np.all(spread[:, [0, 2]] > 0.25 * PREGRASP_NOISE)  # they do vary between seeds
+
+
+def test_a_pose_skill_naming_an_unknown_motor_is_one_line(tmp_path):
+    from toddlerbot.errors import ToddlerbotError
+
+    path = _chain_file(tmp_path, "scene: wagon\nskills: [{name: a, kind: pose, motors: {neck_tilt: -0.9}, "
+                                 "until: {after: 1}}]\n")
+    chain = load_chain(path, GROUPS)
+    robot = MuJoCoRobot(DESCRIPTION)
+    with pytest.raises(ToddlerbotError, match=r"^pose skill: neck_tilt: not motors of toddlerbot") as err:
+        ChainRunner(chain, robot, robot.model)
+    assert "\n" not in str(err.value)
+
+
+def test_a_pose_skill_squeezes_the_grippers_to_a_fraction_of_their_range_and_keeps_the_rest():
+    """e.g. a settle after a learned grasp whose command stopped at 0.72 of the range: closed to 0.78."""
+    from toddlerbot.skills.library import PoseParams, PoseSkill, SkillEnv
+
+    robot = MuJoCoRobot(DESCRIPTION)
+    env = SkillEnv(robot, robot.model, lambda: robot.data.qpos, None, lambda name: np.zeros(3), None, True)
+    skill = PoseSkill(env, PoseParams(grip=0.78, seconds=0.3))
+    grippers = list(DESCRIPTION.groups["gripper"])
+    lo, hi = DESCRIPTION.motor_range[grippers].T
+    start = DESCRIPTION.home_motor_pos + 0.01
+    start[grippers] = lo + 0.72 * (hi - lo)
+    skill.start(robot.observe(), start)
+    halfway, _ = skill.act(robot.observe(), 0.15)
+    end, kp = skill.act(robot.observe(), 0.3)
+    np.testing.assert_allclose((end[grippers] - lo) / (hi - lo), 0.78, atol=1e-12)
+    np.testing.assert_allclose((halfway[grippers] - lo) / (hi - lo), 0.75, atol=1e-12)  # minimum jerk: half at half
+    others = np.setdiff1d(np.arange(len(start)), grippers)
+    np.testing.assert_array_equal(end[others], start[others])
+    np.testing.assert_array_equal(kp, DESCRIPTION.default_kp)
+
+
+def test_a_chain_seeds_its_learned_skills_sampling_noise_with_the_runs_seed(monkeypatch):
+    """`chain run wagon --seed S`: the dp grasp's diffusion noise is seeded S, so seeded runs are independent trials
+    (with one stream seeded 0 for every run, 4/10 succeeded; seeded by the run, 18/20: docs/manipulation.md)."""
+    pytest.importorskip("torch")
+    import dataclasses
+
+    import toddlerbot.dp.live as live
+    from toddlerbot.tasks.probe import SceneProbe
+
+    seeds = []
+    monkeypatch.setattr(live, "load_live_policy", lambda *args, seed, **kwargs: seeds.append(seed))
+    model = scene_model(DESCRIPTION, "wagon")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    probe = SceneProbe(model, robot.data)
+    chain = load_chain("wagon", GROUPS)
+    ChainRunner(chain, robot, model, probe, lambda: np.zeros((96, 96, 3), np.uint8), seed=1234)
+    ChainRunner(chain, robot, model, probe, lambda: np.zeros((96, 96, 3), np.uint8))
+    pinned = dataclasses.replace(load_chain("pick", GROUPS), scene="wagon")
+    pinned = dataclasses.replace(pinned, skills=(dataclasses.replace(
+        pinned.skills[0], params=dataclasses.replace(pinned.skills[0].params, seed=7)),))
+    ChainRunner(pinned, robot, model, probe, lambda: np.zeros((96, 96, 3), np.uint8), seed=1234)
+    assert seeds == [1234, 0, 7]  # the run's seed, 0 by default, a chain file's own seed first
+
+
+def test_without_torch_the_chains_grasp_falls_back_to_the_script_and_says_why(monkeypatch):
+    import toddlerbot.skills.library as library
+    from toddlerbot.tasks.probe import SceneProbe
+
+    monkeypatch.setattr(library, "have_torch", lambda: False)
+    model = scene_model(DESCRIPTION, "wagon")
+    robot = MuJoCoRobot(DESCRIPTION, model=model)
+    runner = ChainRunner(load_chain("wagon", GROUPS), robot, model, SceneProbe(model, robot.data),
+                         lambda: np.zeros((96, 96, 3), np.uint8))
+    assert runner.skills[0].by == "scripted (no torch for wagon.pt: pip install 'toddlerbot[dp]')"

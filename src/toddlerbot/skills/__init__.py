@@ -16,7 +16,8 @@ if TYPE_CHECKING:
 
 SKILLS = Registry("skill", entry_point_group="toddlerbot.skills")
 """Skill kind -> its `SkillKind` (parameter dataclass and constructor)."""
-for _kind, _target in (("scripted_grasp", "SCRIPTED_GRASP"), ("dp", "DP"), ("walk", "WALK"), ("hold", "HOLD")):
+for _kind, _target in (("scripted_grasp", "SCRIPTED_GRASP"), ("dp", "DP"), ("walk", "WALK"), ("hold", "HOLD"),
+                       ("pose", "POSE")):
     SKILLS.register(_kind, f"toddlerbot.skills.library:{_target}")
 
 

@@ -9,6 +9,8 @@ returns motor targets and firmware gains (the runner applies `hold` and sends th
 * ``dp``: a diffusion-policy checkpoint drives the arm and gripper motors (torch is imported only here).
 * ``walk``: a walking policy (walk-zmp, walk-rl) with a fixed command.
 * ``hold``: every motor keeps the previous skill's last targets.
+* ``pose``: the named motors move to their angles (the grippers to a fraction of their range) in ``seconds``, the
+  others keep the previous skill's targets.
 
 A chain file names a kind; `SKILLS` (`toddlerbot.skills`) maps the name to its `SkillKind` (parameters and
 constructor), so a skill of your own is a `Skill` subclass registered under a new name (docs/extending.md).
@@ -16,9 +18,10 @@ constructor), so a skill of your own is a `Skill` subclass registered under a ne
 
 from __future__ import annotations
 
+import importlib.util
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
@@ -26,6 +29,7 @@ import mujoco
 import numpy as np
 
 from toddlerbot.dp.shipped import is_shipped
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.tasks.demonstrator import min_jerk
@@ -72,7 +76,9 @@ class GraspParams:
 class DPParams:
     checkpoint: str
     """A shipped checkpoint's task name (``pick``) or a checkpoint file."""
-    seed: int = 0
+    seed: int | None = None
+    """Seed of the diffusion noise; None: the run's (`chain run --seed S` in sim; 0 on a robot), so that each
+    seeded run is an independent trial, as each episode of `dp eval` is."""
     threads: int = 1
     """torch CPU threads (the process's setting), 1 as in `dp eval`: on a busy 2-core machine two threads made
     one inference 30-50 times slower than one."""
@@ -92,6 +98,24 @@ class WalkParams:
 @dataclass(frozen=True)
 class HoldParams:
     pass
+
+
+@dataclass(frozen=True)
+class PoseParams:
+    motors: dict[str, float] = field(default_factory=dict)
+    """Motor name -> target angle, rad (the spec's motor angles, as `home_motor_pos`)."""
+    grip: float | None = None
+    """The grippers (the ``gripper`` group) to this fraction of their range from open (as a grasp's grip_fraction)."""
+    seconds: float = 0.5
+    """Duration of the minimum-jerk move from the previous skill's last targets."""
+
+    def __post_init__(self) -> None:
+        if not self.motors and self.grip is None:
+            raise ValueError("motors, grip: expected motor angles (name: rad) or a grip fraction")
+        if self.grip is not None and not 0.0 <= self.grip <= 1.0:
+            raise ValueError(f"grip: expected a fraction of the grippers' range in [0, 1], got {self.grip}")
+        if not self.seconds > 0:
+            raise ValueError(f"seconds: expected a positive duration, got {self.seconds}")
 
 
 def grasp_gains(description: RobotDescription, p: GraspParams) -> np.ndarray:
@@ -120,6 +144,8 @@ class SkillEnv:
     """The head camera's 96x96 RGB image (sim), None where the `Robot` has no camera."""
     simulated: bool
     """True in sim (time is the simulation's), False on a real robot (the control loop runs in real time)."""
+    seed: int = 0
+    """The run's seed (the scene's in sim): the default of a learned skill's sampling noise."""
 
 
 class Skill(ABC):
@@ -232,7 +258,8 @@ class DPSkill(Skill):
 
         require_torch(p.threads)
         path = Path(p.checkpoint) if p.checkpoint.endswith(".pt") else shipped_checkpoint(p.checkpoint)
-        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated, seed=p.seed, kp=kp)
+        self.live = load_live_policy(env.robot, path, env.head_image, synchronous=env.simulated,
+                                     seed=env.seed if p.seed is None else p.seed, kp=kp)
         self.by = f"dp ({path.name})"
 
     @property
@@ -280,15 +307,54 @@ class HoldSkill(Skill):
         return self._targets.copy(), self.kp
 
 
+class PoseSkill(Skill):
+    """Moves the named motors to their angles (minimum jerk), the others kept where the previous skill left them:
+    e.g. the neck tilted down so that the head camera sees what the next skill grasps."""
+
+    by = "pose"
+
+    def __init__(self, env: SkillEnv, p: PoseParams) -> None:
+        d = env.robot.description
+        unknown = sorted(set(p.motors) - set(d.motor_names))
+        if unknown:
+            raise ToddlerbotError(f"pose skill: {', '.join(unknown)}: not motors of {d.spec.name} "
+                                  f"(e.g. {', '.join(d.motor_names[:3])})")
+        index, goal = [d.motor_names.index(m) for m in p.motors], [float(v) for v in p.motors.values()]
+        if p.grip is not None:
+            grippers = list(d.groups.get("gripper", ()))
+            if not grippers:
+                raise ToddlerbotError(f"pose skill: grip: {d.spec.name} has no gripper motors")
+            lo, hi = d.motor_range[grippers].T
+            index, goal = index + grippers, goal + list(lo + p.grip * (hi - lo))
+        self.index, self.goal = np.array(index), np.array(goal)
+        self.seconds = p.seconds
+        self.kp = d.default_kp.copy()
+
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
+        self._start = np.array(targets, dtype=float)
+
+    def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
+        targets = self._start.copy()
+        s = min_jerk(elapsed / self.seconds)
+        targets[self.index] += s * (self.goal - self._start[self.index])
+        return targets, self.kp
+
+
+def have_torch() -> bool:
+    """Whether the [dp] extra's torch is installed (a learned grasp needs it)."""
+    return importlib.util.find_spec("torch") is not None
+
+
 def grasp_skill(env: SkillEnv, p: GraspParams) -> Skill:
-    """The scripted grasp, or the shipped diffusion policy of the task ``checkpoint`` names where there is one and
-    a head camera to feed it."""
+    """The shipped diffusion policy of the task ``checkpoint`` names, where there is one, a head camera to feed it
+    and torch to run it; else the scripted grasp (its report says why)."""
     shipped = p.checkpoint is not None and is_shipped(p.checkpoint)
-    if shipped and env.head_image is not None:
+    if shipped and env.head_image is not None and have_torch():
         # at the scripted grasp's gains: the wagon task demonstrates and trains the policy at them
         return DPSkill(env, DPParams(p.checkpoint), grasp_gains(env.robot.description, p))  # type: ignore[arg-type]
-    why = ("no checkpoint named" if p.checkpoint is None else f"no head camera for {p.checkpoint}.pt" if shipped
-           else f"no checkpoint for task {p.checkpoint}")
+    why = ("no checkpoint named" if p.checkpoint is None else f"no checkpoint for task {p.checkpoint}" if not shipped
+           else f"no head camera for {p.checkpoint}.pt" if env.head_image is None
+           else f"no torch for {p.checkpoint}.pt: pip install 'toddlerbot[dp]'")
     return ScriptedGrasp(env, p, why)
 
 
@@ -296,3 +362,4 @@ SCRIPTED_GRASP = SkillKind(GraspParams, grasp_skill)
 DP = SkillKind(DPParams, DPSkill)
 WALK = SkillKind(WalkParams, WalkSkill, needs_imu=True)
 HOLD = SkillKind(HoldParams, HoldSkill)
+POSE = SkillKind(PoseParams, PoseSkill)

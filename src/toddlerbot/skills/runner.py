@@ -54,11 +54,12 @@ class ChainRunner(Policy):
     """Runs `chain` on `robot`: `model` is the chain's scene (kinematics for the skills' IK), `probe` the simulated
     scene (None on hardware: only predicates with a hardware form switch), `head_image` the head camera (a dp
     skill's input). The chain starts from `start_targets` (default: the robot's last targets, or where it is) and
-    switches on the buttons `buttons()` reports held."""
+    switches on the buttons `buttons()` reports held; `seed` seeds its learned skills' sampling noise (see
+    `DPParams.seed`)."""
 
     def __init__(self, chain: ChainSpec, robot: Robot, model: mujoco.MjModel, probe: SceneProbe | None = None,
                  head_image: Callable[[], np.ndarray] | None = None, start_targets: np.ndarray | None = None,
-                 buttons: Callable[[], frozenset[str]] = frozenset) -> None:
+                 buttons: Callable[[], frozenset[str]] = frozenset, seed: int = 0) -> None:
         super().__init__(robot)
         self.name = f"chain:{chain.name}"
         self.chain, self.probe, self.start_targets, self.buttons = chain, probe, start_targets, buttons
@@ -70,10 +71,10 @@ class ChainRunner(Policy):
         mujoco.mj_kinematics(model, layout)
         layout_pos = SceneProbe(model, layout).geom_pos
         if probe is None:
-            env = SkillEnv(robot, model, lambda: layout.qpos, None, layout_pos, head_image, simulated=False)
+            env = SkillEnv(robot, model, lambda: layout.qpos, None, layout_pos, head_image, simulated=False, seed=seed)
         else:
             env = SkillEnv(robot, model, lambda: probe.data.qpos, probe.geom_pos, layout_pos, head_image,
-                           simulated=True)
+                           simulated=True, seed=seed)
         self.skills: list[Skill] = [skill_kind(s.kind)(env, s.params) for s in chain.skills]
         d = robot.description
         self._hold = [np.concatenate([d.groups[g] for g in s.hold]) if s.hold else np.zeros(0, int)

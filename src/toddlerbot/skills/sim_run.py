@@ -152,7 +152,7 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     model = robot.model
     probe = SceneProbe(model, robot.data)
     camera = _head_camera(robot)
-    runner = ChainRunner(chain, robot, model, probe, camera.image, start_targets=start)
+    runner = ChainRunner(chain, robot, model, probe, camera.image, start_targets=start, seed=seed)
     grip = GripObserver(runner, probe, _bars(chain, model))
     recorder = None if video is None else ChainVideo(robot, video, camera.image)
     observers: list[RunObserver] = [grip] if recorder is None else [grip, recorder]

@@ -69,12 +69,10 @@ class ChainSpec:
     success: tuple[tuple[str, object], ...] = ()
     """(predicate name, its parameters) that must all hold when the chain ends."""
 
-    def with_dp_grasps(self) -> ChainSpec:
-        """The same chain with every ``scripted_grasp`` skill that names no checkpoint driven by the scene's
-        shipped diffusion policy (``checkpoint`` = the scene, e.g. ``wagon.pt``) where there is one."""
-        skills = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=self.scene))  # type: ignore
-                       if s.kind == "scripted_grasp" and s.params.checkpoint is None else s  # type: ignore
-                       for s in self.skills)
+    def with_scripted_grasps(self) -> ChainSpec:
+        """The same chain with every ``scripted_grasp`` skill driven by its script, whatever checkpoint it names."""
+        skills = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=None))  # type: ignore
+                       if s.kind == "scripted_grasp" else s for s in self.skills)
         return dataclasses.replace(self, skills=skills)
 
 
@@ -161,7 +159,8 @@ def build_params(cls: type, raw: Mapping, where: str) -> object:
     values = {}
     for name, value in raw.items():
         values[name] = _typed(value, hints[name], where, name)
-    missing = [n for n, f in fields.items() if n not in values and f.default is dataclasses.MISSING]
+    missing = [n for n, f in fields.items() if n not in values and f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING]
     if missing:
         raise ChainFileError(f"{where}: {missing[0]}: required")
     try:
@@ -171,7 +170,8 @@ def build_params(cls: type, raw: Mapping, where: str) -> object:
 
 
 def _typed(value: object, hint: object, where: str, field: str) -> object:
-    """`value` converted to `hint` (float, int, str, bool, a Literal, a fixed tuple of floats, or X | None)."""
+    """`value` converted to `hint` (float, int, str, bool, a Literal, a fixed tuple of floats, a dict of such, or
+    X | None)."""
     options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
     if value is None and type(None) in options:
         return None
@@ -186,6 +186,10 @@ def _typed(value: object, hint: object, where: str, field: str) -> object:
         number = hint(value)
         if number == value and number == number and abs(number) != float("inf"):
             return number
+    if typing.get_origin(hint) is dict and isinstance(value, dict):
+        key_hint, value_hint = typing.get_args(hint)
+        return {_typed(k, key_hint, where, field): _typed(v, value_hint, where, f"{field}.{k}")
+                for k, v in value.items()}
     if typing.get_origin(hint) is tuple and isinstance(value, list):
         size = len(typing.get_args(hint))
         if len(value) == size:
