@@ -480,28 +480,6 @@ def test_on_hardware_the_grasp_aims_at_the_handle_where_the_scene_layout_puts_it
     np.testing.assert_allclose(grasp._bar(), [layout.handle_x, 0.0, layout.handle_height], atol=1e-9)
 
 
-def test_wagon_demonstrations_start_the_reach_from_seeded_pre_grasp_points_and_end_at_the_same_grasp():
-    from toddlerbot.skills.wagon import PREGRASP_NOISE, WagonTask
-
-    task = WagonTask()
-    demo = task.demonstrator()
-    plans = {}
-    for seed in range(6):
-        demo.reset(task.reset(seed))
-        plans[seed] = [(pregrasp.copy(), goal.copy()) for _, pregrasp, goal, _ in demo.skill._plans]
-        demo.skill.start(task.robot.observe(), task.ready_pose)  # the same episode without the offsets
-        for (pregrasp, goal), (_, plain_pregrasp, plain_goal, _) in zip(plans[seed], demo.skill._plans,
-                                                                        strict=True):
-            offset = pregrasp - plain_pregrasp
-            assert np.all(np.abs(offset) <= 2.5 * PREGRASP_NOISE + 1e-12) and offset[1] == 0.0  # forward/up only
-            np.testing.assert_array_equal(goal, plain_goal)  # the grasp itself does not move
-    demo.reset(task.reset(3))
-    again = [pregrasp for _, pregrasp, _, _ in demo.skill._plans]
-    np.testing.assert_array_equal(again, [p for p, _ in plans[3]])  # a seed's offsets repeat
-    spread = np.std([[p for p, _ in plans[seed]] for seed in plans], axis=0)
-    assert np.all(spread[:, [0, 2]] > 0.25 * PREGRASP_NOISE)  # they do vary between seeds
-
-
 def test_a_pose_skill_naming_an_unknown_motor_is_one_line(tmp_path):
     from toddlerbot.errors import ToddlerbotError
 

@@ -203,15 +203,12 @@ class ScriptedGrasp(Skill):
             return np.array(self.p.target_pos, dtype=float)
         return self.env.layout_pos(self.p.target)
 
-    def start(self, obs: Observation, targets: np.ndarray, pregrasp_offsets: np.ndarray | None = None) -> None:
-        """Plan each hand's approach from where it is; `pregrasp_offsets` (one 3-vector per hand, m) moves the
-        pre-grasp points (the demonstrations' variation), the grasp points stay."""
+    def start(self, obs: Observation, targets: np.ndarray) -> None:
         p, base, bar = self.p, self.env.base_qpos(), self._bar()
-        offsets = np.zeros((len(self.iks), 3)) if pregrasp_offsets is None else np.asarray(pregrasp_offsets)
         tilt = np.array([np.cos(p.pitch), 0.0, -np.sin(p.pitch)])
         """Fingertip direction in the world: forward, tilted down by `pitch`."""
         self._plans = []
-        for ik, offset in zip(self.iks, offsets, strict=True):
+        for ik in self.iks:
             pos, rot = ik.forward(obs.motor_pos, base)
             wrist = rot.T @ (ik.data.xpos[ik.model.site_bodyid[ik.site]] - pos)
             fingers = -np.sign(wrist[1]) * tilt  # site y runs along the fingers, towards the tips on one side only
@@ -219,7 +216,7 @@ class ScriptedGrasp(Skill):
             closing *= np.sign(closing @ rot[:, 2])  # keep the closing axis' sense: no wrist flip
             goal_rot = np.column_stack([np.cross(fingers, closing), fingers, closing])
             goal = np.array([bar[0], pos[1], bar[2]]) + p.depth * tilt
-            self._plans.append((pos, goal - p.back * tilt + offset, goal, goal_rot))
+            self._plans.append((pos, goal - p.back * tilt, goal, goal_rot))
         self._q = np.array(targets, dtype=float)
         self._open = self._q[self.grippers].copy()
         self._correction = [GraspPointCorrection(p.correction_gain, p.max_correction) for _ in self.iks]

@@ -31,14 +31,6 @@ GRASP_SKILL = "grasp"
 HOLD_S = 0.6
 """The demonstrations keep the closed grip this long after the closing ramp, so the policy learns to stay closed
 (the chain's check fires at the ramp's end, a policy that reopens right after would drop the handle)."""
-PREGRASP_NOISE = 0.008
-"""Standard deviation of each hand's pre-grasp point offset in the demonstrations (clipped at 2.5x), m: the reach
-then starts from varied arm states and the demonstrations show the way back to the grasp (as pick's)."""
-PREGRASP_AXES = np.array([1.0, 0.0, 1.0])
-"""Offsets forward and up only: along the handle (y) a hand's grasp point does not matter, and a sideways reach
-can catch a finger on the handle's bend."""
-PREGRASP_SEED_STREAM = 1
-"""Offsets come from their own stream of the episode's seed (the wagon's shift draws from the seed itself)."""
 
 
 class WagonTask(Task):
@@ -67,8 +59,6 @@ class WagonTask(Task):
         self.camera = HeadCamera(self.model, self.robot.data, description.handles.head_camera or "head_camera")
         self.probe = SceneProbe(self.model, self.robot.data)
         self._succeeded = False
-        self.seed: int | None = None
-        """The seed of the last `reset` (the demonstrator draws its pre-grasp offsets from it)."""
 
     @property
     def succeeded(self) -> bool:
@@ -86,7 +76,6 @@ class WagonTask(Task):
         mujoco.mj_forward(self.model, self.robot.data)
         self.probe.mark()
         self._succeeded = False
-        self.seed = seed
         return self.robot.observe()
 
     def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
@@ -124,11 +113,8 @@ class ScriptedWagonGrasp(Policy):
 
     def reset(self, task_obs: Observation) -> None:
         """Plan from the handle's position (right after `WagonTask.reset`: the run loop's reset of the task's
-        `TaskRobot`); the seed shifts the wagon and the hands' pre-grasp points."""
-        rng = np.random.default_rng([PREGRASP_SEED_STREAM, self.task.seed])
-        offsets = np.clip(rng.normal(0.0, PREGRASP_NOISE, (len(self.skill.iks), 3)),
-                          -2.5 * PREGRASP_NOISE, 2.5 * PREGRASP_NOISE) * PREGRASP_AXES
-        self.skill.start(task_obs, self.task.ready_pose, offsets)
+        `TaskRobot`); the seed's wagon shift is the episode's only variation."""
+        self.skill.start(task_obs, self.task.ready_pose)
         self._start_time = task_obs.time
         self._step = 0
 
