@@ -24,8 +24,8 @@ VideoOption = Annotated[Path | None, typer.Option("--video", help="MP4 of the ru
 PortOption = Annotated[str | None, typer.Option("--port", help="Serial port: run on the real robot.")]
 CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
 ScriptedGraspOption = Annotated[bool, typer.Option(
-    "--scripted-grasp", help="Grasp by script instead of the chain's diffusion policy (wagon: wagon.pt, 18/20 chain "
-                             "successes measured; the script: 20/20).")]
+    "--scripted-grasp", help="Grasp by the chain's script instead of its diffusion policy (wagon: wagon.pt; success "
+                             "rates of both in docs/manipulation.md).")]
 
 
 @app.command()

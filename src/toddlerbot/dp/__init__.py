@@ -10,7 +10,14 @@ episode, dataset adapter), ``train``, ``chunker`` and ``runner`` (10 Hz chunks -
 ``chunker`` and ``runner`` need only numpy.
 """
 
+import importlib.util
+
 from toddlerbot.errors import ToddlerbotError
+
+
+def have_torch() -> bool:
+    """Whether torch (the ``[dp]`` extra) is installed, without importing it."""
+    return importlib.util.find_spec("torch") is not None
 
 
 def require_torch(threads: int | None = None) -> None:

@@ -18,7 +18,6 @@ constructor), so a skill of your own is a `Skill` subclass registered under a ne
 
 from __future__ import annotations
 
-import importlib.util
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ from typing import Any, Literal
 import mujoco
 import numpy as np
 
+from toddlerbot.dp import have_torch
 from toddlerbot.dp.shipped import is_shipped
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
@@ -116,6 +116,12 @@ class PoseParams:
             raise ValueError(f"grip: expected a fraction of the grippers' range in [0, 1], got {self.grip}")
         if not self.seconds > 0:
             raise ValueError(f"seconds: expected a positive duration, got {self.seconds}")
+
+
+def range_fraction(description: RobotDescription, motors: list[int], fraction: float) -> np.ndarray:
+    """The angles `fraction` of the way through each motor's range from its low end (a gripper: from open), rad."""
+    lo, hi = description.motor_range[motors].T
+    return lo + fraction * (hi - lo)
 
 
 def grasp_gains(description: RobotDescription, p: GraspParams) -> np.ndarray:
@@ -236,8 +242,7 @@ class ScriptedGrasp(Skill):
         out = q.copy()
         for ik in self.iks:
             out[ik.arm] += ik.gravity_torque(q, base) / self._stiffness[ik.arm]
-        lo_hi = self.env.robot.description.motor_range[self.grippers]
-        closed = lo_hi[:, 0] + p.grip_fraction * (lo_hi[:, 1] - lo_hi[:, 0])
+        closed = range_fraction(self.env.robot.description, self.grippers, p.grip_fraction)
         s = min_jerk((elapsed - p.approach_s - p.reach_s) / p.close_s)
         out[self.grippers] = self._open + s * (closed - self._open)
         return out, self.kp
@@ -321,8 +326,7 @@ class PoseSkill(Skill):
             grippers = list(d.groups.get("gripper", ()))
             if not grippers:
                 raise ToddlerbotError(f"pose skill: grip: {d.spec.name} has no gripper motors")
-            lo, hi = d.motor_range[grippers].T
-            index, goal = index + grippers, goal + list(lo + p.grip * (hi - lo))
+            index, goal = index + grippers, goal + list(range_fraction(d, grippers, p.grip))
         self.index, self.goal = np.array(index), np.array(goal)
         self.seconds = p.seconds
         self.kp = d.default_kp.copy()
@@ -335,11 +339,6 @@ class PoseSkill(Skill):
         s = min_jerk(elapsed / self.seconds)
         targets[self.index] += s * (self.goal - self._start[self.index])
         return targets, self.kp
-
-
-def have_torch() -> bool:
-    """Whether the [dp] extra's torch is installed (a learned grasp needs it)."""
-    return importlib.util.find_spec("torch") is not None
 
 
 def grasp_skill(env: SkillEnv, p: GraspParams) -> Skill:
