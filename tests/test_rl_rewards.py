@@ -22,7 +22,7 @@ def quantities(**overrides):
     z2, z3, z12 = jnp.zeros(2), jnp.zeros(3), jnp.zeros(12)
     q = dict(
         torso_quat=jnp.array([1.0, 0, 0, 0]), ref_torso_quat=jnp.array([1.0, 0, 0, 0]), lin_vel=z3, ang_vel=z3,
-        command=z3, leg_pos=z12, ref_leg_pos=z12, home_leg_pos=z12, contact=jnp.ones(2), ref_contact=jnp.ones(2),
+        avg_vel=z3, command=z3, leg_pos=z12, ref_leg_pos=z12, home_leg_pos=z12, contact=jnp.ones(2), ref_contact=jnp.ones(2),
         first_contact=z2, air_time=z2, feet_height=z2, feet_vel_xy=jnp.zeros((2, 2)), feet_up_z=jnp.ones(2),
         feet_lateral_distance=jnp.array(0.1), roll=jnp.array(0.0), pitch=jnp.array(0.0),
         self_collision=jnp.array(0.0), action=z12, last_action=z12, last_last_action=z12,
@@ -51,11 +51,14 @@ def test_perfect_standing_earns_every_imitation_term_and_no_penalty():
     assert float(total) == pytest.approx(expected, rel=1e-6)
 
 
-def test_velocity_tracking_kernel_values():
+def test_velocity_tracking_reads_the_averaged_velocity_not_the_sway():
     cfg = RewardConfig()
-    q = quantities(command=[0.2, 0.0, 0.5], lin_vel=[0.1, 0.0, 0.0], ang_vel=[0.0, 0.0, 0.5])
-    assert float(rewards.lin_vel_xy(q, cfg)) == pytest.approx(np.exp(-cfg.tracking_sigma * 0.01), rel=1e-6)
+    q = quantities(command=[0.2, 0.0, 0.5], avg_vel=[0.1, 0.0, 0.5], lin_vel=[0.3, -0.1, 0.0], ang_vel=[0, 0, 1.5])
+    assert float(rewards.lin_vel_xy(q, cfg)) == pytest.approx(np.exp(-cfg.velocity_sigma * 0.01), rel=1e-6)
     assert float(rewards.ang_vel_z(q, cfg)) == pytest.approx(1.0)
+    # a 0.04 m/s bias of the walking speed costs 15 % of the term
+    biased = quantities(command=[0.1, 0.0, 0.0], avg_vel=[0.06, 0.0, 0.0])
+    assert float(rewards.lin_vel_xy(biased, cfg)) == pytest.approx(0.852, abs=1e-3)
 
 
 def test_penalties_grow_with_the_mistake():

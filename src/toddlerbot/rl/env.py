@@ -146,7 +146,7 @@ class WalkEnv(Env):
             "rng": rng, "dr": dr, "time": jnp.zeros(()), "step": jnp.zeros((), jnp.int32), "command": command,
             "ref_yaw": _yaw(frame.qpos[3:7]), "last_action": zeros, "last_last_action": zeros,
             "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": frame.feet_pos,
-            "push_timer": self._push_interval(k_push), "push": jnp.zeros(2),
+            "push_timer": self._push_interval(k_push), "push": jnp.zeros(2), "avg_vel": jnp.zeros(3),
             "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
         ref_leg, _ = self.reference_at(command, info["time"])
@@ -183,9 +183,12 @@ class WalkEnv(Env):
         yaw = _yaw(torso_quat)
         lateral = _rotate_z(frame.feet_pos[0] - frame.feet_pos[1], -yaw)[1]
         ref_leg, ref_contact = self.reference_at(info["command"], info["time"])
+        lin_vel = _rotate_z(qvel[0:3], -yaw)
+        velocity = jnp.concatenate([lin_vel[:2], qvel[5:6]])
+        info["avg_vel"] = info["avg_vel"] + cfg.ctrl_dt / cfg.reward.velocity_average_s * (velocity - info["avg_vel"])
         q = rewards.StepQuantities(
             torso_quat=torso_quat, ref_torso_quat=_yaw_quat(info["ref_yaw"]),
-            lin_vel=_rotate_z(qvel[0:3], -yaw), ang_vel=qvel[3:6], command=info["command"],
+            lin_vel=lin_vel, ang_vel=qvel[3:6], avg_vel=info["avg_vel"], command=info["command"],
             leg_pos=qpos[self.motor_qadr][self.leg_index], ref_leg_pos=ref_leg,
             home_leg_pos=jnp.asarray(self.home_motor_pos[self.leg_index]), contact=contact,
             ref_contact=jnp.round(ref_contact), first_contact=first_contact, air_time=air_time,
@@ -276,6 +279,6 @@ class WalkEnv(Env):
             "lin_vel": _rotate_z(frame.qvel[0:3], -yaw), "contact": contact,
             "leg_error": ref_leg - sensors.motor_pos[self.leg_index], "push": info["push"],
             "air_time": info["air_time"], "torso_height": frame.qpos[2:3],
-            "floor_friction": info["dr"].floor_friction[None],
+            "floor_friction": info["dr"].floor_friction[None], "avg_vel": info["avg_vel"],
         }
         return {"state": actor, "privileged_state": critic_obs(actor, clean, privileged)}, info

@@ -29,6 +29,9 @@ class StepQuantities(NamedTuple):
     """(3,) torso linear velocity in the yaw-aligned frame, m/s."""
     ang_vel: jax.Array
     """(3,) torso angular velocity in the torso frame, rad/s."""
+    avg_vel: jax.Array
+    """(3,) vx, vy (yaw frame, m/s) and yaw rate (rad/s) of the torso, exponentially averaged over
+    `RewardConfig.velocity_average_s`: the walking velocity without the in-cycle sway."""
     command: jax.Array
     """(3,) vx, vy m/s, yaw rate rad/s."""
     leg_pos: jax.Array
@@ -78,7 +81,7 @@ def torso_quat(q: StepQuantities, c: RewardConfig) -> jax.Array:
 
 
 def lin_vel_xy(q: StepQuantities, c: RewardConfig) -> jax.Array:
-    return _kernel(jnp.sum((q.lin_vel[:2] - q.command[:2]) ** 2), c.tracking_sigma)
+    return _kernel(jnp.sum((q.avg_vel[:2] - q.command[:2]) ** 2), c.velocity_sigma)
 
 
 def lin_vel_z(q: StepQuantities, c: RewardConfig) -> jax.Array:
@@ -90,7 +93,7 @@ def ang_vel_xy(q: StepQuantities, c: RewardConfig) -> jax.Array:
 
 
 def ang_vel_z(q: StepQuantities, c: RewardConfig) -> jax.Array:
-    return _kernel((q.ang_vel[2] - q.command[2]) ** 2, c.tracking_sigma / 4)
+    return _kernel((q.avg_vel[2] - q.command[2]) ** 2, c.velocity_sigma / 4)
 
 
 def leg_motor_pos(q: StepQuantities, c: RewardConfig) -> jax.Array:
