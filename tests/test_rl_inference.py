@@ -15,7 +15,7 @@ from toddlerbot.policies.rl_inference import (
 )
 
 
-def _random_export(tmp_path, hidden=(64, 32), history=2):
+def _random_export(tmp_path, hidden=(64, 32), history=2, variant=None):
     jax = pytest.importorskip("jax")
     from brax.training.acme import running_statistics
 
@@ -24,8 +24,9 @@ def _random_export(tmp_path, hidden=(64, 32), history=2):
     from toddlerbot.rl.train import make_networks
     from toddlerbot.robot.description import RobotDescription
 
-    env_cfg = EnvConfig(obs=ObsConfig(history=history, gait_period=0.72))
-    n_obs = history * env_cfg.obs.frame_size(30, 12)
+    env_cfg = EnvConfig(obs=ObsConfig(history=history, gait_period=0.72), variant=variant)
+    description = RobotDescription.load(variant=variant)
+    n_obs = history * env_cfg.obs.frame_size(description.n_motors, 12)
     cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=hidden, value_hidden=hidden)
     networks = make_networks({"state": (n_obs,), "privileged_state": (7,)}, 12, cfg)
     params = networks.policy_network.init(jax.random.PRNGKey(1))
@@ -37,7 +38,7 @@ def _random_export(tmp_path, hidden=(64, 32), history=2):
     normalizer = running_statistics.RunningStatisticsState(
         count=np.ones(()), mean=mean, summed_variance=std, std=std)
     arrays = policy_arrays(params, normalizer, True, n_obs)
-    path = write_policy(tmp_path / "p.npz", arrays, env_cfg, {"note": "test"}, RobotDescription.load())
+    path = write_policy(tmp_path / "p.npz", arrays, env_cfg, {"note": "test", "variant": variant}, description)
     return path, networks, params, normalizer, n_obs
 
 
@@ -159,3 +160,24 @@ def replace_backend(cfg):
     from dataclasses import replace
 
     return replace(cfg, backend="cpu")
+
+
+def test_a_variant_policy_drives_only_its_variant(tmp_path):
+    from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy, default_weights
+    from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+    path = _random_export(tmp_path, variant="gripper")[0]
+    gripper = MuJoCoRobot(RobotDescription.load(variant="gripper"))
+    policy = WalkRLPolicy(gripper, path)
+    obs = gripper.reset()
+    policy.reset(obs)
+    action = policy.act(obs, np.array([0.05, 0.0, 0.0]))
+    assert action.motor_targets.shape == (32,) and np.all(np.isfinite(action.motor_targets))
+    with pytest.raises(ToddlerbotError, match="trained for motors"):
+        WalkRLPolicy(MuJoCoRobot(), path)
+    # no gripper-variant policy ships yet: the default names the command that trains one
+    assert default_weights(None) == DEFAULT_WEIGHTS
+    assert default_weights("gripper") == DEFAULT_WEIGHTS.parent / "walk_rl_gripper.npz"
+    with pytest.raises(ToddlerbotError, match=r"no walk-rl policy ships for the gripper variant.*--variant gripper"):
+        WalkRLPolicy(gripper)

@@ -22,7 +22,8 @@ def quantities(**overrides):
     z2, z3, z12 = jnp.zeros(2), jnp.zeros(3), jnp.zeros(12)
     q = dict(
         torso_quat=jnp.array([1.0, 0, 0, 0]), ref_torso_quat=jnp.array([1.0, 0, 0, 0]), lin_vel=z3, ang_vel=z3,
-        avg_vel=z3, command=z3, leg_pos=z12, ref_leg_pos=z12, home_leg_pos=z12, contact=jnp.ones(2), ref_contact=jnp.ones(2),
+        avg_vel=z3, command=z3, leg_pos=z12, ref_leg_pos=z12, home_leg_pos=z12, contact=jnp.ones(2),
+        ref_contact=jnp.ones(2),
         first_contact=z2, air_time=z2, feet_height=z2, feet_vel_xy=jnp.zeros((2, 2)), feet_up_z=jnp.ones(2),
         feet_lateral_distance=jnp.array(0.1), roll=jnp.array(0.0), pitch=jnp.array(0.0),
         self_collision=jnp.array(0.0), action=z12, last_action=z12, last_last_action=z12,

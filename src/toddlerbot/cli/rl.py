@@ -20,7 +20,7 @@ from toddlerbot.cli.options import (
 )
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS
+from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl.config import PHYSICS_BACKENDS
 from toddlerbot.rl.launch import TrainRequest
 from toddlerbot.rl.onnx_export import EXPORT_FORMATS
@@ -55,6 +55,11 @@ BackendOption = Annotated[Literal[("auto", *PHYSICS_BACKENDS)], typer.Option(  #
          "docs/rl.md).")]
 ImitationIterationsOption = Annotated[int | None, typer.Option(help="DAgger iterations of the warm start from "
                                                                     "walk-zmp (0: none; default: the recipe's).")]
+VariantOption = Annotated[str | None, typer.Option(help="Spec variant to train (e.g. gripper: 32 motors); "
+                                                        "exported as walk_rl_<variant>.npz.")]
+UpperBodyPoseOption = Annotated[float | None, typer.Option(
+    help="Randomise the arms, grippers and neck: each target drawn with every command between home and this "
+         "fraction of the way to its limits (default 0: held at home).")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
@@ -76,6 +81,8 @@ def train(
     imitation_iterations: ImitationIterationsOption = None,
     motor_params: MotorParamsOption = None,
     warm_start: WarmStartOption = None,
+    variant: VariantOption = None,
+    upper_body_pose: UpperBodyPoseOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -83,13 +90,14 @@ def train(
     """Train with PPO (on a CPU: the CPU recipe of docs/rl.md, a DAgger warm start from walk-zmp then PPO; with a
     GPU: the one-GPU configuration; --smoke: a tiny run) with checkpoints, a training curve and TensorBoard
     scalars (RUN/tensorboard; --wandb: also Weights & Biases). --motor-params: the robot trains on the fitted
-    motors, domain randomisation scales around them."""
+    motors, domain randomisation scales around them. --variant with --upper-body-pose: a policy for a variant
+    that walks whatever its arms do."""
     training_budget(minutes, epochs, "--epochs")
     for option, count in (("--timesteps", timesteps), ("--num-envs", num_envs)):
         training_budget(None, count, option)
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
-                           imitation_iterations, tuple(motor_params or ()), warm_start)
+                           imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose)
     plan = _plan(out, resume, request)
     console.print(f"run directory: {plan.run_dir}")
     history = _train_with_progress(plan, minutes, epochs, sinks)
@@ -151,8 +159,9 @@ def _train_with_progress(plan, minutes: float | None, epochs: int | None, sinks)
 @app.command()
 def export(
     run: Annotated[Path, typer.Argument(help="Training run directory, or an exported .npz (for --format onnx).")],
-    out: Annotated[Path | None, typer.Option(help="File to write (default: the shipped walk_rl.npz for npz; for "
-                                                  "onnx the source's name with .onnx, or RUN/policy.onnx).")] = None,
+    out: Annotated[Path | None, typer.Option(help="File to write (default for npz: the shipped walk_rl.npz, or "
+                                                  "walk_rl_<variant>.npz for a variant's run; for onnx: the "
+                                                  "source's name with .onnx, or RUN/policy.onnx).")] = None,
     export_format: Annotated[Literal[EXPORT_FORMATS], typer.Option(
         "--format", help="npz (numpy inference) or onnx (onnxruntime; checked against the numpy policy).")] = "npz",
     checkpoint: Annotated[str | None, typer.Option(help="A checkpoint file name of the run (default: the latest; "
@@ -177,10 +186,12 @@ def export(
     if not run.is_dir():
         raise ToddlerbotError(f"{run}: not a training run directory (an .npz is already the numpy export; "
                               "--format onnx converts it)")
-    out = DEFAULT_WEIGHTS if out is None else out
-    output_file(out, "--out")
     _require_jax()
     from toddlerbot.rl.export import export_run
+    from toddlerbot.rl.train import load_config
+
+    out = default_weights(load_config(run)[0].variant) if out is None else out
+    output_file(out, "--out")
 
     path = export_run(run, out, checkpoint=checkpoint)
     console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")

@@ -81,9 +81,9 @@ def _walk_zmp(robot: Robot) -> Policy:
 
 
 def _walk_rl(robot: Robot, weights: str | Path | None = None) -> Policy:
-    from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy
+    from toddlerbot.policies.walk_rl import WalkRLPolicy
 
-    return WalkRLPolicy(robot, weights or DEFAULT_WEIGHTS)
+    return WalkRLPolicy(robot, weights)
 
 
 _BUILT_IN = {"stand": "toddlerbot.policies.stand:StandPolicy", "replay": _replay, "walk-zmp": _walk_zmp,

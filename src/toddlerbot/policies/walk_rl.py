@@ -17,6 +17,12 @@ DEFAULT_WEIGHTS = SHIPPED_WEIGHTS / "walk_rl.npz"
 """The CPU recipe's policy (docs/rl.md); ``walk_rl_gpu.npz`` beside it is the GPU run's."""
 
 
+def default_weights(variant: str | None) -> Path:
+    """The shipped policy for a spec variant: ``walk_rl.npz`` for the packaged robot, ``walk_rl_<variant>.npz``
+    for a variant (trained with ``rl train --variant``; its motors differ)."""
+    return DEFAULT_WEIGHTS if variant is None else SHIPPED_WEIGHTS / f"walk_rl_{variant}.npz"
+
+
 def resolve_weights(weights: str | Path) -> Path:
     """A policy file: a path, or the name of one shipped in the package (``walk_rl_gpu`` or ``walk_rl_gpu.npz``)
     when no such file exists here."""
@@ -31,8 +37,16 @@ class WalkRLPolicy(Policy):
     name = "walk-rl"
     needs_imu = True
 
-    def __init__(self, robot: Robot, weights: str | Path = DEFAULT_WEIGHTS) -> None:
+    def __init__(self, robot: Robot, weights: str | Path | None = None) -> None:
+        """``weights``: a policy file or shipped name (default: the one shipped for the robot's variant)."""
         super().__init__(robot)
+        if weights is None:
+            variant = robot.description.spec.variant
+            weights = default_weights(variant)
+            if not weights.is_file():
+                raise ToddlerbotError(f"no walk-rl policy ships for the {variant} variant ({weights.name}): train one "
+                                      f"with `toddlerbot rl train --variant {variant}` (docs/rl.md), or walk with "
+                                      "walk-zmp")
         policy = RLPolicyFile(resolve_weights(weights))
         if tuple(policy.motor_names) != tuple(robot.motor_names):
             raise ToddlerbotError(f"{policy.path}: trained for motors {policy.motor_names[:3]}..., but the robot has "

@@ -101,6 +101,14 @@ class RandomizationConfig:
     push_interval_s: tuple[float, float] = (2.0, 5.0)
     push_velocity: float = 0.3
     """m/s; largest horizontal velocity kick of a push."""
+    upper_body_pose: float = 0.0
+    """Upper-body poses (arms, grippers, neck): at every reset and command resample each such motor's target is
+    drawn uniformly between home and this fraction of the way to either joint limit (0: held at home), so the
+    policy learns to walk with the arms holding a handle, carrying or waving."""
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.upper_body_pose <= 1.0:
+            raise ValueError(f"upper_body_pose {self.upper_body_pose}: expected a fraction of the range in [0, 1]")
 
 
 CONTACT_SETS = ("feet_hands", "all")
@@ -138,6 +146,8 @@ class EnvConfig:
     motor_params: tuple[str, ...] = ()
     """Fitted actuator parameter files (sysID ``params.json``) the robot is built with; domain randomisation
     scales around them."""
+    variant: str | None = None
+    """Spec variant the robot is built with (e.g. ``gripper``, 32 motors); its exported policy drives only it."""
     min_torso_height: float = 0.2
     """m; the episode ends (fall) when the torso origin drops below this..."""
     max_tilt: float = FALL_TILT_RAD

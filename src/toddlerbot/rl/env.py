@@ -32,12 +32,17 @@ from toddlerbot.rl.model import training_model
 from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, critic_obs, push_frame
 from toddlerbot.rl.physics import BACKENDS, MODEL_FIELDS, Addresses, Frame
 from toddlerbot.rl.precision import use_full_precision
-from toddlerbot.rl.reference import leg_motor_indices, load_reference
+from toddlerbot.rl.reference import leg_motor_indices, load_reference, upper_body_mask
 from toddlerbot.robot.description import RobotDescription
 
 TRACKING_METRICS = ("lin_vel_error", "ang_vel_error")
 """Per-step metrics besides the reward terms: |achieved - commanded| horizontal velocity (m/s, yaw frame) and
 yaw rate (rad/s), instantaneous (the tracking evaluation averages over a gait cycle)."""
+
+
+def training_description(cfg: EnvConfig) -> RobotDescription:
+    """The robot an env configuration trains: the packaged spec with its variant and fitted motor parameters."""
+    return RobotDescription.load(variant=cfg.variant, motor_params=cfg.motor_params)
 
 
 def resolve_backend(name: str) -> str:
@@ -67,15 +72,18 @@ class WalkEnv(Env):
     def __init__(self, cfg: EnvConfig | None = None, description: RobotDescription | None = None,
                  reference: GaitReference | None = None, gain_scales: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> None:
-        """``description``: the robot (by default the packaged spec with ``cfg.motor_params`` applied; a given
-        one must carry the same params.json files). ``reference``: an imitation table (default: the ZMP walk).
+        """``description``: the robot (by default `training_description`; a given one must be of the same
+        variant and carry the same params.json files). ``reference``: an imitation table (default: the ZMP walk).
         ``gain_scales``: (stance (n_motors,), swing (2, n_motors)) factors on the spec's P gains (default, with
         ``cfg.teacher_gains``: walk-zmp's)."""
         use_full_precision()
         cfg = cfg or EnvConfig()
         rewards.check_weights(cfg.reward)
         if description is None:
-            description = RobotDescription.load(motor_params=cfg.motor_params)
+            description = training_description(cfg)
+        elif description.spec.variant != cfg.variant:
+            raise ValueError(f"the description's variant {description.spec.variant!r} differs from the config's "
+                             f"{cfg.variant!r}")
         elif tuple(description.motor_params_files) != tuple(cfg.motor_params):
             raise ValueError(f"the description's motor params {description.motor_params_files} differ from the "
                              f"config's {cfg.motor_params}")
@@ -100,6 +108,8 @@ class WalkEnv(Env):
 
         self.home_motor_pos = np.asarray(description.home_motor_pos, dtype=np.float32)
         self.leg_index = leg_motor_indices(description)
+        self._upper_body = jnp.asarray(upper_body_mask(description))
+        self._motor_range = jnp.asarray(description.motor_range, dtype=jnp.float32)
         self.n_motors = description.n_motors
         self.actuators = ActuatorArrays(*(jnp.asarray(a, dtype=jnp.float32) for a in description.actuator_arrays()))
         if gain_scales is None:
@@ -147,6 +157,7 @@ class WalkEnv(Env):
             "ref_yaw": _yaw(frame.qpos[3:7]), "last_action": zeros, "last_last_action": zeros,
             "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": frame.feet_pos,
             "push_timer": self._push_interval(k_push), "push": jnp.zeros(2), "avg_vel": jnp.zeros(3),
+            "upper_body": self._upper_body_pose(k_cmd),
             "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
         ref_leg, _ = self.reference_at(command, info["time"])
@@ -163,6 +174,7 @@ class WalkEnv(Env):
         action = jnp.clip(action, -1.0, 1.0)  # the policy's Gaussian is unsquashed
         applied = jnp.where(dr.action_delay > 0, info["last_action"], action)
         targets, kp_scale = self.motor_targets(applied, info["command"], info["time"])
+        targets = targets + info["upper_body"]
         actuators = randomization.apply_to_actuators(self.actuators, dr)
         actuators = actuators._replace(kp=actuators.kp * kp_scale)
 
@@ -211,6 +223,7 @@ class WalkEnv(Env):
         info["last_action"] = action
         resample = info["step"] % round(cfg.command.resample_s / cfg.ctrl_dt) == 0
         info["command"] = jnp.where(resample, self._sample_command(k_cmd), info["command"])
+        info["upper_body"] = jnp.where(resample, self._upper_body_pose(k_cmd), info["upper_body"])
         info["rng"] = k_next
         obs, info = self._observe(frame, info, k_noise, contact=contact, ref_leg=ref_leg)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
@@ -245,6 +258,13 @@ class WalkEnv(Env):
         command = jnp.where(u < c.stand_prob + c.turn_prob + c.axis_prob, box * axis, box)
         command = jnp.where(u < c.stand_prob + c.turn_prob, box * jnp.array([0, 0, 1.0]), command)
         return jnp.where(u < c.stand_prob, jnp.zeros(3), command)
+
+    def _upper_body_pose(self, command_key: jax.Array) -> jax.Array:
+        """(n_motors,) offsets from home of a random upper-body pose drawn with each command (zeros unless
+        randomised; its key is folded from the command's, so the other draws do not depend on it)."""
+        fraction = self.cfg.randomization.upper_body_pose if self.cfg.randomize else 0.0
+        return randomization.upper_body_offsets(jax.random.fold_in(command_key, 1), fraction,
+                                                jnp.asarray(self.home_motor_pos), self._motor_range, self._upper_body)
 
     def _push_interval(self, key: jax.Array) -> jax.Array:
         lo, hi = self.cfg.randomization.push_interval_s

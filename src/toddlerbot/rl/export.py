@@ -70,16 +70,17 @@ def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
 
 def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None,
                checkpoint: str | None = None) -> Path:
-    """Export a checkpoint of a training run (for the run's robot: packaged spec + its params.json): the latest,
-    the named file of ``checkpoints/``, or ``warm_start`` (the DAgger warm start, before PPO)."""
+    """Export a checkpoint of a training run (for the run's robot: packaged spec, its variant and params.json):
+    the latest, the named file of ``checkpoints/``, or ``warm_start`` (the DAgger warm start, before PPO)."""
     from toddlerbot.rl import train  # jax-heavy; keep `write_policy` importable alone
+    from toddlerbot.rl.env import training_description
 
     run_dir = Path(run_dir)
     env_cfg, ppo_cfg = train.load_config(run_dir)
     paths = train.checkpoint_paths(run_dir)
     if checkpoint not in (None, "warm_start"):
         paths = [p for p in paths if p.name == checkpoint]
-    description = description or RobotDescription.load(motor_params=env_cfg.motor_params)
+    description = description or training_description(env_cfg)
     obs_size = _actor_width(env_cfg, description)
     warm = _imitation_record(run_dir)
     if checkpoint == "warm_start":
@@ -103,7 +104,9 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "step_reward": last.get("step_reward"), "sps": last.get("sps"), "device": last.get("device"),
             "backend": env_cfg.backend, "residual": env_cfg.residual, "teacher_gains": env_cfg.teacher_gains,
             "imitation_iterations": len(warm), "policy_hidden": list(ppo_cfg.policy_hidden),
-            "num_envs": ppo_cfg.num_envs, "motor_params": json.loads(record.read_text()) if record.is_file() else []}
+            "num_envs": ppo_cfg.num_envs, "variant": env_cfg.variant,
+            "upper_body_pose": env_cfg.randomization.upper_body_pose,
+            "motor_params": json.loads(record.read_text()) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None
     return write_policy(out, arrays, env_cfg, meta, description, action_space)

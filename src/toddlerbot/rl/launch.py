@@ -33,6 +33,8 @@ class TrainRequest:
     imitation_iterations: int | None = None
     motor_params: tuple[Path, ...] = ()
     warm_start: Path | None = None
+    variant: str | None = None
+    upper_body_pose: float | None = None
 
 
 @dataclass(frozen=True)
@@ -55,9 +57,11 @@ def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
     if not (run_dir / "config.json").is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if request.motor_params or request.solver_iterations is not None or request.ls_iterations is not None \
-            or request.backend != "auto" or request.imitation_iterations is not None or request.warm_start is not None:
-        raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/"
-                              "--imitation-iterations/--warm-start: a resumed run keeps the settings it started with")
+            or request.backend != "auto" or request.imitation_iterations is not None or request.warm_start is not None \
+            or request.variant is not None or request.upper_body_pose is not None:
+        raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/--imitation-iterations/"
+                              "--warm-start/--variant/--upper-body-pose: a resumed run keeps the settings it "
+                              "started with")
     return TrainPlan(run_dir, resume=True)
 
 
@@ -90,9 +94,10 @@ def _warm_start_source(request: TrainRequest) -> WarmStartSource | None:
 
     if request.warm_start is None:
         return None
-    if request.motor_params or request.imitation_iterations is not None:
-        raise ToddlerbotError("--warm-start: the source run's warm start fixes its --motor-params and "
-                              "--imitation-iterations")
+    if request.motor_params or request.imitation_iterations is not None or request.variant is not None \
+            or request.upper_body_pose is not None:
+        raise ToddlerbotError("--warm-start: the source run's warm start fixes its --motor-params, "
+                              "--imitation-iterations, --variant and --upper-body-pose")
     return warm_start_source(request.warm_start)
 
 
@@ -106,12 +111,29 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
             else request.ls_iterations)
     except ValueError as exc:
         raise ToddlerbotError(f"--solver-iterations/--ls-iterations: {exc}") from exc
+    env_cfg = _robot_variant(env_cfg, request)
     if not request.motor_params:
         return env_cfg
     from toddlerbot.actuation.params_file import catalogue_with_params
 
     catalogue_with_params(request.motor_params)  # bad files fail here, before anything compiles
     return replace(env_cfg, motor_params=tuple(str(p) for p in request.motor_params))
+
+
+def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
+    """The request's spec variant (checked against the spec now) and upper-body pose randomisation."""
+    if request.variant is not None:
+        from toddlerbot.robot.description import RobotDescription
+
+        RobotDescription.load(variant=request.variant)  # an unknown variant fails here, naming the known ones
+        env_cfg = replace(env_cfg, variant=request.variant)
+    if request.upper_body_pose is not None:
+        try:
+            env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization,
+                                                             upper_body_pose=request.upper_body_pose))
+        except ValueError as exc:
+            raise ToddlerbotError(f"--upper-body-pose: {exc}") from exc
+    return env_cfg
 
 
 def _recipe(backend: str, request: TrainRequest) -> tuple[config.PPOConfig, config.ImitationConfig]:

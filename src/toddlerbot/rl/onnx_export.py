@@ -102,8 +102,8 @@ def random_observations(policy: RLPolicyFile, n: int = 256, seed: int = 0) -> np
 
 def recorded_observations(npz_path: Path, steps: int = 50, command=(0.1, 0.0, 0.0)) -> np.ndarray:
     """The observation vectors `walk-rl` (numpy) builds driving the robot in the CPU simulator for ``steps``
-    control steps at ``command`` (m/s, m/s, rad/s); fewer if it falls. Empty when the policy was trained for
-    other motors than the default robot's."""
+    control steps at ``command`` (m/s, m/s, rad/s) on the robot variant it was trained for; fewer if it falls.
+    Empty when its motors are not that packaged robot's."""
     from toddlerbot.policies.walk_rl import WalkRLPolicy
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.robot.interface import CONTROL_DT
@@ -111,7 +111,7 @@ def recorded_observations(npz_path: Path, steps: int = 50, command=(0.1, 0.0, 0.
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
     policy_file = RLPolicyFile(npz_path)
-    description = RobotDescription.load()
+    description = RobotDescription.load(variant=policy_file.meta.get("variant"))
     if tuple(policy_file.motor_names) != tuple(description.motor_names):
         return np.zeros((0, len(policy_file.obs_mean)), np.float32)
     robot = MuJoCoRobot(description, SimConfig(control_dt=policy_file.meta.get("ctrl_dt", CONTROL_DT)))

@@ -68,6 +68,17 @@ def sample(key: jax.Array, cfg: RandomizationConfig, nv: int, nbody: int, n_moto
     )
 
 
+def upper_body_offsets(key: jax.Array, fraction: float, home: jax.Array, motor_range: jax.Array,
+                       upper_body: jax.Array) -> jax.Array:
+    """(n_motors,) offsets from home of an upper-body pose: each motor flagged in ``upper_body`` drawn uniformly
+    between home and ``fraction`` of the way to its lower or upper limit (motors without a finite limit, and all
+    others, stay at home)."""
+    u = jax.random.uniform(key, home.shape, minval=-1.0, maxval=1.0)
+    room = jnp.where(u > 0, motor_range[:, 1] - home, home - motor_range[:, 0])
+    room = jnp.where(jnp.isfinite(room), room, 0.0)
+    return jnp.where(upper_body, fraction * u * room, 0.0)
+
+
 def model_fields(nominal: dict[str, jax.Array], p: DRParams, floor_geom: int, torso_body: int) -> dict[str, jax.Array]:
     """The env's own physical parameters (`toddlerbot.rl.physics.MODEL_FIELDS`): the nominal model's with this
     draw's floor friction, joint damping/armature/friction loss and link masses/inertias. Both physics backends

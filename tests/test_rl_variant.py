@@ -1,0 +1,114 @@
+"""Training a walking policy for a spec variant (the 32-motor gripper robot) with randomised upper-body poses."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("mujoco.mjx")
+jnp = jax.numpy
+
+from toddlerbot.errors import ToddlerbotError  # noqa: E402
+from toddlerbot.rl.config import RandomizationConfig, smoke_env_config  # noqa: E402
+from toddlerbot.rl.env import WalkEnv  # noqa: E402
+from toddlerbot.rl.randomization import upper_body_offsets  # noqa: E402
+from toddlerbot.rl.reference import standing_table, upper_body_mask  # noqa: E402
+from toddlerbot.robot.description import RobotDescription  # noqa: E402
+
+FRACTION = 0.5
+
+
+@pytest.fixture(scope="module")
+def gripper():
+    return RobotDescription.load(variant="gripper")
+
+
+def _env(description, fraction=FRACTION, randomize=True, resample_s=5.0):
+    cfg = smoke_env_config()
+    cfg = replace(cfg, variant=description.spec.variant, randomize=randomize,
+                  randomization=replace(cfg.randomization, upper_body_pose=fraction),
+                  command=replace(cfg.command, resample_s=resample_s))
+    return WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.6),
+                   gain_scales=(np.ones(description.n_motors), np.zeros((2, description.n_motors))))
+
+
+def _bounds(description, fraction):
+    home = np.asarray(description.home_motor_pos)
+    lo, hi = np.asarray(description.motor_range).T
+    return home - fraction * (home - lo), home + fraction * (hi - home)
+
+
+def test_upper_body_is_the_arms_grippers_and_neck(gripper):
+    mask = upper_body_mask(gripper)
+    names = {gripper.motor_names[i] for i in np.flatnonzero(mask)}
+    assert names == set(gripper.group_names("arm") + gripper.group_names("gripper") + gripper.group_names("neck"))
+    assert len(names) == 18 and not any(n in names for n in gripper.group_names("leg") + gripper.group_names("waist"))
+
+
+def test_offsets_fill_the_fraction_of_each_range_and_nothing_else(gripper):
+    mask = upper_body_mask(gripper)
+    home = jnp.asarray(gripper.home_motor_pos, dtype=jnp.float32)
+    motor_range = jnp.asarray(gripper.motor_range, dtype=jnp.float32)
+    draws = np.asarray(jax.vmap(lambda k: upper_body_offsets(k, FRACTION, home, motor_range, jnp.asarray(mask)))(
+        jax.random.split(jax.random.PRNGKey(0), 400)))
+    targets = np.asarray(home) + draws
+    lo, hi = _bounds(gripper, FRACTION)
+    assert np.all(draws[:, ~mask] == 0.0)
+    assert np.all((targets >= lo - 1e-6) & (targets <= hi + 1e-6))
+    # uniform over the whole band: 400 draws reach within 5 % of both ends on every upper-body motor
+    width = (hi - lo)[mask]
+    assert np.all(targets[:, mask].min(axis=0) < lo[mask] + 0.05 * width)
+    assert np.all(targets[:, mask].max(axis=0) > hi[mask] - 0.05 * width)
+    with pytest.raises(ValueError, match=r"upper_body_pose 1\.5"):
+        RandomizationConfig(upper_body_pose=1.5)
+
+
+def test_the_variant_env_has_its_motors_and_one_pose_per_env(gripper):
+    env = _env(gripper)
+    states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 4))
+    assert env.n_motors == 32 and env.action_size == 12
+    assert states.obs["state"].shape == (4, env.cfg.obs.history * env.cfg.obs.frame_size(32, 12))
+    pose = np.asarray(states.info["upper_body"])
+    mask = upper_body_mask(gripper)
+    assert np.all(pose[:, ~mask] == 0.0) and np.all(np.abs(pose[:, mask]).max(axis=0) > 0)
+    assert len({tuple(p) for p in pose.round(6)}) == 4
+    # without randomisation (evaluation) the upper body holds home
+    calm = jax.jit(jax.vmap(_env(gripper, randomize=False).reset))(jax.random.split(jax.random.PRNGKey(0), 2))
+    assert np.all(np.asarray(calm.info["upper_body"]) == 0.0)
+    with pytest.raises(ValueError, match="variant 'gripper' differs from the config's None"):
+        WalkEnv(smoke_env_config(), gripper)
+
+
+@pytest.mark.slow
+def test_the_arms_follow_the_drawn_pose_until_the_next_command(gripper):
+    env = _env(gripper, resample_s=0.4)  # a new command and pose every 20 control steps
+    state = jax.jit(env.reset)(jax.random.PRNGKey(3))
+    step = jax.jit(env.step)
+    drawn = np.asarray(state.info["upper_body"])
+    arm = np.asarray(gripper.groups["arm"])
+    home = np.asarray(gripper.home_motor_pos)
+    for _ in range(19):
+        state = step(state, jnp.zeros(12))
+    np.testing.assert_array_equal(np.asarray(state.info["upper_body"]), drawn)
+    reached = np.asarray(state.pipeline_state.qpos)[env.motor_qadr][arm] - home[arm]
+    # after 0.38 s every arm motor has covered most of its way to the drawn pose, the robot still up
+    assert np.all(np.abs(reached - drawn[arm]) < 0.3 * np.abs(drawn[arm]) + 0.05), (reached, drawn[arm])
+    assert not bool(state.done)
+    state = step(state, jnp.zeros(12))
+    assert not np.array_equal(np.asarray(state.info["upper_body"]), drawn)
+
+
+def test_rl_train_checks_the_variant_options_before_compiling(tmp_path):
+    from toddlerbot.rl.launch import TrainRequest, new_run_plan, resume_plan
+
+    plan = new_run_plan(tmp_path / "run", TrainRequest(smoke=True, variant="gripper", upper_body_pose=0.4))
+    assert plan.env.variant == "gripper" and plan.env.randomization.upper_body_pose == 0.4
+    with pytest.raises(ToddlerbotError, match=r"unknown variant 'nope'; expected one of \['gripper'\]"):
+        new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, variant="nope"))
+    with pytest.raises(ToddlerbotError, match=r"--upper-body-pose: upper_body_pose 2\.0"):
+        new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, upper_body_pose=2.0))
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "config.json").write_text("{}")
+    with pytest.raises(ToddlerbotError, match="--variant/--upper-body-pose: a resumed run keeps"):
+        resume_plan(tmp_path / "old", TrainRequest(variant="gripper"))
