@@ -100,12 +100,16 @@ def train(
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose)
     plan = _plan(out, resume, request)
     console.print(f"run directory: {plan.run_dir}")
-    history = _train_with_progress(plan, minutes, epochs, sinks)
+    _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
+
+
+def _report(run_dir: Path, history: list[dict]) -> None:
+    """The run's training curve and closing line."""
     if not history:
-        raise ToddlerbotError(f"{plan.run_dir}: no epoch ran (limits too tight?)")
+        raise ToddlerbotError(f"{run_dir}: no epoch ran (limits too tight?)")
     from toddlerbot.rl.plot import write_run_curve
 
-    png = write_run_curve(plan.run_dir, history)
+    png = write_run_curve(run_dir, history)
     last = history[-1]
     console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s "
                   f"({last['sps']:.0f} steps/s), reward/step {last['step_reward']:.3f}; curve {png}")
