@@ -38,7 +38,7 @@ def _random_export(tmp_path, hidden=(64, 32), history=2, variant=None):
     normalizer = running_statistics.RunningStatisticsState(
         count=np.ones(()), mean=mean, summed_variance=std, std=std)
     arrays = policy_arrays(params, normalizer, True, n_obs)
-    path = write_policy(tmp_path / "p.npz", arrays, env_cfg, {"note": "test", "variant": variant}, description)
+    path = write_policy(tmp_path / "p.npz", arrays, env_cfg, {"note": "test"}, description)
     return path, networks, params, normalizer, n_obs
 
 
@@ -168,6 +168,7 @@ def test_a_variant_policy_drives_only_its_variant(tmp_path):
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
     path = _random_export(tmp_path, variant="gripper")[0]
+    assert RLPolicyFile(path).meta["variant"] == "gripper"  # recorded from the robot it was written for
     gripper = MuJoCoRobot(RobotDescription.load(variant="gripper"))
     policy = WalkRLPolicy(gripper, path)
     obs = gripper.reset()

@@ -62,8 +62,8 @@ class RewardConfig:
     """Sharpness of exp(-sigma * error^2) imitation kernels, 1/(unit^2)."""
     velocity_sigma: float = 100.0
     """Sharpness of the velocity-tracking kernels (the yaw rate's is a quarter of it), which compare the command
-    with the averaged velocity: a 0.04 m/s bias costs 15 % of the term (at ``tracking_sigma`` on the swaying
-    instantaneous velocity it cost 3 %, and the policies walked 0.06 m/s when told 0.1)."""
+    with the averaged velocity, so that a walking-speed bias of a few cm/s costs a noticeable part of the term
+    (why: docs/rl.md, "Rewards")."""
     velocity_average_s: float = WalkConfig.cycle_time
     """s; time constant of the exponential average of the torso's velocity that the velocity-tracking terms
     read (one gait cycle damps the in-cycle sway to about a sixth)."""

@@ -40,7 +40,7 @@ def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, 
                  description: RobotDescription, action_space: dict[str, np.ndarray] | None = None) -> Path:
     """Write the export file (atomically) for a robot. ``action_space``: the run's reference and gain-scale arrays
     (`ACTION_SPACE`); the file keeps the reference when the env was residual and the gain schedule when it used
-    the teacher's gains. The trained command ranges go into the metadata."""
+    the teacher's gains. The trained command ranges and the robot's spec variant go into the metadata."""
     if env_cfg.obs.gait_period is None:
         raise ValueError("the observation config to export has no gait period (resolve it with WalkEnv first)")
     action_space = action_space or {}
@@ -49,7 +49,8 @@ def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, 
     if env_cfg.teacher_gains:
         arrays = {**arrays, **{k: v for k, v in action_space.items() if k.startswith("kp_")}}
     c = env_cfg.command
-    meta = {**meta, "command_low": [c.vx[0], c.vy[0], c.yaw[0]], "command_high": [c.vx[1], c.vy[1], c.yaw[1]]}
+    meta = {**meta, "command_low": [c.vx[0], c.vy[0], c.yaw[0]], "command_high": [c.vx[1], c.vy[1], c.yaw[1]],
+            "variant": description.spec.variant}
     return atomic_savez(path, dict(
         **arrays, home_motor_pos=np.asarray(description.home_motor_pos),
         leg_motor_index=leg_motor_indices(description), motor_names=np.array(description.motor_names),
@@ -104,8 +105,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "step_reward": last.get("step_reward"), "sps": last.get("sps"), "device": last.get("device"),
             "backend": env_cfg.backend, "residual": env_cfg.residual, "teacher_gains": env_cfg.teacher_gains,
             "imitation_iterations": len(warm), "policy_hidden": list(ppo_cfg.policy_hidden),
-            "num_envs": ppo_cfg.num_envs, "variant": env_cfg.variant,
-            "upper_body_pose": env_cfg.randomization.upper_body_pose,
+            "num_envs": ppo_cfg.num_envs, "upper_body_pose": env_cfg.randomization.upper_body_pose,
             "motor_params": json.loads(record.read_text()) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None
