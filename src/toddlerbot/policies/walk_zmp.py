@@ -48,8 +48,9 @@ class AttitudeFeedback:
     """Feedback gains. Joint offsets rotate the foot relative to the torso about the torso's y (pitch terms) or x
     (roll terms) axis, in the same sense for both legs whatever the joints' mirroring (signs from the model)."""
 
-    ankle_pitch: float = 1.0
-    """rad of ankle pitch per rad of torso pitch."""
+    ankle_pitch: float = 0.7
+    """rad of ankle pitch per rad of torso pitch. 1.0 fell under 2 x the loop delays of hardware-in-the-loop, 0.6
+    on a perturbed robot without them (`benchmarks/bench_hil_like.py`; docs/hardware.md)."""
     ankle_pitch_rate: float = 0.0
     """rad of ankle pitch per rad/s of torso pitch rate (IMU gyro)."""
     ankle_roll: float = 0.0
