@@ -130,18 +130,19 @@ def test_the_wagon_chain_grasps_by_script_unless_told_to_use_the_shipped_policy_
 @pytest.mark.slow
 def test_chain_run_wagon_is_grasped_by_the_policy_and_reports_its_outcome():
     """By default the policy drives the grasp (18/20 chains succeed, so one seed's outcome is not asserted, only
-    that the report is the chain's own checks; where it succeeds, the wagon moved 0.68 m with 14 N pads)."""
+    that the report is the chain's own checks; where it succeeds, walk-rl pushed the wagon about 0.8 m with 14 N pads)."""
     result = runner.invoke(app, ["chain", "run", "wagon", "--seed", "1000", "--json"])
     out = json.loads(result.output)
     assert result.exit_code == (0 if out["success"] else 1)
     assert out["grasp_by"] == "dp (wagon.pt)"
-    assert out["driven_by"] == {"grasp": "dp (wagon.pt)", "settle": "hold", "push": "walk-zmp"}
+    assert out["driven_by"] == {"grasp": "dp (wagon.pt)", "settle": "hold", "push": "walk-rl"}
     assert out["dp"]["grasp"]["failures"] == 0 and out["dp"]["grasp"]["chunks_used"] >= 8
     assert 3.8 <= out["switch_time_s"] <= 6.0  # the grasp ends by its check or its 6 s timeout
     if out["success"]:
         assert out["wagon_displacement_m"] >= 0.5
         for grip in out["grip"].values():
-            assert grip["min_force_n"] >= 10.0 and grip["slide_mm"] <= 8.0 and grip["to_end_mm"] >= 20.0
+            # the pads end 11.5 mm past the grasp point; walk-rl's push slides the handle 6-8.7 mm (walk-zmp's < 4)
+            assert grip["min_force_n"] >= 10.0 and grip["slide_mm"] <= 10.0 and grip["to_end_mm"] >= 20.0
 
 
 @pytest.mark.slow

@@ -162,7 +162,8 @@ def replace_backend(cfg):
     return replace(cfg, backend="cpu")
 
 
-def test_a_variant_policy_drives_only_its_variant(tmp_path):
+def test_a_variant_policy_drives_only_its_variant(tmp_path, monkeypatch):
+    from toddlerbot.policies import walk_rl
     from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy, default_weights
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -177,8 +178,13 @@ def test_a_variant_policy_drives_only_its_variant(tmp_path):
     assert action.motor_targets.shape == (32,) and np.all(np.isfinite(action.motor_targets))
     with pytest.raises(ToddlerbotError, match="trained for motors"):
         WalkRLPolicy(MuJoCoRobot(), path)
-    # no gripper-variant policy ships yet: the default names the command that trains one
+    # the variant's shipped policy is the default on its robot
     assert default_weights(None) == DEFAULT_WEIGHTS
     assert default_weights("gripper") == DEFAULT_WEIGHTS.parent / "walk_rl_gripper.npz"
+    assert WalkRLPolicy(gripper).command_reach is not None
+    meta = RLPolicyFile(default_weights("gripper")).meta
+    assert meta["variant"] == "gripper" and meta["upper_body_pose"] == 0.3 and meta["backend"] == "cpu"
+    # where none ships, the error names the command that trains one
+    monkeypatch.setattr(walk_rl, "SHIPPED_WEIGHTS", tmp_path / "none")
     with pytest.raises(ToddlerbotError, match=r"no walk-rl policy ships for the gripper variant.*--variant gripper"):
         WalkRLPolicy(gripper)
