@@ -130,7 +130,8 @@ def test_the_wagon_chain_grasps_by_script_unless_told_to_use_the_shipped_policy_
 @pytest.mark.slow
 def test_chain_run_wagon_is_grasped_by_the_policy_and_reports_its_outcome():
     """By default the policy drives the grasp (18/20 chains succeed, so one seed's outcome is not asserted, only
-    that the report is the chain's own checks; where it succeeds, walk-rl pushed the wagon about 0.8 m with 14 N pads)."""
+    that the report is the chain's own checks; where it succeeds, walk-rl pushed the wagon about 0.8 m with 14 N
+    pads)."""
     result = runner.invoke(app, ["chain", "run", "wagon", "--seed", "1000", "--json"])
     out = json.loads(result.output)
     assert result.exit_code == (0 if out["success"] else 1)

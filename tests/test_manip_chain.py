@@ -55,8 +55,8 @@ def test_wagon_chain_grasps_the_handle_then_pushes_the_wagon_on_most_seeds(wagon
 def test_the_wagon_grip_holds_the_handle_with_margin_through_the_push(wagon_runs):
     # Over 20 seeds with walk-zmp pushing (docs/manipulation.md): the weaker pad at 12.3 N or more, the handle slides
     # at most 2.7 mm along the fingers, each grasp point 38 mm or more from the handle's end; walk-rl (the chain's
-    # push now) pushes faster and slides it 6-8 mm (seeds 0-7), short of the pads' end 11.5 mm past the grasp point. Before the handle's rigid contact: pads at
-    # 0-1.5 N and slides of 7-32 mm (the pads reach 11.5 mm past the grasp point; the bar starts 8-10 mm short).
+    # push now) pushes faster and slides it 6-8 mm (seeds 0-7), short of the pads' end 11.5 mm past the grasp point.
+    # Before the handle's rigid contact: pads at 0-1.5 N and slides of 7-32 mm (the bar starts 8-10 mm short).
     held = [out["grip"] for out in wagon_runs if out["success"]]
     assert len(held) >= len(WAGON_SEEDS) - 1
     for grip in held:
