@@ -124,6 +124,7 @@ def test_walking_policies_walk_the_tracking_schedule_in_real_time_on_the_emulate
     else:  # simulator: 0.91 m away (dx 0.67, dy 0.61), 2.01 rad; three HIL runs: 0.84-0.89 m, 1.99-2.00 rad
         assert moved > 0.6 and abs(motion["yaw_rad"] - 2.0) < 0.3, seen
 
+
 TOPPLE = """name: topple
 description: tip backwards onto the floor
 interpolation: smooth
