@@ -60,6 +60,9 @@ VariantOption = Annotated[str | None, typer.Option(help="Spec variant to train (
 UpperBodyPoseOption = Annotated[float | None, typer.Option(
     help="Randomise the arms, grippers and neck: each target drawn with every command between home and this "
          "fraction of the way to its limits (default 0: held at home).")]
+HandForceOption = Annotated[float | None, typer.Option(
+    help="Pull the hands (a wagon's handle, a carried load): with every command a force of up to this many "
+         "newtons in a random horizontal direction, and up to half of it up or down (default 0: none).")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
@@ -83,6 +86,7 @@ def train(
     warm_start: WarmStartOption = None,
     variant: VariantOption = None,
     upper_body_pose: UpperBodyPoseOption = None,
+    hand_force: HandForceOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -90,14 +94,15 @@ def train(
     """Train with PPO (on a CPU: the CPU recipe of docs/rl.md, a DAgger warm start from walk-zmp then PPO; with a
     GPU: the one-GPU configuration; --smoke: a tiny run) with checkpoints, a training curve and TensorBoard
     scalars (RUN/tensorboard; --wandb: also Weights & Biases). --motor-params: the robot trains on the fitted
-    motors, domain randomisation scales around them. --variant with --upper-body-pose: a policy for a variant
-    that walks whatever its arms do."""
+    motors, domain randomisation scales around them. --variant with --upper-body-pose (and --hand-force): a
+    policy for a variant that walks whatever its arms do (and hold)."""
     training_budget(minutes, epochs, "--epochs")
     for option, count in (("--timesteps", timesteps), ("--num-envs", num_envs)):
         training_budget(None, count, option)
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
-                           imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose)
+                           imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
+                           hand_force)
     plan = _plan(out, resume, request)
     console.print(f"run directory: {plan.run_dir}")
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))

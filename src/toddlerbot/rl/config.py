@@ -105,10 +105,17 @@ class RandomizationConfig:
     """Upper-body poses (arms, grippers, neck): at every reset and command resample each such motor's target is
     drawn uniformly between home and this fraction of the way to either joint limit (0: held at home), so the
     policy learns to walk with the arms holding a handle, carrying or waving."""
+    hand_force: float = 0.0
+    """N; largest pull on the hands (a wagon's handle, a carried load): at every reset and command resample a
+    force is drawn whose horizontal part (in the robot's heading frame, turning with it) has a random direction
+    and a length up to this, and whose vertical part lies within half of it either way; each hand feels it until
+    the next command (0: none)."""
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.upper_body_pose <= 1.0:
             raise ValueError(f"upper_body_pose {self.upper_body_pose}: expected a fraction of the range in [0, 1]")
+        if not 0.0 <= self.hand_force < float("inf"):
+            raise ValueError(f"hand_force {self.hand_force}: expected a finite force >= 0 N")
 
 
 CONTACT_SETS = ("feet_hands", "all")

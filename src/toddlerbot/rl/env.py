@@ -12,7 +12,8 @@
 * Episodes: `PPOConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
   torso falls below ``min_torso_height`` or tilts more than ``max_tilt``.
 * Observations: ``{"state": actor, "privileged_state": critic}`` (see `toddlerbot.rl.observations`).
-* Every reset draws new domain-randomisation parameters, a command, and a push schedule for that env.
+* Every reset draws new domain-randomisation parameters, a command, and a push schedule for that env; every
+  command comes with its upper-body pose and pull on the hands (both zero unless randomised).
 """
 
 from __future__ import annotations
@@ -157,7 +158,7 @@ class WalkEnv(Env):
             "ref_yaw": _yaw(frame.qpos[3:7]), "last_action": zeros, "last_last_action": zeros,
             "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": frame.feet_pos,
             "push_timer": self._push_interval(k_push), "push": jnp.zeros(2), "avg_vel": jnp.zeros(3),
-            "upper_body": self._upper_body_pose(k_cmd),
+            "upper_body": self._upper_body_pose(k_cmd), "hand_force": self._hand_force(k_cmd),
             "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
         ref_leg, _ = self.reference_at(command, info["time"])
@@ -179,7 +180,8 @@ class WalkEnv(Env):
         actuators = actuators._replace(kp=actuators.kp * kp_scale)
 
         data, info = self._push(state.pipeline_state, info, k_push)
-        data, frame = self.physics.step(data, targets, self.model_fields(dr), actuators)
+        hand_force = _rotate_z(info["hand_force"], _yaw(data.qpos[3:7]))
+        data, frame = self.physics.step(data, targets, self.model_fields(dr), actuators, hand_force)
         info["time"] = info["time"] + cfg.ctrl_dt
         info["step"] = info["step"] + 1
         info["ref_yaw"] = info["ref_yaw"] + info["command"][2] * cfg.ctrl_dt
@@ -224,6 +226,7 @@ class WalkEnv(Env):
         resample = info["step"] % round(cfg.command.resample_s / cfg.ctrl_dt) == 0
         info["command"] = jnp.where(resample, self._sample_command(k_cmd), info["command"])
         info["upper_body"] = jnp.where(resample, self._upper_body_pose(k_cmd), info["upper_body"])
+        info["hand_force"] = jnp.where(resample, self._hand_force(k_cmd), info["hand_force"])
         info["rng"] = k_next
         obs, info = self._observe(frame, info, k_noise, contact=contact, ref_leg=ref_leg)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
@@ -265,6 +268,11 @@ class WalkEnv(Env):
         fraction = self.cfg.randomization.upper_body_pose if self.cfg.randomize else 0.0
         return randomization.upper_body_offsets(jax.random.fold_in(command_key, 1), fraction,
                                                 jnp.asarray(self.home_motor_pos), self._motor_range, self._upper_body)
+
+    def _hand_force(self, command_key: jax.Array) -> jax.Array:
+        """(3,) the pull on each hand, heading frame, drawn with each command (zeros unless randomised)."""
+        largest = self.cfg.randomization.hand_force if self.cfg.randomize else 0.0
+        return randomization.hand_force(jax.random.fold_in(command_key, 2), largest)
 
     def _push_interval(self, key: jax.Array) -> jax.Array:
         lo, hi = self.cfg.randomization.push_interval_s

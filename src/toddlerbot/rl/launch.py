@@ -35,6 +35,7 @@ class TrainRequest:
     warm_start: Path | None = None
     variant: str | None = None
     upper_body_pose: float | None = None
+    hand_force: float | None = None
 
 
 @dataclass(frozen=True)
@@ -58,10 +59,10 @@ def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if request.motor_params or request.solver_iterations is not None or request.ls_iterations is not None \
             or request.backend != "auto" or request.imitation_iterations is not None or request.warm_start is not None \
-            or request.variant is not None or request.upper_body_pose is not None:
+            or request.variant is not None or request.upper_body_pose is not None or request.hand_force is not None:
         raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/--imitation-iterations/"
-                              "--warm-start/--variant/--upper-body-pose: a resumed run keeps the settings it "
-                              "started with")
+                              "--warm-start/--variant/--upper-body-pose/--hand-force: a resumed run keeps the "
+                              "settings it started with")
     return TrainPlan(run_dir, resume=True)
 
 
@@ -121,7 +122,8 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
 
 
 def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
-    """The request's spec variant (checked against the spec now) and upper-body pose randomisation."""
+    """The request's spec variant (checked against the spec now), upper-body pose and hand pull randomisation
+    (the pull also on top of a warm start's environment: it changes only what PPO trains with)."""
     if request.variant is not None:
         from toddlerbot.robot.description import RobotDescription
 
@@ -133,6 +135,11 @@ def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.E
                                                              upper_body_pose=request.upper_body_pose))
         except ValueError as exc:
             raise ToddlerbotError(f"--upper-body-pose: {exc}") from exc
+    if request.hand_force is not None:
+        try:
+            env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization, hand_force=request.hand_force))
+        except ValueError as exc:
+            raise ToddlerbotError(f"--hand-force: {exc}") from exc
     return env_cfg
 
 

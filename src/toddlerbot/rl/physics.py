@@ -79,6 +79,8 @@ class Addresses:
     foot_up_axis: int
     """Which axis of a foot site points up at home, and its sign."""
     foot_up_sign: float
+    hand_bodies: np.ndarray
+    """The bodies holding the hand sites, which the env's pull on the hands acts on."""
     gyro: slice
     quat: slice
 
@@ -99,7 +101,9 @@ class Addresses:
         return cls(MotorAddresses.of(model, description.motor_names), model.body(handles.torso).id,
                    model.site(handles.imu_site).id, foot_sites,
                    np.array([model.geom(name).id for name in handles.feet_geoms]), model.geom("floor").id, axis,
-                   float(np.sign(up[axis])), sensor("imu_gyro"), sensor("imu_quat"))
+                   float(np.sign(up[axis])),
+                   np.array([model.site_bodyid[model.site(name).id] for name in handles.hand_sites]),
+                   sensor("imu_gyro"), sensor("imu_quat"))
 
 
 def contact_state(a: Addresses, contact_geom, contact_dist, xp=jnp, env=None, n_envs: int = 1):
@@ -165,11 +169,14 @@ class MJXPhysics:
                                        _frames_of(addresses, [home], np.zeros((1, model.nu))))
 
     def step(self, state: mjx.Data, targets: jax.Array, fields: dict[str, jax.Array] | None,
-             actuators: ActuatorArrays) -> tuple[mjx.Data, Frame]:
+             actuators: ActuatorArrays, hand_force: jax.Array | None = None) -> tuple[mjx.Data, Frame]:
         """One control period holding motor targets (rad, motor-id order) with the env's model ``fields`` (None:
-        the nominal model) and actuator arrays."""
+        the nominal model) and actuator arrays, ``hand_force`` (3,) N (world frame) pulling each hand."""
         model = self.sys if fields is None else self.sys.tree_replace(fields)
         m = self.addresses.motors
+        force = jnp.zeros(3) if hand_force is None else hand_force
+        state = state.replace(xfrc_applied=jnp.zeros_like(state.xfrc_applied)
+                              .at[self.addresses.hand_bodies, :3].set(force))
 
         def substep(d: mjx.Data, _: None) -> tuple[mjx.Data, jax.Array]:
             tau = motor_torque(targets, d.qpos[m.qpos], d.qvel[m.dof], actuators, xp=jnp)
@@ -241,17 +248,20 @@ class CPUPhysics:
         self._nominal = {name: np.array(getattr(model, name)) for name in MODEL_FIELDS}
 
     def step(self, state: CPUState, targets: jax.Array, fields: dict[str, jax.Array] | None,
-             actuators: ActuatorArrays) -> tuple[CPUState, Frame]:
+             actuators: ActuatorArrays, hand_force: jax.Array | None = None) -> tuple[CPUState, Frame]:
         """As `MJXPhysics.step` (any leading batch shape; under ``vmap`` the whole batch is one host call).
         ``fields`` None keeps the nominal model's float64 values."""
         fields = {} if fields is None else {k: jnp.asarray(v, jnp.float32) for k, v in fields.items()}
+        hand_force = jnp.zeros((*jnp.shape(targets)[:-1], 3), jnp.float32) if hand_force is None \
+            else jnp.asarray(hand_force, jnp.float32)
         out = (jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), self.home_state),
                jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, jnp.float32), self.home_frame))
-        return jax.pure_callback(self._host_step, out, state, targets, fields, actuators,
+        return jax.pure_callback(self._host_step, out, state, targets, fields, actuators, hand_force,
                                  vmap_method="broadcast_all")
 
     # host side ---------------------------------------------------------------------------------------------------
-    def _host_step(self, state: CPUState, targets: np.ndarray, fields: dict, actuators: ActuatorArrays):
+    def _host_step(self, state: CPUState, targets: np.ndarray, fields: dict, actuators: ActuatorArrays,
+                   hand_force: np.ndarray):
         lead = np.shape(targets)[:-1]
         n = int(np.prod(lead))
         flat = lambda x: np.reshape(np.asarray(x), (n, *np.shape(x)[len(lead):]))  # noqa: E731
@@ -259,9 +269,10 @@ class CPUPhysics:
         targets = flat(targets).astype(np.float64)
         fields = {k: flat(v).astype(np.float64) for k, v in fields.items()}
         actuators = ActuatorArrays(*(flat(x).astype(np.float64) for x in actuators))
+        hand_force = flat(hand_force).astype(np.float64)
         self._ensure(n)
         chunks = np.array_split(np.arange(n), min(self.threads, n))
-        run = lambda idx: self._step_chunk(idx, state, targets, fields, actuators)  # noqa: E731
+        run = lambda idx: self._step_chunk(idx, state, targets, fields, actuators, hand_force)  # noqa: E731
         results = list(self._pool.map(run, chunks)) if self._pool is not None and len(chunks) > 1 else \
             [run(idx) for idx in chunks]
         join = lambda *xs: np.reshape(np.concatenate(xs), (*lead, *np.shape(xs[0])[1:]))  # noqa: E731
@@ -274,7 +285,7 @@ class CPUPhysics:
             self._datas.append(mujoco.MjData(self.model))
 
     def _step_chunk(self, idx: np.ndarray, state: CPUState, targets: np.ndarray, fields: dict,
-                    actuators: ActuatorArrays) -> tuple[CPUState, Frame]:
+                    actuators: ActuatorArrays, hand_force: np.ndarray) -> tuple[CPUState, Frame]:
         models = [self._models[i] for i in idx]
         datas = [self._datas[i] for i in idx]
         qpos, qvel, warmstart = state.float64(idx)  # the whole chunk at once: numpy calls cost per call
@@ -282,6 +293,8 @@ class CPUPhysics:
             for name in MODEL_FIELDS:
                 getattr(m, name)[:] = fields[name][i] if fields else self._nominal[name]
             d.qpos[:], d.qvel[:], d.qacc_warmstart[:] = qpos[j], qvel[j], warmstart[j]
+            d.xfrc_applied[:] = 0.0
+            d.xfrc_applied[self.addresses.hand_bodies, :3] = hand_force[i]
             d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
         torque = step_actuated(models, datas, self.addresses.motors, targets[idx],
                                MotorDrive(ActuatorArrays(*(x[idx] for x in actuators))), self.n_substeps,

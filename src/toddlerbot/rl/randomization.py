@@ -79,6 +79,16 @@ def upper_body_offsets(key: jax.Array, fraction: float, home: jax.Array, motor_r
     return jnp.where(upper_body, fraction * u * room, 0.0)
 
 
+def hand_force(key: jax.Array, largest: float) -> jax.Array:
+    """(3,) a pull on each hand in the robot's heading frame, N: horizontal part of random direction and length
+    up to ``largest``, vertical part within half of it either way (`RandomizationConfig.hand_force`)."""
+    k_dir, k_len, k_up = jax.random.split(key, 3)
+    angle = jax.random.uniform(k_dir, maxval=2 * jnp.pi)
+    length = jax.random.uniform(k_len, maxval=largest)
+    up = jax.random.uniform(k_up, minval=-0.5 * largest, maxval=0.5 * largest)
+    return jnp.array([length * jnp.cos(angle), length * jnp.sin(angle), up])
+
+
 def model_fields(nominal: dict[str, jax.Array], p: DRParams, floor_geom: int, torso_body: int) -> dict[str, jax.Array]:
     """The env's own physical parameters (`toddlerbot.rl.physics.MODEL_FIELDS`): the nominal model's with this
     draw's floor friction, joint damping/armature/friction loss and link masses/inertias. Both physics backends
