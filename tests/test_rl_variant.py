@@ -12,7 +12,7 @@ jnp = jax.numpy
 from toddlerbot.errors import ToddlerbotError  # noqa: E402
 from toddlerbot.rl.config import RandomizationConfig, smoke_env_config  # noqa: E402
 from toddlerbot.rl.env import WalkEnv  # noqa: E402
-from toddlerbot.rl.randomization import upper_body_offsets  # noqa: E402
+from toddlerbot.rl.randomization import hand_force, upper_body_offsets  # noqa: E402
 from toddlerbot.rl.reference import standing_table, upper_body_mask  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
@@ -24,10 +24,10 @@ def gripper():
     return RobotDescription.load(variant="gripper")
 
 
-def _env(description, fraction=FRACTION, randomize=True, resample_s=5.0):
+def _env(description, fraction=FRACTION, randomize=True, resample_s=5.0, pull=0.0):
     cfg = smoke_env_config()
     cfg = replace(cfg, variant=description.spec.variant, randomize=randomize,
-                  randomization=replace(cfg.randomization, upper_body_pose=fraction),
+                  randomization=replace(cfg.randomization, upper_body_pose=fraction, hand_force=pull),
                   command=replace(cfg.command, resample_s=resample_s))
     return WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.6),
                    gain_scales=(np.ones(description.n_motors), np.zeros((2, description.n_motors))))
@@ -80,23 +80,44 @@ def test_the_variant_env_has_its_motors_and_one_pose_per_env(gripper):
         WalkEnv(smoke_env_config(), gripper)
 
 
+def test_hand_pulls_fill_their_band_and_come_with_each_command(gripper):
+    pulls = np.asarray(jax.vmap(lambda k: hand_force(k, 2.0))(jax.random.split(jax.random.PRNGKey(1), 400)))
+    horizontal = np.linalg.norm(pulls[:, :2], axis=1)
+    assert horizontal.max() <= 2.0 + 1e-6 and horizontal.max() > 1.9 and horizontal.min() < 0.1
+    assert np.abs(pulls[:, 2]).max() <= 1.0 + 1e-6 and pulls[:, 2].min() < -0.9 and pulls[:, 2].max() > 0.9
+    heading = np.arctan2(pulls[:, 1], pulls[:, 0])  # every direction: each quadrant gets about a quarter
+    assert np.all(np.histogram(heading, bins=4, range=(-np.pi, np.pi))[0] > 60)
+    env = _env(gripper, fraction=0.0, pull=2.0)
+    states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 4))
+    drawn = np.asarray(states.info["hand_force"])
+    assert drawn.shape == (4, 3) and len({tuple(p) for p in drawn.round(6)}) == 4
+    assert np.all(np.linalg.norm(drawn[:, :2], axis=1) <= 2.0 + 1e-6)
+    calm = jax.jit(_env(gripper, randomize=False, pull=2.0).reset)(jax.random.PRNGKey(0))
+    assert np.all(np.asarray(calm.info["hand_force"]) == 0.0)  # evaluation: nothing pulls
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="hand_force .*: expected a finite force >= 0 N"):
+            RandomizationConfig(hand_force=bad)
+
+
 @pytest.mark.slow
 def test_the_arms_follow_the_drawn_pose_until_the_next_command(gripper):
-    env = _env(gripper, resample_s=0.4)  # a new command and pose every 20 control steps
+    env = _env(gripper, resample_s=0.4, pull=0.5)  # a new command, pose and pull every 20 control steps
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
     step = jax.jit(env.step)
-    drawn = np.asarray(state.info["upper_body"])
+    drawn, pull = np.asarray(state.info["upper_body"]), np.asarray(state.info["hand_force"])
     arm = np.asarray(gripper.groups["arm"])
     home = np.asarray(gripper.home_motor_pos)
     for _ in range(19):
         state = step(state, jnp.zeros(12))
     np.testing.assert_array_equal(np.asarray(state.info["upper_body"]), drawn)
+    np.testing.assert_array_equal(np.asarray(state.info["hand_force"]), pull)
     reached = np.asarray(state.pipeline_state.qpos)[env.motor_qadr][arm] - home[arm]
     # after 0.38 s every arm motor has covered most of its way to the drawn pose, the robot still up
     assert np.all(np.abs(reached - drawn[arm]) < 0.3 * np.abs(drawn[arm]) + 0.05), (reached, drawn[arm])
     assert not bool(state.done)
     state = step(state, jnp.zeros(12))
     assert not np.array_equal(np.asarray(state.info["upper_body"]), drawn)
+    assert not np.array_equal(np.asarray(state.info["hand_force"]), pull)
 
 
 def test_rl_train_checks_the_variant_options_before_compiling(tmp_path):
@@ -108,7 +129,12 @@ def test_rl_train_checks_the_variant_options_before_compiling(tmp_path):
         new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, variant="nope"))
     with pytest.raises(ToddlerbotError, match=r"--upper-body-pose: upper_body_pose 2\.0"):
         new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, upper_body_pose=2.0))
+    plan = new_run_plan(tmp_path / "pull", TrainRequest(smoke=True, variant="gripper", hand_force=1.5))
+    assert plan.env.randomization.hand_force == 1.5
+    with pytest.raises(ToddlerbotError, match=r"--hand-force: hand_force -1\.0: expected a finite force >= 0 N"):
+        new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, hand_force=-1.0))
     (tmp_path / "old").mkdir()
     (tmp_path / "old" / "config.json").write_text("{}")
-    with pytest.raises(ToddlerbotError, match="--variant/--upper-body-pose: a resumed run keeps"):
-        resume_plan(tmp_path / "old", TrainRequest(variant="gripper"))
+    for request in (TrainRequest(variant="gripper"), TrainRequest(hand_force=1.0)):
+        with pytest.raises(ToddlerbotError, match="--variant/--upper-body-pose/--hand-force: a resumed run keeps"):
+            resume_plan(tmp_path / "old", request)
