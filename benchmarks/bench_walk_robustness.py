@@ -1,12 +1,13 @@
 """Falls of a walking policy per command x perturbation (`toddlerbot.runtime.robustness`).
 
 Ten commands across the policy's reach, each walked for `--seconds` under every condition (nominal, torso 10 %
-heavier, floor friction 0.5, small random perturbations, velocity kicks of 0.1, 0.2 and 0.3 m/s) and `--seeds`
-seeds; prints a table of falls (falls / trials per cell) and the totals per condition. Trials run in `--workers`
+heavier, floor friction 0.5, small random perturbations, velocity kicks of 0.1, 0.2 and 0.3 m/s, the upper body
+held at a random pose 0.3 and 0.5 of the way to its limits) and `--seeds` seeds, on the robot of `--variant`;
+prints a table of falls (falls / trials per cell) and the totals per condition. Trials run in `--workers`
 subprocesses that print one JSON line per trial (nothing is pickled between processes).
 
 Run: PYTHONPATH=src python benchmarks/bench_walk_robustness.py [--policy walk-zmp|walk-rl] [--weights F.npz]
-     [--seeds 3] [--seconds 8] [--workers 2] [--conditions nominal,perturbed]
+     [--variant gripper] [--seeds 3] [--seconds 8] [--workers 2] [--conditions nominal,perturbed,"posed 0.3"]
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ def _jobs(args, names, description):
 
 def worker(args, names) -> None:
     """Run every `--workers`-th trial starting at `--worker` and print each as a JSON line."""
-    description = RobotDescription.load()
+    description = RobotDescription.load(variant=args.variant)
     by_name = {c.name: c for c in conditions()}
     for i, (command, name, seed) in enumerate(_jobs(args, names, description)):
         if i % args.workers != args.worker:
@@ -51,6 +52,7 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--policy", default="walk-zmp")
     parser.add_argument("--weights", default=None)
+    parser.add_argument("--variant", default=None, help="spec variant (e.g. gripper)")
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--seconds", type=float, default=8.0)
@@ -72,8 +74,10 @@ def main() -> None:
     if any(p.wait() != 0 for p in procs):
         sys.exit("a worker failed")
     wall = time.perf_counter() - start
-    commands = list(dict.fromkeys(tuple(c) for c, _, _ in _jobs(args, names, RobotDescription.load())))
-    print(f"{args.policy}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell "
+    description = RobotDescription.load(variant=args.variant)
+    commands = list(dict.fromkeys(tuple(c) for c, _, _ in _jobs(args, names, description)))
+    robot = f"{args.policy} ({description.spec.variant or 'base robot'})"
+    print(f"{robot}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall, {args.workers} workers)")
     width = max(len(n) for n in names) + 2
     print("command (vx, vy, yaw)".ljust(24) + "".join(n.rjust(width) for n in names))

@@ -13,8 +13,9 @@ from toddlerbot.errors import ToddlerbotError  # noqa: E402
 from toddlerbot.rl.config import RandomizationConfig, smoke_env_config  # noqa: E402
 from toddlerbot.rl.env import WalkEnv  # noqa: E402
 from toddlerbot.rl.randomization import hand_force, upper_body_offsets  # noqa: E402
-from toddlerbot.rl.reference import standing_table, upper_body_mask  # noqa: E402
+from toddlerbot.rl.reference import standing_table  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
+from toddlerbot.robot.upper_body import upper_body_mask  # noqa: E402
 
 FRACTION = 0.5
 
@@ -95,7 +96,7 @@ def test_hand_pulls_fill_their_band_and_come_with_each_command(gripper):
     calm = jax.jit(_env(gripper, randomize=False, pull=2.0).reset)(jax.random.PRNGKey(0))
     assert np.all(np.asarray(calm.info["hand_force"]) == 0.0)  # evaluation: nothing pulls
     for bad in (-1.0, float("nan"), float("inf")):
-        with pytest.raises(ValueError, match="hand_force .*: expected a finite force >= 0 N"):
+        with pytest.raises(ValueError, match=r"hand_force .*: expected a finite force >= 0 N"):
             RandomizationConfig(hand_force=bad)
 
 

@@ -33,8 +33,9 @@ from toddlerbot.rl.model import training_model
 from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, critic_obs, push_frame
 from toddlerbot.rl.physics import BACKENDS, MODEL_FIELDS, Addresses, Frame
 from toddlerbot.rl.precision import use_full_precision
-from toddlerbot.rl.reference import leg_motor_indices, load_reference, upper_body_mask
+from toddlerbot.rl.reference import leg_motor_indices, load_reference
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.upper_body import upper_body_mask
 
 TRACKING_METRICS = ("lin_vel_error", "ang_vel_error")
 """Per-step metrics besides the reward terms: |achieved - commanded| horizontal velocity (m/s, yaw frame) and

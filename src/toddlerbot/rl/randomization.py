@@ -15,6 +15,7 @@ import jax.numpy as jnp
 
 from toddlerbot.actuation.model import ActuatorArrays
 from toddlerbot.rl.config import RandomizationConfig
+from toddlerbot.robot import upper_body
 
 
 class DRParams(NamedTuple):
@@ -69,14 +70,12 @@ def sample(key: jax.Array, cfg: RandomizationConfig, nv: int, nbody: int, n_moto
 
 
 def upper_body_offsets(key: jax.Array, fraction: float, home: jax.Array, motor_range: jax.Array,
-                       upper_body: jax.Array) -> jax.Array:
-    """(n_motors,) offsets from home of an upper-body pose: each motor flagged in ``upper_body`` drawn uniformly
-    between home and ``fraction`` of the way to its lower or upper limit (motors without a finite limit, and all
-    others, stay at home)."""
+                       upper_body_mask: jax.Array) -> jax.Array:
+    """(n_motors,) offsets from home of an upper-body pose: each motor flagged in ``upper_body_mask`` drawn
+    uniformly between home and ``fraction`` of the way to its lower or upper limit
+    (`toddlerbot.robot.upper_body.upper_body_offsets`)."""
     u = jax.random.uniform(key, home.shape, minval=-1.0, maxval=1.0)
-    room = jnp.where(u > 0, motor_range[:, 1] - home, home - motor_range[:, 0])
-    room = jnp.where(jnp.isfinite(room), room, 0.0)
-    return jnp.where(upper_body, fraction * u * room, 0.0)
+    return upper_body.upper_body_offsets(u, fraction, home, motor_range, upper_body_mask, xp=jnp)
 
 
 def hand_force(key: jax.Array, largest: float) -> jax.Array:

@@ -49,19 +49,6 @@ def leg_motor_indices(description: RobotDescription) -> np.ndarray:
     return np.asarray(description.groups[LEG_GROUP])
 
 
-UPPER_BODY_GROUPS = ("arm", "gripper", "neck")
-"""Motor groups whose pose a walking policy must tolerate (`RandomizationConfig.upper_body_pose`); the waist
-moves the torso itself and stays at home."""
-
-
-def upper_body_mask(description: RobotDescription) -> np.ndarray:
-    """(n_motors,) True for the robot's arm, gripper and neck motors."""
-    mask = np.zeros(description.n_motors, dtype=bool)
-    for group in UPPER_BODY_GROUPS:
-        mask[list(description.groups.get(group, ()))] = True
-    return mask
-
-
 def standing_table(description: RobotDescription, cfg: CommandConfig, period: float,
                    n_phase: int = 30) -> GaitReference:
     """A reference that stands in the home pose with both feet down for every command (tests use it: it needs

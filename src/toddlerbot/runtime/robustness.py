@@ -14,8 +14,10 @@ import numpy as np
 
 from toddlerbot.locomotion.config import CommandReach
 from toddlerbot.policies.base import Policy
+from toddlerbot.policies.held_upper_body import HeldUpperBody
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.upper_body import random_upper_body_pose
 from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.sim.perturbation import Perturbation, perturbed_robot
@@ -64,16 +66,19 @@ class KickSchedule(RunObserver):
 
 @dataclass(frozen=True)
 class Condition:
-    """A named way of perturbing the trials: one perturbation per seed."""
+    """A named way of perturbing the trials: one perturbation per seed, and the upper body held at a pose drawn
+    from the seed (up to ``upper_body_pose`` of the way to the motors' limits; 0: the policy's own targets)."""
 
     name: str
     perturb: Callable[[RobotDescription, int], Perturbation]
+    upper_body_pose: float = 0.0
 
 
-def conditions(kicks: tuple[float, ...] = (0.1, 0.2, 0.3)) -> list[Condition]:
+def conditions(kicks: tuple[float, ...] = (0.1, 0.2, 0.3), poses: tuple[float, ...] = (0.3, 0.5)) -> list[Condition]:
     """The benchmark's conditions: nominal, torso 10 % heavier, floor friction 0.5, small random perturbations
     (`Perturbation.sample`: joint offsets 0.01 rad, torso mass +-10 %, friction 0.5-1.0, motor parameters
-    +-10 %) and each kick speed on the nominal robot (directions from the seed)."""
+    +-10 %), each kick speed on the nominal robot (directions from the seed) and each upper-body pose fraction
+    (arms, grippers and neck held from the start at a pose drawn from the seed)."""
     out = [
         Condition("nominal", lambda d, s: Perturbation(seed=s)),
         Condition("torso +10%", lambda d, s: Perturbation(seed=s, torso_mass_scale=1.1)),
@@ -81,6 +86,7 @@ def conditions(kicks: tuple[float, ...] = (0.1, 0.2, 0.3)) -> list[Condition]:
         Condition("perturbed", lambda d, s: Perturbation.sample(s, d)),
     ]
     out += [Condition(f"kicks {v:g} m/s", lambda d, s, v=v: Perturbation(seed=s, kick_speed=v)) for v in kicks]
+    out += [Condition(f"posed {f:g}", lambda d, s: Perturbation(seed=s), upper_body_pose=f) for f in poses]
     return out
 
 
@@ -104,7 +110,11 @@ def run_trial(description: RobotDescription, make_policy: PolicyFactory, command
     """Walk ``command`` for ``seconds`` on the robot perturbed by ``condition`` at ``seed``."""
     perturbation = condition.perturb(description, seed)
     robot = perturbed_robot(description, perturbation)
-    result = run_policy(robot, make_policy(robot), lambda t: np.asarray(command), seconds,
+    policy = make_policy(robot)
+    if condition.upper_body_pose > 0:
+        pose = random_upper_body_pose(description, condition.upper_body_pose, np.random.default_rng([seed, 2]))
+        policy = HeldUpperBody(policy, pose)
+    result = run_policy(robot, policy, lambda t: np.asarray(command), seconds,
                         observers=[KickSchedule(robot, perturbation)])
     moved = robot.base_pos - result.log.base_pos[0]
     return Trial(tuple(command), condition.name, seed, result.fall_time, (float(moved[0]), float(moved[1])))
