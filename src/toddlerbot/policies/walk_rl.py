@@ -1,4 +1,9 @@
-"""`walk-rl`: an exported RL walking policy run with numpy at the control rate (simulation or real robot)."""
+"""`walk-rl`: an exported RL walking policy run with numpy at the control rate (simulation or real robot).
+
+Around the policy, a heading hold (`HeadingHold`, as walk-zmp's): the commanded yaw rate is integrated into a
+desired heading, and the yaw rate given to the policy is corrected by the IMU heading's error against it. The
+policies learn the yaw rate only roughly (the instantaneous yaw-rate error in training stays near 0.5 rad/s), and
+with no yaw commanded some turn steadily while walking (docs/rl.md, "Heading hold")."""
 
 from __future__ import annotations
 
@@ -10,6 +15,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.locomotion.config import CommandReach
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.policies.rl_inference import RLController, RLPolicyFile
+from toddlerbot.policies.walk_feedback import HeadingHold, attitude
 from toddlerbot.robot.interface import Observation, Robot
 
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights"
@@ -31,6 +37,12 @@ def resolve_weights(weights: str | Path) -> Path:
         return path
     shipped = SHIPPED_WEIGHTS / (path.name if path.suffix else f"{path.name}.npz")
     return shipped if shipped.is_file() else path
+
+
+HEADING_GAIN = 0.5
+"""rad/s of yaw-rate command per rad of heading error."""
+HEADING_INTEGRAL_GAIN = 0.1
+"""rad/s of yaw-rate command per rad*s of integrated heading error (removes a steady turn)."""
 
 
 class WalkRLPolicy(Policy):
@@ -60,13 +72,21 @@ class WalkRLPolicy(Policy):
         if low is not None and high is not None:
             self.command_reach = CommandReach(tuple(low), tuple(high))
         self._t0 = 0.0
+        self.heading = HeadingHold(last_yaw=0.0)
 
     def reset(self, obs: Observation) -> None:
         self.controller.reset()
         self._t0 = obs.time
+        self.heading = HeadingHold(last_yaw=attitude(obs.imu_quat)[2])
 
     def act(self, obs: Observation, command: np.ndarray) -> Action:
-        targets, kp_scale = self.controller.step(obs.time - self._t0, self.within_reach(command), obs.motor_pos,
+        command = self.within_reach(command)
+        self.heading.measure(attitude(obs.imu_quat)[2], self.control_dt)
+        held = command + np.array([0.0, 0.0, self.heading.correction(HEADING_GAIN, HEADING_INTEGRAL_GAIN)])
+        if self.command_reach is not None:
+            held = self.command_reach.clamp(held)
+        self.heading.advance(command[2], self.control_dt)
+        targets, kp_scale = self.controller.step(obs.time - self._t0, held, obs.motor_pos,
                                                  obs.motor_vel, obs.imu_ang_vel, obs.imu_quat)
         kp = None if kp_scale is None else self.robot.default_kp * kp_scale
         return Action(motor_targets=targets, joint_targets=self.transmission.motor_to_joint(targets), kp=kp)
