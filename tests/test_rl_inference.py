@@ -184,6 +184,7 @@ def test_a_variant_policy_drives_only_its_variant(tmp_path, monkeypatch):
     assert WalkRLPolicy(gripper).command_reach is not None
     meta = RLPolicyFile(default_weights("gripper")).meta
     assert meta["variant"] == "gripper" and meta["upper_body_pose"] == 0.3 and meta["backend"] == "cpu"
+    assert meta["hand_force"] == 1.5 and meta["walltime_s"] <= 7200  # the CPU recipe within two hours
     # where none ships, the error names the command that trains one
     monkeypatch.setattr(walk_rl, "SHIPPED_WEIGHTS", tmp_path / "none")
     with pytest.raises(ToddlerbotError, match=r"no walk-rl policy ships for the gripper variant.*--variant gripper"):
@@ -217,8 +218,8 @@ def test_the_heading_hold_steers_the_policy_back_to_its_heading(tmp_path):
 
 @pytest.mark.slow
 def test_the_gripper_policy_walks_straight_with_the_heading_hold():
-    """Without the hold the shipped gripper policy turned 2.3 rad while walking 8 s at 0.1 m/s (a policy of the same
-    recipe; docs/rl.md "Heading hold"); with it the heading stays within 0.4 rad."""
+    """Without the hold a checkpoint of the shipped gripper policy's run turned 2.3 rad while walking 8 s at
+    0.1 m/s (docs/rl.md "Heading hold"); with it the heading stays within 0.4 rad."""
     from toddlerbot.policies.walk_rl import WalkRLPolicy
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.runtime.runner import run_policy
