@@ -6,6 +6,7 @@ import pytest
 
 from toddlerbot.policies.held_upper_body import HeldUpperBody
 from toddlerbot.policies.stand import StandPolicy
+from toddlerbot.policies.walk_rl import WalkRLPolicy
 from toddlerbot.policies.walk_zmp import WalkZMPPolicy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.upper_body import random_upper_body_pose, upper_body_mask
@@ -53,11 +54,13 @@ def test_the_held_policy_replaces_only_the_upper_body_targets(gripper):
 
 
 @pytest.mark.slow
-def test_walk_zmp_walks_with_the_arms_held_at_random_poses(gripper):
-    """Two commands x two seeds, 4 s, the upper body held 0.3 of the way to its limits from the start; the full
-    table (both fractions, the whole reach) is `benchmarks/bench_walk_robustness.py --variant gripper`."""
+@pytest.mark.parametrize("policy", [WalkZMPPolicy, WalkRLPolicy], ids=["walk-zmp", "walk-rl"])
+def test_walking_policies_walk_with_the_arms_held_at_random_poses(gripper, policy):
+    """Two commands x two seeds, 4 s, the upper body held 0.3 of the way to its limits from the start (walk-rl: the
+    gripper variant's shipped policy, trained with such poses); the full table (both fractions, the whole reach,
+    9 seeds: walk-zmp 3/90 falls, walk-rl 4/90) is `benchmarks/bench_walk_robustness.py --variant gripper`."""
     posed = next(c for c in conditions() if c.name == "posed 0.3")
-    trials = [run_trial(gripper, WalkZMPPolicy, command, posed, seed, 4.0)
+    trials = [run_trial(gripper, policy, command, posed, seed, 4.0)
               for command in ((0.075, 0.0, 0.0), (0.0, 0.0, 0.4)) for seed in (0, 1)]
     assert [(t.command, t.seed, t.fall_time) for t in trials if t.fell] == []
     assert trials[0].displacement[0] > 0.15 and trials[1].displacement[0] > 0.15  # 0.3 m planned
