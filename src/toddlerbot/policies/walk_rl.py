@@ -72,7 +72,6 @@ class WalkRLPolicy(Policy):
         if low is not None and high is not None:
             self.command_reach = CommandReach(tuple(low), tuple(high))
         self._t0 = 0.0
-        self.heading = HeadingHold(last_yaw=0.0)
 
     def reset(self, obs: Observation) -> None:
         self.controller.reset()

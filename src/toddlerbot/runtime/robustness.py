@@ -79,14 +79,17 @@ def conditions(kicks: tuple[float, ...] = (0.1, 0.2, 0.3), poses: tuple[float, .
     (`Perturbation.sample`: joint offsets 0.01 rad, torso mass +-10 %, friction 0.5-1.0, motor parameters
     +-10 %), each kick speed on the nominal robot (directions from the seed) and each upper-body pose fraction
     (arms, grippers and neck held from the start at a pose drawn from the seed)."""
+    def nominal(description: RobotDescription, seed: int) -> Perturbation:
+        return Perturbation(seed=seed)
+
     out = [
-        Condition("nominal", lambda d, s: Perturbation(seed=s)),
+        Condition("nominal", nominal),
         Condition("torso +10%", lambda d, s: Perturbation(seed=s, torso_mass_scale=1.1)),
         Condition("friction 0.5", lambda d, s: Perturbation(seed=s, friction=0.5)),
         Condition("perturbed", lambda d, s: Perturbation.sample(s, d)),
     ]
     out += [Condition(f"kicks {v:g} m/s", lambda d, s, v=v: Perturbation(seed=s, kick_speed=v)) for v in kicks]
-    out += [Condition(f"posed {f:g}", lambda d, s: Perturbation(seed=s), upper_body_pose=f) for f in poses]
+    out += [Condition(f"posed {f:g}", nominal, upper_body_pose=f) for f in poses]  # the nominal robot, posed
     return out
 
 
