@@ -8,7 +8,7 @@
                                                             #   on the default and held-out schedules (only)
     PYTHONPATH=src python benchmarks/bench_rl.py --curves recipe=runs/rl/cpu_walk ...   # learning curves (only)
     PYTHONPATH=src python benchmarks/bench_rl.py --solver-cpu   # + each model setting in CPU MuJoCo (float64)
-    PYTHONPATH=src python benchmarks/bench_rl.py --settings # + 10 s stand, constraint residual, steps/s per
+    PYTHONPATH=src python benchmarks/bench_rl.py --settings [I ...] # + 10 s stand, constraint residual, steps/s per
                                                             #   training-model setting (a GPU run: add
                                                             #   --stand-envs 4096)
 """
@@ -279,8 +279,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20)
     parser.add_argument("--solver-cpu", action="store_true",
                         help="each setting's model in CPU MuJoCo (float64): stable?, residual (seconds, no JAX)")
-    parser.add_argument("--settings", action="store_true",
-                        help="stand check, constraint residuals and env steps/s for each training-model setting")
+    parser.add_argument("--settings", type=int, nargs="*", default=None, metavar="INDEX",
+                        help="stand check, constraint residuals and env steps/s for each training-model setting "
+                             "(or only those at these indices of SETTINGS, in this order)")
     parser.add_argument("--tracking", nargs="*", default=None, metavar="POLICY",
                         help="Table 7 errors on the default and held-out schedules (default policies: walk-rl)")
     parser.add_argument("--weights", default=None, help="walk-rl's exported .npz (default: the shipped one)")
@@ -291,7 +292,7 @@ def main() -> None:
     parser.add_argument("--stand-envs", type=int, default=8)
     parser.add_argument("--stand-seconds", type=float, default=10.0)
     args = parser.parse_args()
-    if args.env or args.settings:
+    if args.env or args.settings is not None:
         from toddlerbot.rl.precision import use_full_precision
 
         use_full_precision()  # as training does, before anything compiles
@@ -307,8 +308,9 @@ def main() -> None:
         bench_env(tuple(args.mjx_batches), tuple(args.cpu_batches), args.steps)
     if args.solver_cpu:
         bench_solver_cpu(args.stand_seconds)
-    if args.settings:
-        bench_settings(args.stand_envs, args.stand_seconds)
+    if args.settings is not None:
+        chosen = tuple(SETTINGS[i] for i in args.settings) if args.settings else SETTINGS
+        bench_settings(args.stand_envs, args.stand_seconds, chosen)
 
 
 if __name__ == "__main__":
