@@ -63,6 +63,9 @@ UpperBodyPoseOption = Annotated[float | None, typer.Option(
 HandForceOption = Annotated[float | None, typer.Option(
     help="Pull the hands (a wagon's handle, a carried load): with every command a force of up to this many "
          "newtons in a random horizontal direction, and up to half of it up or down (default 0: none).")]
+PushVelocityOption = Annotated[tuple[float, float] | None, typer.Option(
+    help="Pushes in training: each kick's speed uniform between these two m/s (default 0 0.3); a band near the "
+         "largest trains recovery from the kicks of the robustness benchmark.")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
@@ -87,6 +90,7 @@ def train(
     variant: VariantOption = None,
     upper_body_pose: UpperBodyPoseOption = None,
     hand_force: HandForceOption = None,
+    push_velocity: PushVelocityOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -102,7 +106,7 @@ def train(
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
-                           hand_force)
+                           hand_force, push_velocity)
     plan = _plan(out, resume, request)
     console.print(f"run directory: {plan.run_dir}")
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))

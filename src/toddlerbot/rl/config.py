@@ -101,6 +101,9 @@ class RandomizationConfig:
     push_interval_s: tuple[float, float] = (2.0, 5.0)
     push_velocity: float = 0.3
     """m/s; largest horizontal velocity kick of a push."""
+    push_velocity_min: float = 0.0
+    """m/s; smallest kick of a push: each push's speed is uniform between this and `push_velocity`, so a band
+    near the largest trains recovery from the pushes a robustness test gives (0: uniform from nothing)."""
     upper_body_pose: float = 0.0
     """Upper-body poses (arms, grippers, neck): at every reset and command resample each such motor's target is
     drawn uniformly between home and this fraction of the way to either joint limit (0: held at home), so the
@@ -114,6 +117,9 @@ class RandomizationConfig:
     def __post_init__(self) -> None:
         if not 0.0 <= self.upper_body_pose <= 1.0:
             raise ValueError(f"upper_body_pose {self.upper_body_pose}: expected a fraction of the range in [0, 1]")
+        if not 0.0 <= self.push_velocity_min <= self.push_velocity < float("inf"):
+            raise ValueError(f"push velocities {self.push_velocity_min}..{self.push_velocity}: expected "
+                             f"0 <= smallest <= largest, finite, m/s")
         if not 0.0 <= self.hand_force < float("inf"):
             raise ValueError(f"hand_force {self.hand_force}: expected a finite force >= 0 N")
 

@@ -284,7 +284,8 @@ class WalkEnv(Env):
         k_dir, k_mag, k_next = jax.random.split(key, 3)
         due = (info["push_timer"] <= 0) & self.cfg.randomize
         angle = jax.random.uniform(k_dir, maxval=2 * jnp.pi)
-        speed = jax.random.uniform(k_mag, maxval=self.cfg.randomization.push_velocity)
+        band = self.cfg.randomization
+        speed = jax.random.uniform(k_mag, minval=band.push_velocity_min, maxval=band.push_velocity)
         kick = jnp.where(due, speed, 0.0) * jnp.array([jnp.cos(angle), jnp.sin(angle)])
         info["push"] = kick
         info["push_timer"] = jnp.where(due, self._push_interval(k_next), info["push_timer"] - self.cfg.ctrl_dt)

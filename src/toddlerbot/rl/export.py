@@ -107,6 +107,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "imitation_iterations": len(warm), "policy_hidden": list(ppo_cfg.policy_hidden),
             "num_envs": ppo_cfg.num_envs, "upper_body_pose": env_cfg.randomization.upper_body_pose,
             "hand_force": env_cfg.randomization.hand_force,
+            "push_velocity": [env_cfg.randomization.push_velocity_min, env_cfg.randomization.push_velocity],
             "motor_params": json.loads(record.read_text()) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None

@@ -36,6 +36,7 @@ class TrainRequest:
     variant: str | None = None
     upper_body_pose: float | None = None
     hand_force: float | None = None
+    push_velocity: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -59,10 +60,11 @@ def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if request.motor_params or request.solver_iterations is not None or request.ls_iterations is not None \
             or request.backend != "auto" or request.imitation_iterations is not None or request.warm_start is not None \
-            or request.variant is not None or request.upper_body_pose is not None or request.hand_force is not None:
+            or request.variant is not None or request.upper_body_pose is not None or request.hand_force is not None \
+            or request.push_velocity is not None:
         raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/--imitation-iterations/"
-                              "--warm-start/--variant/--upper-body-pose/--hand-force: a resumed run keeps the "
-                              "settings it started with")
+                              "--warm-start/--push-velocity/--variant/--upper-body-pose/--hand-force: a resumed run "
+                              "keeps the settings it started with")
     return TrainPlan(run_dir, resume=True)
 
 
@@ -122,8 +124,8 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
 
 
 def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
-    """The request's spec variant (checked against the spec now), upper-body pose and hand pull randomisation
-    (the pull also on top of a warm start's environment: it changes only what PPO trains with)."""
+    """The request's spec variant (checked against the spec now), upper-body pose, hand pull and push randomisation
+    (the pull and the pushes also on top of a warm start's environment: they change only what PPO trains with)."""
     if request.variant is not None:
         from toddlerbot.robot.description import RobotDescription
 
@@ -140,6 +142,13 @@ def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.E
             env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization, hand_force=request.hand_force))
         except ValueError as exc:
             raise ToddlerbotError(f"--hand-force: {exc}") from exc
+    if request.push_velocity is not None:
+        smallest, largest = request.push_velocity
+        try:
+            env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization, push_velocity_min=smallest,
+                                                             push_velocity=largest))
+        except ValueError as exc:
+            raise ToddlerbotError(f"--push-velocity: {exc}") from exc
     return env_cfg
 
 

@@ -1,0 +1,71 @@
+"""Pushes in training: each kick's speed is drawn from a band (`push_velocity_min`..`push_velocity`), set by
+`rl train --push-velocity LO HI`."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("mujoco.mjx")
+jnp = jax.numpy
+
+from toddlerbot.errors import ToddlerbotError  # noqa: E402
+from toddlerbot.rl.config import RandomizationConfig, smoke_env_config  # noqa: E402
+from toddlerbot.rl.env import WalkEnv  # noqa: E402
+from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.robot.description import RobotDescription  # noqa: E402
+
+
+def _kicks(band: tuple[float, float], randomize: bool = True, n: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    """(kicks (n, 2) m/s, torso velocity change (n, 2) m/s) of a due push for n keys."""
+    description = RobotDescription.load()
+    cfg = smoke_env_config()
+    cfg = replace(cfg, randomize=randomize, randomization=replace(
+        cfg.randomization, push_velocity_min=band[0], push_velocity=band[1]))
+    env = WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.6),
+                  gain_scales=(np.ones(description.n_motors), np.zeros((2, description.n_motors))))
+    state = env.reset(jax.random.PRNGKey(0))
+    info = dict(state.info, push_timer=jnp.zeros(()))
+
+    def kick(key):
+        data, pushed = env._push(state.pipeline_state, dict(info), key)
+        return pushed["push"], data.qvel[:2] - state.pipeline_state.qvel[:2]
+
+    return tuple(np.asarray(a) for a in jax.vmap(kick)(jax.random.split(jax.random.PRNGKey(1), n)))
+
+
+def test_push_speeds_fill_the_band_in_every_direction_and_move_the_torso_by_them():
+    kicks, moved = _kicks((0.2, 0.35))
+    speed = np.linalg.norm(kicks, axis=1)
+    assert speed.min() >= 0.2 - 1e-6 and speed.max() <= 0.35 + 1e-6
+    assert speed.min() < 0.21 and speed.max() > 0.34  # 300 draws reach both ends of the band
+    angle = np.arctan2(kicks[:, 1], kicks[:, 0])
+    assert np.histogram(angle, bins=4, range=(-np.pi, np.pi))[0].min() > 50  # every quadrant
+    np.testing.assert_allclose(moved, kicks, atol=1e-6)
+
+
+def test_no_push_without_randomisation_and_the_default_band_starts_at_zero():
+    kicks, moved = _kicks((0.2, 0.35), randomize=False, n=8)
+    assert np.all(kicks == 0.0) and np.all(moved == 0.0)
+    default = RandomizationConfig()
+    assert (default.push_velocity_min, default.push_velocity) == (0.0, 0.3)
+
+
+@pytest.mark.parametrize("band", [(0.4, 0.3), (-0.1, 0.3), (0.1, float("inf"))])
+def test_a_bad_band_is_refused_naming_it(band):
+    with pytest.raises(ValueError, match=r"push velocities .*: expected 0 <= smallest <= largest, finite, m/s"):
+        RandomizationConfig(push_velocity_min=band[0], push_velocity=band[1])
+
+
+def test_rl_train_sets_the_band_and_a_resumed_run_refuses_it(tmp_path):
+    from toddlerbot.rl.launch import TrainRequest, new_run_plan, resume_plan
+
+    plan = new_run_plan(tmp_path / "run", TrainRequest(smoke=True, push_velocity=(0.15, 0.35)))
+    assert (plan.env.randomization.push_velocity_min, plan.env.randomization.push_velocity) == (0.15, 0.35)
+    with pytest.raises(ToddlerbotError, match=r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"):
+        new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, push_velocity=(0.5, 0.3)))
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "config.json").write_text("{}")
+    with pytest.raises(ToddlerbotError, match=r"--push-velocity/.*: a resumed run keeps"):
+        resume_plan(tmp_path / "old", TrainRequest(push_velocity=(0.1, 0.3)))
