@@ -69,3 +69,24 @@ def test_rl_train_sets_the_band_and_a_resumed_run_refuses_it(tmp_path):
     (tmp_path / "old" / "config.json").write_text("{}")
     with pytest.raises(ToddlerbotError, match=r"--push-velocity/.*: a resumed run keeps"):
         resume_plan(tmp_path / "old", TrainRequest(push_velocity=(0.1, 0.3)))
+
+
+def test_the_shipped_push_policy_is_the_cpu_recipe_with_the_band_and_survives_0p2_mps_kicks():
+    """`walk_rl_push.npz` (docs/rl.md "Pushes near the largest"): 2 falls in 30 trials of 0.2 m/s kicks in the
+    benchmark, the default policy 8. Six trials here, at most two falls: a rate with margin, not one trajectory."""
+    from toddlerbot.policies import make_policy
+    from toddlerbot.policies.rl_inference import RLPolicyFile
+    from toddlerbot.policies.walk_rl import resolve_weights
+    from toddlerbot.runtime.robustness import conditions, reach_commands, run_trial
+    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+    path = resolve_weights("walk_rl_push")
+    meta = RLPolicyFile(path).meta
+    assert meta["push_velocity"] == [0.15, 0.35] and meta["backend"] == "cpu"
+    assert meta["device"].startswith("CPU") and meta["walltime_s"] <= 7200  # the CPU recipe within two hours
+    description = RobotDescription.load()
+    kicks = {c.name: c for c in conditions()}["kicks 0.2 m/s"]
+    reach = make_policy("walk-rl", MuJoCoRobot(description), weights=path).command_reach
+    trials = [run_trial(description, lambda robot: make_policy("walk-rl", robot, weights=path), command, kicks,
+                        seed, 8.0) for command in reach_commands(reach)[:3] for seed in (0, 1)]
+    assert sum(t.fell for t in trials) <= 2, [(t.command, t.seed, t.fall_time) for t in trials]
