@@ -34,7 +34,11 @@ def test_drive_equals_the_actuator_model_bit_for_bit(description, model):
     for seed, scale in enumerate([0.01, 1.0, 30.0]):  # within the limits, some motors saturated, all saturated
         targets, q, q_dot = _states(n, 64, seed)
         expected = motor_torque(targets * scale, q * scale, q_dot, params)
-        np.testing.assert_array_equal(drive.torque(targets * scale, q * scale, q_dot), expected)
+        actual = drive.torque(targets * scale, q * scale, q_dot)
+        if model == "dc_motor":  # pow: numpy's vector form (AVX-512) and the C library's may differ in the last bit
+            np.testing.assert_allclose(actual, expected, rtol=1e-14, atol=1e-14)  # (4 ulp seen)
+        else:  # no transcendental function: the same operations, the same bits
+            np.testing.assert_array_equal(actual, expected)
     assert drive.has_friction_excess == (model == "dc_motor")
 
 
