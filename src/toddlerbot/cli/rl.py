@@ -64,8 +64,8 @@ HandForceOption = Annotated[float | None, typer.Option(
     help="Pull the hands (a wagon's handle, a carried load): with every command a force of up to this many "
          "newtons in a random horizontal direction, and up to half of it up or down (default 0: none).")]
 PushVelocityOption = Annotated[tuple[float, float] | None, typer.Option(
-    help="Pushes in training: each kick's speed uniform between these two m/s (default 0 0.3); a band near the "
-         "largest trains recovery from the kicks of the robustness benchmark.")]
+    help="Pushes in training: each kick's speed uniform between these two m/s (default: from 0 to the recipe's "
+         "largest push); a band near the largest trains recovery from the kicks of the robustness benchmark.")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]

@@ -124,31 +124,25 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
 
 
 def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
-    """The request's spec variant (checked against the spec now), upper-body pose, hand pull and push randomisation
-    (the pull and the pushes also on top of a warm start's environment: they change only what PPO trains with)."""
+    """The request's spec variant (checked against the spec now) and its randomisation overrides: upper-body pose,
+    hand pull and push band (the pull and the pushes also on top of a warm start's environment: they change only
+    what PPO trains with)."""
     if request.variant is not None:
         from toddlerbot.robot.description import RobotDescription
 
         RobotDescription.load(variant=request.variant)  # an unknown variant fails here, naming the known ones
         env_cfg = replace(env_cfg, variant=request.variant)
-    if request.upper_body_pose is not None:
+    smallest, largest = request.push_velocity or (None, None)
+    overrides = {"--upper-body-pose": {"upper_body_pose": request.upper_body_pose},
+                 "--hand-force": {"hand_force": request.hand_force},
+                 "--push-velocity": {"push_velocity_min": smallest, "push_velocity": largest}}
+    for option, fields in overrides.items():
+        if any(value is None for value in fields.values()):
+            continue
         try:
-            env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization,
-                                                             upper_body_pose=request.upper_body_pose))
+            env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization, **fields))
         except ValueError as exc:
-            raise ToddlerbotError(f"--upper-body-pose: {exc}") from exc
-    if request.hand_force is not None:
-        try:
-            env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization, hand_force=request.hand_force))
-        except ValueError as exc:
-            raise ToddlerbotError(f"--hand-force: {exc}") from exc
-    if request.push_velocity is not None:
-        smallest, largest = request.push_velocity
-        try:
-            env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization, push_velocity_min=smallest,
-                                                             push_velocity=largest))
-        except ValueError as exc:
-            raise ToddlerbotError(f"--push-velocity: {exc}") from exc
+            raise ToddlerbotError(f"{option}: {exc}") from exc
     return env_cfg
 
 
