@@ -58,17 +58,71 @@ def test_a_bad_band_is_refused_naming_it(band):
         RandomizationConfig(push_velocity_min=band[0], push_velocity=band[1])
 
 
-def test_rl_train_sets_the_band_and_a_resumed_run_refuses_it(tmp_path):
-    from toddlerbot.rl.launch import TrainRequest, new_run_plan, resume_plan
+def test_rl_train_sets_the_band_and_refuses_a_bad_one_in_one_line(tmp_path):
+    from toddlerbot.rl.launch import TrainRequest, new_run_plan
 
     plan = new_run_plan(tmp_path / "run", TrainRequest(smoke=True, push_velocity=(0.15, 0.35)))
     assert (plan.env.randomization.push_velocity_min, plan.env.randomization.push_velocity) == (0.15, 0.35)
     with pytest.raises(ToddlerbotError, match=r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"):
         new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, push_velocity=(0.5, 0.3)))
-    (tmp_path / "old").mkdir()
-    (tmp_path / "old" / "config.json").write_text("{}")
-    with pytest.raises(ToddlerbotError, match=r"--push-velocity/.*: a resumed run keeps"):
-        resume_plan(tmp_path / "old", TrainRequest(push_velocity=(0.1, 0.3)))
+
+
+def _run_at(tmp_path, steps: int):
+    """A run directory whose config is a smoke run's with pushes of 0.15-0.35 m/s and whose last checkpoint is at
+    ``steps`` PPO env steps (checkpoint files empty: only their names are read here)."""
+    from toddlerbot.rl import config, train
+    from toddlerbot.rl.launch import TrainRequest, new_run_plan
+
+    run = tmp_path / "run"
+    plan = new_run_plan(run, TrainRequest(smoke=True, push_velocity=(0.15, 0.35)))
+    run.mkdir(exist_ok=True)
+    train.save_config(run, plan.env, replace(plan.ppo, num_timesteps=1000), config.SMOKE_IMITATION)
+    (run / "checkpoints").mkdir()
+    for n in (steps // 2, steps):
+        (run / "checkpoints" / f"step_{n:012d}.msgpack").touch()
+    return run
+
+
+def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_recorded_stage(tmp_path):
+    from toddlerbot.rl import train
+    from toddlerbot.rl.launch import TrainRequest, resume_plan
+
+    run = _run_at(tmp_path, 400)
+    assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35], "num_timesteps": 1000}]
+    plan = resume_plan(run, TrainRequest(push_velocity=(0.25, 0.4), timesteps=2000))
+    assert plan.resume and plan.env is None  # the run reads its (new) configuration itself
+    env_cfg, ppo_cfg = train.load_config(run)
+    assert (env_cfg.randomization.push_velocity_min, env_cfg.randomization.push_velocity) == (0.25, 0.4)
+    assert ppo_cfg.num_timesteps == 2000
+    stages = train.training_stages(run)
+    assert [(s["from_env_steps"], s["push_velocity"], s["num_timesteps"]) for s in stages] == [
+        (0, [0.15, 0.35], 1000), (400, [0.25, 0.4], 2000)]
+    # which bands trained a checkpoint: the one at the boundary had seen only the first
+    assert [s["from_env_steps"] for s in train.stages_until(stages, 400)] == [0]
+    assert [s["from_env_steps"] for s in train.stages_until(stages, 440)] == [0, 400]
+    # a resume without options keeps the stages; one from the same checkpoint replaces the stage it starts
+    resume_plan(run, TrainRequest())
+    assert train.training_stages(run) == stages
+    resume_plan(run, TrainRequest(push_velocity=(0.3, 0.3)))
+    assert [(s["from_env_steps"], s["push_velocity"]) for s in train.training_stages(run)] == [
+        (0, [0.15, 0.35]), (400, [0.3, 0.3])]
+
+
+@pytest.mark.parametrize(("request_fields", "message"), [
+    ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
+    ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),
+    ({"hand_force": 1.0}, r"--hand-force/--num-envs: a resumed run keeps the settings it started with"),
+    ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity and --timesteps"),
+])
+def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_was(tmp_path, request_fields,
+                                                                                     message):
+    from toddlerbot.rl.launch import TrainRequest, resume_plan
+
+    run = _run_at(tmp_path, 400)
+    before = (run / "config.json").read_text()
+    with pytest.raises(ToddlerbotError, match=message):
+        resume_plan(run, TrainRequest(**request_fields))
+    assert (run / "config.json").read_text() == before
 
 
 def test_the_shipped_push_policy_is_the_cpu_recipe_with_the_band_and_survives_0p2_mps_kicks():

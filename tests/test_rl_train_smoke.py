@@ -52,7 +52,9 @@ def smoke_run(tmp_path_factory):
     ckpt1 = train.checkpoint_paths(run)
     description = RobotDescription.load()
     first, _ = export.restore_checkpoint(ckpt1[-1], *train.load_config(run), description)
-    _cli("rl", "train", "--resume", str(run), "--wandb", cache=root / "xla")
+    # --timesteps: the same budget, so the same compiled program; it records the resume as the run's next stage
+    _cli("rl", "train", "--resume", str(run), "--wandb", "--timesteps", str(config.SMOKE.num_timesteps),
+         cache=root / "xla")
     final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], *train.load_config(run),
                                                description)
     return run, first, ckpt1, final, history
@@ -124,6 +126,11 @@ def test_export_of_the_smoke_run_matches_jax_policy(smoke_run, tmp_path):
     assert policy.meta["device"].startswith("CPU") and policy.meta["walltime_s"] > 0
     assert policy.obs_config == env_cfg.obs
     assert policy.reference is not None and policy.gain_scales is not None  # residual, walk-zmp's gains
+    band = [env_cfg.randomization.push_velocity_min, env_cfg.randomization.push_velocity]
+    half = config.SMOKE.env_steps_per_update
+    assert policy.meta["push_velocity"] == band and policy.meta["push_stages"] == [[0, *band], [half, *band]]
+    first = RLPolicyFile(export.export_run(run, tmp_path / "first.npz", checkpoint=f"step_{half:012d}.msgpack"))
+    assert first.meta["push_stages"] == [[0, *band]]  # the second stage began after this checkpoint
 
 
 def test_smoke_run_dashboards_hold_the_json_lines_records(smoke_run):

@@ -42,7 +42,8 @@ OutOption = Annotated[Path | None, typer.Option(help="Run directory (default run
 SmokeOption = Annotated[bool, typer.Option(help="Tiny configuration that finishes on a 2-core CPU in minutes.")]
 ResumeOption = Annotated[Path | None, typer.Option(help="Continue the run in this directory from its last "
                                                         "checkpoint.")]
-TimestepsOption = Annotated[int | None, typer.Option(help="Override the number of environment steps.")]
+TimestepsOption = Annotated[int | None, typer.Option(
+    help="Override the number of environment steps (with --resume: the run's new budget).")]
 NumEnvsOption = Annotated[int | None, typer.Option(help="Override the number of parallel environments.")]
 MinutesOption = Annotated[float | None, typer.Option(help="Stop after the epoch that passes this wall time (resume "
                                                           "later with --resume).")]
@@ -65,7 +66,8 @@ HandForceOption = Annotated[float | None, typer.Option(
          "newtons in a random horizontal direction, and up to half of it up or down (default 0: none).")]
 PushVelocityOption = Annotated[tuple[float, float] | None, typer.Option(
     help="Pushes in training: each kick's speed uniform between these two m/s (default: from 0 to the recipe's "
-         "largest push); a band near the largest trains recovery from the kicks of the robustness benchmark.")]
+         "largest push); a band near the largest trains recovery from the kicks of the robustness benchmark. "
+         "With --resume: the run goes on with this band from its last checkpoint (a curriculum in stages).")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]

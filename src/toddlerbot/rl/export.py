@@ -95,6 +95,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             paths[-1].name
     arrays = policy_arrays(params, normalizer, ppo_cfg.normalize_observations, obs_size)
     last = history[-1] if history else {}
+    stages = train.stages_until(train.training_stages(run_dir), steps)
     record = run_dir / MOTOR_PARAMS_RECORD
     meta = {"ctrl_dt": env_cfg.ctrl_dt, "reference": run_reference_source(run_dir), "run": run_dir.name,
             "checkpoint": name, "ppo_env_steps": steps,
@@ -107,7 +108,8 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "imitation_iterations": len(warm), "policy_hidden": list(ppo_cfg.policy_hidden),
             "num_envs": ppo_cfg.num_envs, "upper_body_pose": env_cfg.randomization.upper_body_pose,
             "hand_force": env_cfg.randomization.hand_force,
-            "push_velocity": [env_cfg.randomization.push_velocity_min, env_cfg.randomization.push_velocity],
+            "push_velocity": stages[-1]["push_velocity"],
+            "push_stages": [[stage["from_env_steps"], *stage["push_velocity"]] for stage in stages],
             "motor_params": json.loads(record.read_text()) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None

@@ -55,17 +55,39 @@ def is_smoke_run(run_dir: Path) -> bool:
 
 
 def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
-    """Continue the run in `run_dir`; options that would change its configuration are refused."""
+    """Continue the run in `run_dir` from its last checkpoint. `--push-velocity` and `--timesteps` start its next
+    stage (a curriculum: say harder pushes from here on); options that would change anything else are refused."""
     if not (run_dir / "config.json").is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if request.motor_params or request.solver_iterations is not None or request.ls_iterations is not None \
             or request.backend != "auto" or request.imitation_iterations is not None or request.warm_start is not None \
             or request.variant is not None or request.upper_body_pose is not None or request.hand_force is not None \
-            or request.push_velocity is not None:
+            or request.num_envs is not None:
         raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/--imitation-iterations/"
-                              "--warm-start/--push-velocity/--variant/--upper-body-pose/--hand-force: a resumed run "
-                              "keeps the settings it started with")
+                              "--warm-start/--variant/--upper-body-pose/--hand-force/--num-envs: a resumed run "
+                              "keeps the settings it started with (only --push-velocity and --timesteps start a "
+                              "next stage)")
+    if request.push_velocity is not None or request.timesteps is not None:
+        _next_stage(run_dir, request)
     return TrainPlan(run_dir, resume=True)
+
+
+def _next_stage(run_dir: Path, request: TrainRequest) -> None:
+    """config.json takes the new push band and step budget (checked first), and its `stages` list the stage that
+    starts at the last checkpoint, so that an export knows which bands trained which checkpoint."""
+    from toddlerbot.rl import train
+
+    env_cfg, ppo_cfg = train.load_config(run_dir)
+    paths = train.checkpoint_paths(run_dir)
+    start = train.checkpoint_env_steps(paths[-1]) if paths else 0
+    env_cfg = _robot_variant(env_cfg, TrainRequest(push_velocity=request.push_velocity))
+    ppo_cfg = _ppo_overrides(ppo_cfg, TrainRequest(timesteps=request.timesteps))
+    if ppo_cfg.num_timesteps <= start:
+        raise ToddlerbotError(f"--timesteps {ppo_cfg.num_timesteps}: the run is already at {start} PPO env steps; "
+                              "expected more")
+    earlier = [stage for stage in train.training_stages(run_dir) if stage["from_env_steps"] < start]
+    train.save_config(run_dir, env_cfg, ppo_cfg, train.load_imitation_config(run_dir),
+                      [*earlier, train.training_stage(start, env_cfg, ppo_cfg)])
 
 
 def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:

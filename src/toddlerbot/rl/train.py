@@ -242,10 +242,31 @@ class PPO:
 
 # configuration files -------------------------------------------------------------------------------------------
 def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig,
-                imitation_cfg: ImitationConfig | None = None) -> None:
-    atomic_write_text(run_dir / "config.json", json.dumps(
-        {"env": asdict(env_cfg), "ppo": asdict(ppo_cfg), "imitation": asdict(imitation_cfg or ImitationConfig())},
-        indent=1))
+                imitation_cfg: ImitationConfig | None = None, stages: list[dict] | None = None) -> None:
+    """config.json; ``stages`` (see `training_stages`) where a resumed run changed its push band or budget."""
+    raw = {"env": asdict(env_cfg), "ppo": asdict(ppo_cfg), "imitation": asdict(imitation_cfg or ImitationConfig())}
+    atomic_write_text(run_dir / "config.json", json.dumps(raw | ({"stages": stages} if stages else {}), indent=1))
+
+
+def training_stage(from_env_steps: int, env_cfg: EnvConfig, ppo_cfg: PPOConfig) -> dict:
+    """One stage of a run: from this PPO env step on, pushes in this band, until this many env steps."""
+    band = env_cfg.randomization
+    return {"from_env_steps": int(from_env_steps), "push_velocity": [band.push_velocity_min, band.push_velocity],
+            "num_timesteps": ppo_cfg.num_timesteps}
+
+
+def training_stages(run_dir: Path) -> list[dict]:
+    """The run's stages, oldest first: one unless `rl train --resume` changed the push band or the budget."""
+    raw = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
+    if "stages" in raw:
+        return raw["stages"]
+    env_cfg, ppo_cfg = load_config(run_dir)
+    return [training_stage(0, env_cfg, ppo_cfg)]
+
+
+def stages_until(stages: list[dict], env_steps: int) -> list[dict]:
+    """The stages that trained a checkpoint of ``env_steps`` PPO env steps (a stage starting there had not)."""
+    return [stage for i, stage in enumerate(stages) if i == 0 or stage["from_env_steps"] < env_steps]
 
 
 def load_imitation_config(run_dir: Path) -> ImitationConfig:
@@ -277,6 +298,11 @@ def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
 # checkpoints ----------------------------------------------------------------------------------------------------
 def checkpoint_paths(run_dir: Path) -> list[Path]:
     return sorted((run_dir / "checkpoints").glob("step_*.msgpack"))
+
+
+def checkpoint_env_steps(path: Path) -> int:
+    """PPO env steps of a checkpoint, from its name (``step_<n>.msgpack``)."""
+    return int(path.stem.removeprefix("step_"))
 
 
 def save_checkpoint(run_dir: Path, state: TrainingState, key: jax.Array, history: list[dict]) -> Path:
