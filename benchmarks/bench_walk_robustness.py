@@ -6,8 +6,12 @@ held at a random pose 0.3 and 0.5 of the way to its limits) and `--seeds` seeds,
 prints a table of falls (falls / trials per cell) and the totals per condition. Trials run in `--workers`
 subprocesses that print one JSON line per trial (nothing is pickled between processes).
 
+`--kick-grid SPEED` instead kicks once per trial, in 8 directions around the heading x 6 moments of one gait
+cycle (`runtime.robustness.kick_grid`), standing and walking half the forward reach, and prints which fall.
+
 Run: PYTHONPATH=src python benchmarks/bench_walk_robustness.py [--policy walk-zmp|walk-rl] [--weights F.npz]
      [--variant gripper] [--seeds 3] [--seconds 8] [--workers 2] [--conditions nominal,perturbed,"posed 0.3"]
+     [--kick-grid 0.3]
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ import time
 
 from toddlerbot.policies import make_policy
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.runtime.robustness import conditions, reach_commands, run_trial
+from toddlerbot.runtime.robustness import conditions, directed_kick_trial, kick_grid, reach_commands, run_trial
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
 
@@ -34,6 +38,39 @@ def _jobs(args, names, description):
     reach = make_policy(args.policy, MuJoCoRobot(description), weights=args.weights).command_reach
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     return [(c, name, seed) for name in names for c in reach_commands(reach) for seed in seeds]
+
+
+def _grid_jobs(args, description):
+    """(command, row, column, direction, kick time) of every `--kick-grid` trial."""
+    reach = make_policy(args.policy, MuJoCoRobot(description), weights=args.weights).command_reach
+    commands = [(0.0, 0.0, 0.0), (reach.high[0] / 2, 0.0, 0.0)]
+    return [(c, *cell) for c in commands for cell in kick_grid()]
+
+
+def grid_worker(args) -> None:
+    """Run every `--workers`-th `--kick-grid` trial starting at `--worker`, one JSON line each."""
+    description = RobotDescription.load(variant=args.variant)
+    for k, (command, i, j, direction, kick_time) in enumerate(_grid_jobs(args, description)):
+        if k % args.workers == args.worker:
+            fall = directed_kick_trial(description, _policy_factory(args), command, args.kick_grid, direction,
+                                       kick_time)
+            print(json.dumps({"command": command, "cell": [i, j], "fall_time": fall}), flush=True)
+
+
+def print_grid(args, rows, wall) -> None:
+    directions = sorted({r["cell"][0] for r in rows})
+    print(f"{args.policy}: falls after one {args.kick_grid:g} m/s kick, by direction (deg from the heading, "
+          f"counter-clockwise: 90 = to the left) x moment in the gait cycle "
+          f"({platform.processor() or platform.machine()}, {wall:.0f} s wall)")
+    for command in dict.fromkeys(tuple(r["command"]) for r in rows):
+        print(f"command ({command[0]:+.3f}, {command[1]:+.3f}, {command[2]:+.2f})")
+        for i in directions:
+            cells = sorted((r for r in rows if tuple(r["command"]) == command and r["cell"][0] == i),
+                           key=lambda r: r["cell"][1])
+            marks = " ".join("X" if r["fall_time"] is not None else "." for r in cells)
+            print(f"  {360 * i / len(directions):5.0f}  {marks}  {sum(r['fall_time'] is not None for r in cells)}")
+        print(f"  all    {sum(r['fall_time'] is not None for r in rows if tuple(r['command']) == command)}"
+              f"/{sum(tuple(r['command']) == command for r in rows)}")
 
 
 def worker(args, names) -> None:
@@ -58,6 +95,8 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=8.0)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--conditions", default=",".join(c.name for c in conditions()))
+    parser.add_argument("--kick-grid", type=float, default=None, metavar="SPEED",
+                        help="one kick of SPEED m/s per trial over directions x gait phases instead")
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     names = args.conditions.split(",")
@@ -65,7 +104,7 @@ def main() -> None:
     if unknown:
         parser.error(f"unknown condition(s) {sorted(unknown)}; expected some of {[c.name for c in conditions()]}")
     if args.worker is not None:
-        worker(args, names)
+        grid_worker(args) if args.kick_grid is not None else worker(args, names)
         return
     start = time.perf_counter()
     procs = [subprocess.Popen([sys.executable, __file__, *sys.argv[1:], "--worker", str(w)], stdout=subprocess.PIPE,
@@ -74,6 +113,9 @@ def main() -> None:
     if any(p.wait() != 0 for p in procs):
         sys.exit("a worker failed")
     wall = time.perf_counter() - start
+    if args.kick_grid is not None:
+        print_grid(args, rows, wall)
+        return
     description = RobotDescription.load(variant=args.variant)
     commands = list(dict.fromkeys(tuple(c) for c, _, _ in _jobs(args, names, description)))
     robot = f"{args.policy} ({description.spec.variant or 'base robot'})"

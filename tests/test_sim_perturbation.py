@@ -2,13 +2,15 @@
 
 import dataclasses
 import logging
+from types import SimpleNamespace
 
+import mujoco
 import numpy as np
 import pytest
 
 from toddlerbot.locomotion.config import WALK_REACH, CommandReach
 from toddlerbot.policies.walk_zmp import WalkZMPPolicy
-from toddlerbot.runtime.robustness import KickSchedule, reach_commands
+from toddlerbot.runtime.robustness import DirectedKick, KickSchedule, directed_kick_trial, kick_grid, reach_commands
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.sim.perturbation import SCALED_MOTOR_PARAMS, Perturbation, perturbed_robot
@@ -50,6 +52,36 @@ def test_kicks_add_exactly_the_speed_at_the_kick_times(description):
             assert np.linalg.norm(robot.base_lin_vel[:2] - before) == pytest.approx(0.3)
     assert [k[0] for k in kicks.kicks] == pytest.approx([2.0, 4.5])
     assert all(np.hypot(dx, dy) == pytest.approx(0.3) for _, dx, dy in kicks.kicks)
+
+
+def test_a_directed_kick_is_taken_in_the_heading_frame_once_at_its_time(description):
+    robot = MuJoCoRobot(description)
+    robot.reset()
+    yaw = np.pi / 2  # the robot faces +y: a kick to its left pushes it towards -x
+    robot.data.qpos[3:7] = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+    mujoco.mj_forward(robot.model, robot.data)
+    kick = DirectedKick(robot, 0.3, np.pi / 2, 2.0)
+    at = lambda t: SimpleNamespace(next_obs=SimpleNamespace(time=t))  # noqa: E731
+    before = robot.base_lin_vel[:2]
+    kick.on_step(at(1.98))
+    np.testing.assert_array_equal(robot.base_lin_vel[:2], before)
+    kick.on_step(at(2.0))
+    kick.on_step(at(2.02))
+    np.testing.assert_allclose(robot.base_lin_vel[:2] - before, [-0.3, 0.0], atol=1e-9)
+
+
+def test_the_kick_grid_covers_every_direction_at_every_moment_of_a_gait_cycle():
+    cells = kick_grid(directions=8, phases=6, period=0.6, start=2.0)
+    assert len(cells) == 48 and len({(i, j) for i, j, _, _ in cells}) == 48
+    assert sorted({round(np.degrees(d)) for _, _, d, _ in cells}) == list(range(0, 360, 45))
+    assert sorted({round(t, 6) for _, _, _, t in cells}) == pytest.approx([2.0, 2.1, 2.2, 2.3, 2.4, 2.5])
+
+
+def test_walk_zmp_standing_takes_a_small_kick_and_falls_to_a_large_one(description):
+    make = WalkZMPPolicy
+    assert directed_kick_trial(description, make, (0.0, 0.0, 0.0), 0.1, 0.0, 2.0, after=2.0) is None
+    fall = directed_kick_trial(description, make, (0.0, 0.0, 0.0), 0.8, np.pi / 2, 2.0, after=2.0)
+    assert fall is not None and 2.0 < fall < 4.0
 
 
 def test_reach_commands_span_each_axis_both_ways_and_standing():

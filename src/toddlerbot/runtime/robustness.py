@@ -64,6 +64,41 @@ class KickSchedule(RunObserver):
         self.next_time += self.timing.period
 
 
+class DirectedKick(RunObserver):
+    """A run observer: one kick of ``speed`` m/s at ``time`` s, ``direction`` rad from the torso's heading (0
+    forward, pi/2 to the left), so that a grid of directions means the same to a robot that has turned."""
+
+    def __init__(self, robot: MuJoCoRobot, speed: float, direction: float, time: float) -> None:
+        self.robot, self.speed, self.direction, self.time = robot, speed, direction, time
+        self.kicked = False
+
+    def on_step(self, step: Step) -> None:
+        if self.kicked or step.next_obs.time + 1e-9 < self.time:
+            return
+        angle = self.direction + self.robot.torso_truth.planar_pose()[1]
+        self.robot.push(self.speed * np.array([np.cos(angle), np.sin(angle)]))
+        self.kicked = True
+
+
+def kick_grid(directions: int = 8, phases: int = 6, period: float = 0.6,
+              start: float = 2.0) -> list[tuple[int, int, float, float]]:
+    """(row, column, direction rad, kick time s) of a grid of single kicks: ``directions`` evenly spaced around the
+    heading (the first forward, counter-clockwise) by ``phases`` times evenly spaced over one gait ``period``
+    from ``start``."""
+    return [(i, j, 2 * np.pi * i / directions, start + j * period / phases)
+            for i in range(directions) for j in range(phases)]
+
+
+def directed_kick_trial(description: RobotDescription, make_policy: PolicyFactory,
+                        command: tuple[float, float, float], speed: float, direction: float, kick_time: float,
+                        after: float = 3.0) -> float | None:
+    """Fall time (None: no fall) of the nominal robot walking ``command``, kicked once and walked ``after`` s on."""
+    robot = MuJoCoRobot(description)
+    kick = DirectedKick(robot, speed, direction, kick_time)
+    return run_policy(robot, make_policy(robot), lambda t: np.asarray(command), kick_time + after,
+                      observers=[kick]).fall_time
+
+
 @dataclass(frozen=True)
 class Condition:
     """A named way of perturbing the trials: one perturbation per seed, and the upper body held at a pose drawn
