@@ -59,7 +59,8 @@ def grid_worker(args) -> None:
 
 def print_grid(args, rows, wall) -> None:
     directions = sorted({r["cell"][0] for r in rows})
-    print(f"{args.policy}: falls after one {args.kick_grid:g} m/s kick, by direction (deg from the heading, "
+    policy = args.policy + (f" ({args.weights})" if args.weights else "")
+    print(f"{policy}: falls after one {args.kick_grid:g} m/s kick, by direction (deg from the heading, "
           f"counter-clockwise: 90 = to the left) x moment in the gait cycle "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall)")
     for command in dict.fromkeys(tuple(r["command"]) for r in rows):
