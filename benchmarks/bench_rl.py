@@ -149,7 +149,7 @@ TABLE7_SIM = (0.082, 0.016, 0.056)
 """Appendix Table 7, simulation: position m, linear velocity m/s, angular velocity rad/s."""
 
 
-def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | None) -> None:
+def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | None, asymmetric: bool = False) -> None:
     """Table 7 errors of each policy (``walk-rl`` with ``weights``) on the default and the held-out schedules in the
     CPU simulator (1 ms physics, actuator model), against 1.5 x the appendix's simulation errors."""
     from toddlerbot.robot.description import RobotDescription
@@ -162,7 +162,9 @@ def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | Non
         for label, schedule in {"default": DEFAULT_COMMANDS, **HELD_OUT_SCHEDULES}.items():
             seconds = float(schedule.split(";")[-1].split(":")[0]) + 2.0 if label != "default" else 26.0
             t0 = time.perf_counter()
-            r = evaluate_policy(description, name, schedule, seconds, weights=weights if name == "walk-rl" else None)
+            rl = name == "walk-rl"
+            r = evaluate_policy(description, name, schedule, seconds, weights=weights if rl else None,
+                                **({"symmetric": not asymmetric} if rl else {}))
             ok = r.falls == 0 and all(e <= b for e, b in zip((r.position_m, r.lin_vel_mps, r.ang_vel_radps), bars,
                                                               strict=True))
             wall = time.perf_counter() - t0
@@ -286,6 +288,8 @@ def main() -> None:
                         help="Table 7 errors on the default and held-out schedules (default policies: walk-rl)")
     parser.add_argument("--weights", default=None, help="walk-rl's exported .npz (default: the shipped one)")
     parser.add_argument("--plots", default=None, help="folder for the tracking plots")
+    parser.add_argument("--asymmetric", action="store_true",
+                        help="walk-rl without its mirror image (docs/rl.md \"Mirror symmetry\")")
     parser.add_argument("--curves", nargs="+", default=None, metavar="LABEL=RUN",
                         help="plot the learning curves of these training runs (only)")
     parser.add_argument("--out", default="docs/figures/rl_learning_curves.png", help="figure of --curves")
@@ -301,7 +305,7 @@ def main() -> None:
         curves(args.curves, args.out)
         return
     if args.tracking is not None:
-        bench_tracking(args.tracking or ["walk-rl"], args.weights, args.plots)
+        bench_tracking(args.tracking or ["walk-rl"], args.weights, args.plots, args.asymmetric)
         return
     bench_inference()
     if args.env:

@@ -30,7 +30,7 @@ from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
 
 def _policy_factory(args):
-    return lambda robot: make_policy(args.policy, robot, weights=args.weights)
+    return lambda robot: make_policy(args.policy, robot, weights=args.weights, symmetric=not args.asymmetric)
 
 
 def _jobs(args, names, description):
@@ -59,7 +59,7 @@ def grid_worker(args) -> None:
 
 def print_grid(args, rows, wall) -> None:
     directions = sorted({r["cell"][0] for r in rows})
-    policy = args.policy + (f" ({args.weights})" if args.weights else "")
+    policy = args.policy + (f" ({args.weights})" if args.weights else "") + (" asymmetric" if args.asymmetric else "")
     print(f"{policy}: falls after one {args.kick_grid:g} m/s kick, by direction (deg from the heading, "
           f"counter-clockwise: 90 = to the left) x moment in the gait cycle "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall)")
@@ -98,6 +98,8 @@ def main() -> None:
     parser.add_argument("--conditions", default=",".join(c.name for c in conditions()))
     parser.add_argument("--kick-grid", type=float, default=None, metavar="SPEED",
                         help="one kick of SPEED m/s per trial over directions x gait phases instead")
+    parser.add_argument("--asymmetric", action="store_true",
+                        help="walk-rl without its mirror image (docs/rl.md \"Mirror symmetry\")")
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     names = args.conditions.split(",")
@@ -119,7 +121,7 @@ def main() -> None:
         return
     description = RobotDescription.load(variant=args.variant)
     commands = list(dict.fromkeys(tuple(c) for c, _, _ in _jobs(args, names, description)))
-    robot = f"{args.policy} ({description.spec.variant or 'base robot'})"
+    robot = f"{args.policy}{' asymmetric' if args.asymmetric else ''} ({description.spec.variant or 'base robot'})"
     print(f"{robot}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall, {args.workers} workers)")
     width = max(len(n) for n in names) + 2

@@ -30,10 +30,14 @@ import json
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+
+if TYPE_CHECKING:
+    from toddlerbot.robot.mirror import Mirror
 
 ACTION_DISTRIBUTION = "normal"
 """The action distribution `toddlerbot.rl` trains; exports before it record none and are ``tanh_normal``."""
@@ -93,6 +97,28 @@ def obs_frame(t, command, motor_pos, home_motor_pos, motor_vel, last_action, gyr
         phase, command, motor_pos - home_motor_pos, motor_vel * cfg.motor_vel_scale, last_action,
         gyro * cfg.gyro_scale, gravity,
     ])
+
+
+def mirror_frame(frame, mirror: Mirror, leg_motor_index, xp: ModuleType = np):
+    """`obs_frame` of the robot's mirror image (frames on the last axis): half a gait cycle on (the other foot
+    leads), sideways and turning commands negated, motors swapped with their partners (`Mirror`), the IMU's
+    vectors reflected."""
+    n_motors, n_actions = len(mirror.partner), len(leg_motor_index)
+    split = np.cumsum([2, 3, n_motors, n_motors, n_actions, 3])
+    phase, command, motor_pos, motor_vel, last_action, gyro, gravity = xp.split(frame, split, axis=-1)
+    return xp.concatenate([
+        -phase, command * xp.asarray([1.0, -1.0, -1.0]), mirror.motors(motor_pos, xp), mirror.motors(motor_vel, xp),
+        mirror_leg_action(last_action, mirror, leg_motor_index, xp), mirror.gyro(gyro, xp),
+        mirror.gravity(gravity, xp),
+    ], axis=-1)
+
+
+def mirror_leg_action(action, mirror: Mirror, leg_motor_index, xp: ModuleType = np):
+    """A leg action (one number per leg motor, in ``leg_motor_index`` order) of the mirror image."""
+    slot = np.full(len(mirror.partner), -1)
+    slot[np.asarray(leg_motor_index)] = np.arange(len(leg_motor_index))
+    partner_slot = slot[mirror.partner[np.asarray(leg_motor_index)]]
+    return xp.asarray(mirror.sign[np.asarray(leg_motor_index)]) * action[..., partner_slot]
 
 
 @dataclass(frozen=True)
@@ -433,11 +459,14 @@ class RLPolicyFile:
 
 
 class RLController:
-    """Keeps the observation history and last action; turns robot state + command into motor targets."""
+    """Keeps the observation history and last action; turns robot state + command into motor targets. With a
+    `Mirror`, the action is the mean of the policy's and its mirror image's (the policy run on the mirrored
+    history, its action mirrored back): a symmetric controller from a policy that learned the two sides apart."""
 
-    def __init__(self, policy: RLPolicyFile) -> None:
+    def __init__(self, policy: RLPolicyFile, mirror: Mirror | None = None) -> None:
         self.policy = policy
         self.cfg = policy.obs_config
+        self.mirror = mirror
         self.reset()
 
     def reset(self) -> None:
@@ -471,5 +500,9 @@ class RLController:
         """One 50 Hz control step: observation -> action -> (motor targets, P-gain factors or None)."""
         obs = self.observation(t, command, motor_pos, motor_vel, gyro, imu_quat)
         action = self.policy.action(obs)
+        if self.mirror is not None:
+            legs = self.policy.leg_motor_index
+            mirrored = mirror_frame(self.history, self.mirror, legs).reshape(-1)
+            action = 0.5 * (action + mirror_leg_action(self.policy.action(mirrored), self.mirror, legs))
         self.last_action = action
         return self.motor_targets(action, command, t)

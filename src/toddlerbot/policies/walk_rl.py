@@ -17,6 +17,7 @@ from toddlerbot.policies.base import Action, Policy
 from toddlerbot.policies.rl_inference import RLController, RLPolicyFile
 from toddlerbot.policies.walk_feedback import HeadingHold, attitude
 from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.mirror import robot_mirror
 
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights"
 DEFAULT_WEIGHTS = SHIPPED_WEIGHTS / "walk_rl.npz"
@@ -49,8 +50,10 @@ class WalkRLPolicy(Policy):
     name = "walk-rl"
     needs_imu = True
 
-    def __init__(self, robot: Robot, weights: str | Path | None = None) -> None:
-        """``weights``: a policy file or shipped name (default: the one shipped for the robot's variant)."""
+    def __init__(self, robot: Robot, weights: str | Path | None = None, symmetric: bool = True) -> None:
+        """``weights``: a policy file or shipped name (default: the one shipped for the robot's variant);
+        ``symmetric``: act with the mean of the policy and its mirror image (`RLController`; docs/rl.md
+        "Mirror symmetry")."""
         super().__init__(robot)
         if weights is None:
             variant = robot.description.spec.variant
@@ -67,7 +70,7 @@ class WalkRLPolicy(Policy):
         if abs(robot.control_dt - trained_dt) > 1e-9:
             raise ToddlerbotError(f"{policy.path}: trained at a {trained_dt} s control period; the robot runs at "
                                   f"{robot.control_dt} s")
-        self.controller = RLController(policy)
+        self.controller = RLController(policy, robot_mirror(robot.description) if symmetric else None)
         low, high = policy.meta.get("command_low"), policy.meta.get("command_high")
         if low is not None and high is not None:
             self.command_reach = CommandReach(tuple(low), tuple(high))

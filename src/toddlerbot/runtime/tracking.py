@@ -103,9 +103,11 @@ def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray,
 
 
 def evaluate_policy(description: RobotDescription, policy_name: str, commands: str = DEFAULT_COMMANDS,
-                    seconds: float = DEFAULT_SECONDS, weights: Path | None = None) -> TrackingResult:
-    """Run a registered walking policy (e.g. ``walk-rl``, ``walk-zmp``: one with a command reach) through a command
-    schedule on the simulated robot of `description` (its fitted motor parameters included) and score it."""
+                    seconds: float = DEFAULT_SECONDS, weights: Path | None = None,
+                    **options: object) -> TrackingResult:
+    """Run a registered walking policy (e.g. ``walk-rl``, ``walk-zmp``: one with a command reach; ``options`` for
+    its factory, e.g. walk-rl's ``symmetric``) through a command schedule on the simulated robot of `description`
+    (its fitted motor parameters included) and score it."""
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
@@ -113,7 +115,7 @@ def evaluate_policy(description: RobotDescription, policy_name: str, commands: s
 
     schedule = CommandSchedule.parse(commands, source="--commands")
     robot = MuJoCoRobot(description)
-    policy = make_policy(policy_name, robot, weights=weights)
+    policy = make_policy(policy_name, robot, weights=weights, **options)
     if policy.command_reach is None:
         policy.close()
         raise ToddlerbotError(f"policy {policy_name!r} does not follow velocity commands; tracking needs a walking "

@@ -1,0 +1,87 @@
+"""The robot's left-right mirror: which motor mirrors which, with what sign, and how the IMU's vectors reflect.
+
+ToddlerBot is symmetric about its sagittal plane (the world xz-plane of the model at its zero configuration, the
+robot facing +x). Mirroring a state swaps each ``left_*`` motor with its ``right_*`` partner (a motor on the
+midline is its own partner) and flips the sign where the partner's joint axis is the reflection of the motor's
+with the opposite sense. Rotation axes are pseudo-vectors: reflecting y -> -y turns an axis (x, y, z) into
+(-x, y, -z). The IMU's gravity direction (a vector) reflects with the plane's reflection in the IMU frame; its
+angular velocity (a pseudo-vector) with the negated reflection.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.robot.description import RobotDescription
+
+AXIS_TOLERANCE = 0.02
+"""Largest |1 - |cos|| between a motor's reflected joint axis and its partner's for the two to mirror."""
+
+IMU_SITE = "imu"
+
+
+@dataclass(frozen=True)
+class Mirror:
+    """Motor permutation and signs (``mirrored[i] = sign[i] * q[partner[i]]``) and the IMU frame's reflection."""
+
+    partner: np.ndarray
+    sign: np.ndarray
+    imu_reflection: np.ndarray
+    """3 x 3: a vector in the IMU frame, mirrored."""
+
+    def motors(self, values, xp=np):
+        """Mirror per-motor values (angles relative to a symmetric pose, speeds, targets' offsets) on the last axis."""
+        return xp.asarray(self.sign) * values[..., self.partner]
+
+    def gravity(self, vector, xp=np):
+        return vector @ xp.asarray(self.imu_reflection).T
+
+    def gyro(self, vector, xp=np):
+        return -(vector @ xp.asarray(self.imu_reflection).T)
+
+
+def robot_mirror(description: RobotDescription) -> Mirror:
+    """The description's mirror, checked: every motor has a partner whose axis reflects onto its own and the
+    home pose is its own mirror (a clear error names the motor where the robot is not symmetric)."""
+    model = description.model()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    names = list(description.motor_names)
+    partner, sign = np.arange(len(names)), np.ones(len(names))
+    for i, name in enumerate(names):
+        other = _partner_name(name)
+        if other not in names:
+            raise ToddlerbotError(f"robot mirror: motor {name} has no partner {other}")
+        partner[i] = names.index(other)
+        axis, other_axis = (data.xaxis[_joint_id(model, n)] for n in (name, other))
+        cos = float(np.array([-axis[0], axis[1], -axis[2]]) @ other_axis)
+        if abs(1.0 - abs(cos)) > AXIS_TOLERANCE:
+            raise ToddlerbotError(f"robot mirror: the axes of {name} and {other} are not mirror images "
+                                  f"(cos {cos:.3f}; expected +-1)")
+        sign[i] = np.sign(cos)
+    home = np.asarray(description.home_motor_pos)
+    if not np.allclose(sign * home[partner], home, atol=1e-6):
+        worst = names[int(np.argmax(np.abs(sign * home[partner] - home)))]
+        raise ToddlerbotError(f"robot mirror: the home pose is not symmetric at {worst}")
+    site = model.site(IMU_SITE).id
+    to_world = data.site_xmat[site].reshape(3, 3)
+    reflection = to_world.T @ np.diag([1.0, -1.0, 1.0]) @ to_world
+    return Mirror(partner, sign, reflection)
+
+
+def _partner_name(name: str) -> str:
+    for side, other in (("left_", "right_"), ("right_", "left_")):
+        if name.startswith(side):
+            return other + name.removeprefix(side)
+    return name
+
+
+def _joint_id(model: mujoco.MjModel, name: str) -> int:
+    joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+    if joint < 0:
+        raise ToddlerbotError(f"robot mirror: motor {name} has no joint of that name in the model")
+    return joint
