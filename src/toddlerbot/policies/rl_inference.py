@@ -484,6 +484,16 @@ class RLController:
             self.history = np.concatenate([frame[None], self.history[:-1]])
         return self.history.reshape(-1)
 
+    def action(self) -> np.ndarray:
+        """The action for the observation history (with a `Mirror`: the mean of the policy's and its mirror
+        image's)."""
+        action = self.policy.action(self.history.reshape(-1))
+        if self.mirror is None:
+            return action
+        legs = self.policy.leg_motor_index
+        mirrored = mirror_frame(self.history, self.mirror, legs).reshape(-1)
+        return 0.5 * (action + mirror_leg_action(self.policy.action(mirrored), self.mirror, legs))
+
     def motor_targets(self, action: np.ndarray, command: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray | None]:
         """Motor position targets (rad, motor-id order) of an action at a command and time (s since the gait
         started): the home pose with the legs at the gait reference (residual policies) or home, plus the action's
@@ -498,11 +508,7 @@ class RLController:
     def step(self, t: float, command: np.ndarray, motor_pos: np.ndarray, motor_vel: np.ndarray,
              gyro: np.ndarray, imu_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """One 50 Hz control step: observation -> action -> (motor targets, P-gain factors or None)."""
-        obs = self.observation(t, command, motor_pos, motor_vel, gyro, imu_quat)
-        action = self.policy.action(obs)
-        if self.mirror is not None:
-            legs = self.policy.leg_motor_index
-            mirrored = mirror_frame(self.history, self.mirror, legs).reshape(-1)
-            action = 0.5 * (action + mirror_leg_action(self.policy.action(mirrored), self.mirror, legs))
+        self.observation(t, command, motor_pos, motor_vel, gyro, imu_quat)
+        action = self.action()
         self.last_action = action
         return self.motor_targets(action, command, t)
