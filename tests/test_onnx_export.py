@@ -47,7 +47,7 @@ def shipped(tmp_path_factory):
 
 def test_shipped_policy_onnx_equals_numpy_on_random_and_recorded_observations(shipped):
     onnx_policy, numpy_policy, report = shipped
-    assert report["n_random"] == 256 and report["n_recorded"] == 40
+    assert report["n_random"] == 256 and report["n_recorded"] == 2 * 40  # the history and its mirror per step
     assert report["random"] <= TOL and report["recorded"] <= TOL
     assert numpy_policy.distribution == "normal"  # the CPU recipe's file: the action is clip(mean, -1, 1)
     rng_obs = random_observations(numpy_policy, 64, seed=11)
@@ -55,7 +55,7 @@ def test_shipped_policy_onnx_equals_numpy_on_random_and_recorded_observations(sh
     assert diff <= TOL
     assert np.abs(actions).max() > 0.1  # a network that does something
     recorded = recorded_observations(DEFAULT_WEIGHTS, steps=20)
-    assert recorded.shape == (20, 1245)
+    assert recorded.shape == (2 * 20, 1245)
     diff, _ = _max_diff(onnx_policy, numpy_policy, recorded)
     assert diff <= TOL
     graph_ops = [n.op_type for n in onnx.load(str(onnx_policy.path)).graph.node]
@@ -138,7 +138,7 @@ def _residual_policy(tmp_path, motor_names=None):
 def test_residual_policy_with_reference_and_gains_round_trips(tmp_path):
     npz = _residual_policy(tmp_path)
     path, report = export_onnx(npz, tmp_path / "residual.onnx", record_steps=15)
-    assert report["random"] <= TOL and report["recorded"] <= TOL and report["n_recorded"] == 15
+    assert report["random"] <= TOL and report["recorded"] <= TOL and report["n_recorded"] == 2 * 15
     onnx_policy, numpy_policy = RLPolicyFile(path), RLPolicyFile(npz)
     assert numpy_policy.distribution == "normal"
     for name in ("ref_vx", "ref_leg_motor_pos", "ref_contact", "ref_period", "kp_stance_scale", "kp_swing_scale",
@@ -271,14 +271,14 @@ def test_small_run_exports_to_onnx_equal_to_its_npz(tmp_path, monkeypatch, capsy
     code, stdout, err = _cli(monkeypatch, capsys, "rl", "export", run, "--format", "onnx", "--out",
                              tmp_path / "run.onnx")
     assert code == 0, err
-    assert "on 256 random observations" in stdout and "on 50 recorded" in stdout
+    assert "on 256 random observations" in stdout and "on 100 recorded" in stdout  # 50 steps x 2
     onnx_policy, numpy_policy = RLPolicyFile(tmp_path / "run.onnx"), RLPolicyFile(tmp_path / "run.npz")
     assert onnx_policy.meta["checkpoint"] == numpy_policy.meta["checkpoint"] == "step_000000004096.msgpack"
     assert onnx_policy.network.n_inputs == numpy_policy.network.n_inputs == 2 * (2 + 3 + 60 + 12 + 6)
     for observations in (random_observations(numpy_policy, 128, seed=8),
                          recorded_observations(tmp_path / "run.npz", steps=20)):
         diff, actions = _max_diff(onnx_policy, numpy_policy, observations)
-        assert diff <= TOL and len(actions) in (128, 20)
+        assert diff <= TOL and len(actions) in (128, 2 * 20)
     assert 0 < np.mean(np.abs(actions) == 1.0) < 1 or np.abs(actions).max() > 0.05
 
 

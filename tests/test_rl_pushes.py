@@ -126,8 +126,9 @@ def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_
 
 
 def test_the_shipped_push_policy_is_the_cpu_recipe_with_the_band_and_survives_0p2_mps_kicks():
-    """`walk_rl_push.npz` (docs/rl.md "Pushes near the largest"): 2 falls in 30 trials of 0.2 m/s kicks in the
-    benchmark, the default policy 8. Six trials here, at most two falls: a rate with margin, not one trajectory."""
+    """`walk_rl_push.npz` (docs/rl.md "Pushes near the largest", "Mirror symmetry"): in the benchmark 0 falls in
+    30 trials of 0.2 m/s kicks run symmetric as walk-rl does (2 alone; the default policy 4, alone 8). Six trials
+    here, at most two falls: a rate with margin, not one trajectory."""
     from toddlerbot.policies import make_policy
     from toddlerbot.policies.rl_inference import RLPolicyFile
     from toddlerbot.policies.walk_rl import resolve_weights

@@ -57,10 +57,11 @@ def test_the_held_policy_replaces_only_the_upper_body_targets(gripper):
 @pytest.mark.parametrize("policy", [WalkZMPPolicy, WalkRLPolicy], ids=["walk-zmp", "walk-rl"])
 def test_walking_policies_walk_with_the_arms_held_at_random_poses(gripper, policy):
     """Two commands x two seeds, 4 s, the upper body held 0.3 of the way to its limits from the start (walk-rl: the
-    gripper variant's shipped policy, trained with such poses); the full table (both fractions, the whole reach,
-    9 seeds: walk-zmp 3/90 falls, walk-rl 4/90) is `benchmarks/bench_walk_robustness.py --variant gripper`."""
+    gripper variant's shipped policy, trained with such poses, run symmetric); the full table (both fractions, the
+    whole reach, 9 seeds: walk-zmp 3/90 falls, walk-rl 4/90, 2 of them turning at 0.4 rad/s) is
+    `benchmarks/bench_walk_robustness.py --variant gripper`. A rate: at most one fall in the four."""
     posed = next(c for c in conditions() if c.name == "posed 0.3")
     trials = [run_trial(gripper, policy, command, posed, seed, 4.0)
               for command in ((0.075, 0.0, 0.0), (0.0, 0.0, 0.4)) for seed in (0, 1)]
-    assert [(t.command, t.seed, t.fall_time) for t in trials if t.fell] == []
+    assert len([t for t in trials if t.fell]) <= 1, [(t.command, t.seed, t.fall_time) for t in trials if t.fell]
     assert trials[0].displacement[0] > 0.15 and trials[1].displacement[0] > 0.15  # 0.3 m planned

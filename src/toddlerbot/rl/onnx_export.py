@@ -101,9 +101,10 @@ def random_observations(policy: RLPolicyFile, n: int = 256, seed: int = 0) -> np
 
 
 def recorded_observations(npz_path: Path, steps: int = 50, command=(0.1, 0.0, 0.0)) -> np.ndarray:
-    """The observation vectors `walk-rl` (numpy) builds driving the robot in the CPU simulator for ``steps``
-    control steps at ``command`` (m/s, m/s, rad/s) on the robot variant it was trained for; fewer if it falls.
-    Empty when its motors are not that packaged robot's."""
+    """The observation vectors `walk-rl` (numpy) gives its network driving the robot in the CPU simulator for
+    ``steps`` control steps at ``command`` (m/s, m/s, rad/s) on the robot variant it was trained for: two per step,
+    the history and its mirror image (the symmetric controller); fewer if it falls. Empty when its motors are not
+    that packaged robot's."""
     from toddlerbot.policies.walk_rl import WalkRLPolicy
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.robot.interface import CONTROL_DT
