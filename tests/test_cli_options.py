@@ -99,3 +99,29 @@ def test_model_base_overrides_the_variants_and_unknown_variant_is_named():
     assert floating["nq"] == floating["nv"] + 1  # the free joint: a quaternion (4) for 3 angular velocities
     unknown = CliRunner().invoke(model.app, ["info", "--variant", "wings"])
     assert unknown.exit_code == 2 and "'wings' is not one of floating, fixed, gripper" in unknown.output
+
+
+@pytest.mark.parametrize("app,args", [
+    (sim.app, ["run", "--policy", "stand", "--asymmetric"]),
+    (hw.app, ["run", "--port", NO_PORT, "--policy", "stand", "--asymmetric"]),
+])
+def test_asymmetric_is_refused_for_a_policy_without_a_mirror(calibration, app, args):
+    if app is hw.app:
+        args = [*args, "--calibration", str(calibration)]
+    assert _error(app, args) == "--asymmetric is not an option of policy 'stand'"
+
+
+def test_eval_tracking_asymmetric_runs_walk_rl_alone():
+    """The symmetric default and `--asymmetric` walk differently, and `--asymmetric` is the policy alone."""
+    from toddlerbot.cli import eval as eval_cli
+    from toddlerbot.runtime.tracking import evaluate_policy
+
+    args = ["--policy", "walk-rl", "--commands", "0:0,0.05,0", "--seconds", "3", "--json"]
+    runs = {}
+    for extra in ([], ["--asymmetric"]):
+        result = CliRunner().invoke(eval_cli.app, [*args, *extra])
+        assert result.exit_code == 0, result.output
+        runs[bool(extra)] = json.loads(result.output)
+    alone = evaluate_policy(RobotDescription.load(), "walk-rl", "0:0,0.05,0", 3.0, symmetric=False).summary()
+    assert runs[True]["position_m"] == pytest.approx(alone["position_m"], abs=1e-9)
+    assert abs(runs[True]["position_m"] - runs[False]["position_m"]) > 1e-4

@@ -7,7 +7,14 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import MotorParamsOption, RobotOptions, duration, output_file
+from toddlerbot.cli.options import (
+    AsymmetricOption,
+    MotorParamsOption,
+    RobotOptions,
+    duration,
+    output_file,
+    symmetric_option,
+)
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
@@ -31,6 +38,7 @@ def tracking(
     plot: Annotated[Path | None, typer.Option(help="Where to save the commanded-vs-achieved velocity plot.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
     motor_params: MotorParamsOption = None,
+    asymmetric: AsymmetricOption = False,
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
     (exit code 1 if the robot fell)."""
@@ -47,7 +55,8 @@ def tracking(
         output_file(plot, "--plot")
     description = RobotOptions.of(motor_params=motor_params).description()
     with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not as_json else _null():
-        result = evaluate_policy(description, policy, schedule_text, seconds, weights)
+        result = evaluate_policy(description, policy, schedule_text, seconds, weights,
+                                 **symmetric_option(policy, asymmetric))
     summary = result.summary()
     if plot is not None:
         plot_velocity_tracking(result, policy, plot)

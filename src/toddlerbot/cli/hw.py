@@ -13,6 +13,7 @@ import typer
 from rich.table import Table
 
 from toddlerbot.cli.options import (
+    AsymmetricOption,
     ImuOption,
     MotorParamsOption,
     RobotOptions,
@@ -22,6 +23,7 @@ from toddlerbot.cli.options import (
     duration,
     open_robot_imu,
     output_file,
+    symmetric_option,
 )
 from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.files import json_text
@@ -151,7 +153,8 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         motion: MotionOpt = None, weights: WeightsOpt = None, checkpoint: CheckpointOpt = None,
         camera: CameraOpt = None, threads: ThreadsOpt = None, seconds: SecondsOpt = 5.0, control_dt: DtOpt = CONTROL_DT,
         log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,
-        spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None) -> None:
+        spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None,
+        asymmetric: AsymmetricOption = False) -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
     with 128 + its number, a fall (the IMU tilted past the simulator's threshold) with 1. A run that stops early
@@ -169,7 +172,8 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         robot = _real_robot(RobotOptions.of(spec_path, variant, motor_params), port, calibration, control_dt, baud,
                             latency_ms)
         pol = _hw_policy(robot, policy, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
-                                         "camera": camera, "threads": threads}, stack)
+                                         "camera": camera, "threads": threads,
+                                         **symmetric_option(policy, asymmetric)}, stack)
         robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
         stack.callback(robot.imu.close)
         result = drive(robot, pol, CommandSchedule.parse(command), seconds, log, lambda partial: save_or_fallback(

@@ -14,7 +14,7 @@ from typing import Annotated
 import typer
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies import policy_names
+from toddlerbot.policies import accepts_option, policy_names
 from toddlerbot.robot.builder import Base
 from toddlerbot.robot.description import RobotDescription, load_variant, variant_names
 
@@ -69,6 +69,20 @@ def check_run_policy(name: str) -> str:
     if name not in policy_names():
         raise ToddlerbotError(f"unknown policy {name!r}; expected one of {', '.join(policy_names())}")
     return name
+
+
+AsymmetricOption = Annotated[bool, typer.Option(
+    "--asymmetric", help="For --policy walk-rl: the policy alone, not the mean of it and its mirror image "
+                         "(docs/rl.md, \"Mirror symmetry\").")]
+
+
+def symmetric_option(policy: str, asymmetric: bool) -> dict[str, bool]:
+    """The policy option of `--asymmetric` (none when not given); one line for a policy that has no mirror."""
+    if not asymmetric:
+        return {}
+    if not accepts_option(policy, "symmetric"):
+        raise ToddlerbotError(f"--asymmetric is not an option of policy {policy!r}")
+    return {"symmetric": False}
 
 
 ImuOption = Annotated[str, typer.Option("--imu", help="The IMU: bno08x (the robot's, over I2C), emulator (the "

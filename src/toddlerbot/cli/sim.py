@@ -9,6 +9,7 @@ import numpy as np
 import typer
 
 from toddlerbot.cli.options import (
+    AsymmetricOption,
     MotorParamsOption,
     RobotOptions,
     SpecOption,
@@ -18,6 +19,7 @@ from toddlerbot.cli.options import (
     output_dir,
     output_file,
     positive,
+    symmetric_option,
 )
 from toddlerbot.cli.output import console
 from toddlerbot.cli.progress import RunProgress
@@ -69,7 +71,8 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         snapshot: SnapshotOpt = None, camera: CameraOpt = "perspective", viewer: ViewerOpt = False,
         log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,
         checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = None, spec: SpecOption = None,
-        variant: VariantOption = None, motor_params: MotorParamsOption = None) -> None:
+        variant: VariantOption = None, motor_params: MotorParamsOption = None,
+        asymmetric: AsymmetricOption = False) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.runtime.runner import SimulatedClock, WallClock, run_policy
 
@@ -81,7 +84,8 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     _check_control_rate(control_hz, description.spec.simulation.timestep)
     realtime = realtime or viewer
     options = {"motion": motion, "weights": weights, "checkpoint": checkpoint, "threads": threads,
-               "synchronous": not realtime}  # inference inline unless the loop keeps real time
+               "synchronous": not realtime,  # inference inline unless the loop keeps real time
+               **symmetric_option(policy, asymmetric)}
     robot, pol, scene = _robot_and_policy(description, base, policy, task, seed, 1.0 / control_hz, options)
     video_obs, render_skipped = _video(robot, camera, video, snapshot)
     viewer_obs = _viewer(robot) if viewer else None
