@@ -42,15 +42,11 @@ def tracking(
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
     (exit code 1 if the robot fell)."""
-    from toddlerbot.runtime.commands import CommandSchedule
-    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS, evaluate_policy, plot_velocity_tracking
+    from toddlerbot.runtime.tracking import evaluate_policy, plot_velocity_tracking
 
     if policy not in policy_names():
         raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(policy_names())}")
-    schedule_text = commands or DEFAULT_COMMANDS
-    if seconds is None:
-        seconds = DEFAULT_SECONDS if commands is None else CommandSchedule.parse(commands, "--commands").times[-1] + 5
-    duration(seconds, "--seconds")
+    schedule_text, seconds = _schedule(commands, seconds)
     if plot is not None:
         output_file(plot, "--plot")
     description = RobotOptions.of(motor_params=motor_params).description()
@@ -66,6 +62,18 @@ def tracking(
         _print(policy, summary, plot)
     if summary["falls"]:
         raise typer.Exit(1)
+
+
+def _schedule(commands: str | None, seconds: float | None) -> tuple[str, float]:
+    """The schedule to walk (default: the evaluation schedule) and its duration (default: 26 s, or 5 s past the
+    last of --commands), checked."""
+    from toddlerbot.runtime.commands import CommandSchedule
+    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS
+
+    if seconds is None:
+        seconds = DEFAULT_SECONDS if commands is None else CommandSchedule.parse(commands, "--commands").times[-1] + 5
+    duration(seconds, "--seconds")
+    return commands or DEFAULT_COMMANDS, seconds
 
 
 def _print(policy: str, summary: dict, plot: Path | None) -> None:
