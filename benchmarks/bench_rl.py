@@ -162,9 +162,8 @@ def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | Non
         for label, schedule in {"default": DEFAULT_COMMANDS, **HELD_OUT_SCHEDULES}.items():
             seconds = float(schedule.split(";")[-1].split(":")[0]) + 2.0 if label != "default" else 26.0
             t0 = time.perf_counter()
-            rl = name == "walk-rl"
-            r = evaluate_policy(description, name, schedule, seconds, weights=weights if rl else None,
-                                **({"symmetric": not asymmetric} if rl else {}))
+            r = evaluate_policy(description, name, schedule, seconds, weights=weights if name == "walk-rl" else None,
+                                symmetric=not asymmetric)  # an option only walk-rl takes (make_policy)
             ok = r.falls == 0 and all(e <= b for e, b in zip((r.position_m, r.lin_vel_mps, r.ang_vel_radps), bars,
                                                               strict=True))
             wall = time.perf_counter() - t0

@@ -33,17 +33,24 @@ def _policy_factory(args):
     return lambda robot: make_policy(args.policy, robot, weights=args.weights, symmetric=not args.asymmetric)
 
 
+def _reach(args, description):
+    return make_policy(args.policy, MuJoCoRobot(description), weights=args.weights).command_reach
+
+
+def _label(args) -> str:
+    return args.policy + (f" ({args.weights})" if args.weights else "") + (" asymmetric" if args.asymmetric else "")
+
+
 def _jobs(args, names, description):
     """(command, condition, seed) of every trial; the commands span the policy's reach."""
-    reach = make_policy(args.policy, MuJoCoRobot(description), weights=args.weights).command_reach
+    reach = _reach(args, description)
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     return [(c, name, seed) for name in names for c in reach_commands(reach) for seed in seeds]
 
 
 def _grid_jobs(args, description):
     """(command, row, column, direction, kick time) of every `--kick-grid` trial."""
-    reach = make_policy(args.policy, MuJoCoRobot(description), weights=args.weights).command_reach
-    commands = [(0.0, 0.0, 0.0), (reach.high[0] / 2, 0.0, 0.0)]
+    commands = [(0.0, 0.0, 0.0), (_reach(args, description).high[0] / 2, 0.0, 0.0)]
     return [(c, *cell) for c in commands for cell in kick_grid()]
 
 
@@ -59,8 +66,7 @@ def grid_worker(args) -> None:
 
 def print_grid(args, rows, wall) -> None:
     directions = sorted({r["cell"][0] for r in rows})
-    policy = args.policy + (f" ({args.weights})" if args.weights else "") + (" asymmetric" if args.asymmetric else "")
-    print(f"{policy}: falls after one {args.kick_grid:g} m/s kick, by direction (deg from the heading, "
+    print(f"{_label(args)}: falls after one {args.kick_grid:g} m/s kick, by direction (deg from the heading, "
           f"counter-clockwise: 90 = to the left) x moment in the gait cycle "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall)")
     for command in dict.fromkeys(tuple(r["command"]) for r in rows):
@@ -121,7 +127,7 @@ def main() -> None:
         return
     description = RobotDescription.load(variant=args.variant)
     commands = list(dict.fromkeys(tuple(c) for c, _, _ in _jobs(args, names, description)))
-    robot = f"{args.policy}{' asymmetric' if args.asymmetric else ''} ({description.spec.variant or 'base robot'})"
+    robot = f"{_label(args)} ({description.spec.variant or 'base robot'})"
     print(f"{robot}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall, {args.workers} workers)")
     width = max(len(n) for n in names) + 2

@@ -1,10 +1,7 @@
-"""Left/right mirroring of a pose, derived from the model's joint axes (no table of signs to keep in step).
-
-Reflecting the robot in its sagittal plane (y -> -y, M = diag(1, -1, 1)) turns a rotation by q about axis a into
-a rotation by q about -M a. A joint's partner (``left_*`` <-> ``right_*``; a centre joint is its own partner)
-has axis b, so the mirrored angle is q' = s q with s = -b . (M a): +1 for most rolls, -1 for pitches, yaws and
-the centre joints' yaw and roll. Axes are read in the world frame at the model's zero pose, where the robot is
-symmetric. The spec's home pose is its own mirror image under this map (`tests/test_motion_editor.py`).
+"""Left/right mirroring of a pose in the motion editor: the robot's joint mirror (`robot.mirror.mirror_partners`,
+derived from the joint axes: +1 for most rolls, -1 for pitches, yaws and the centre joints' yaw and roll) with
+each mirrored value clamped to its joint's range. The spec's home pose is its own mirror image under this map
+(`tests/test_motion_editor.py`).
 """
 
 from __future__ import annotations
@@ -12,20 +9,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import mujoco
 import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.mirror import mirror_partners
 
 Side = Literal["left", "right"]
-_REFLECT = np.diag([1.0, -1.0, 1.0])
-
-
-def partner_name(joint: str) -> str:
-    for a, b in (("left_", "right_"), ("right_", "left_")):
-        if joint.startswith(a):
-            return b + joint.removeprefix(a)
-    return joint
 
 
 @dataclass(frozen=True)
@@ -40,14 +29,8 @@ class MirrorMap:
 
     @classmethod
     def of(cls, description: RobotDescription) -> MirrorMap:
-        model = description.model("floating", scene=True)
-        data = mujoco.MjData(model)
-        mujoco.mj_kinematics(model, data)  # qpos0: the zero pose
-        names = description.joint_names
-        partner = np.array([names.index(partner_name(j)) for j in names])
-        axes = np.array([data.xaxis[model.joint(j).id] for j in names])
-        sign = -np.einsum("ij,ij->i", axes[partner], axes @ _REFLECT.T)
-        return cls(tuple(names), partner, np.round(sign), np.asarray(description.joint_range))
+        partner, sign = mirror_partners(description, description.joint_names)
+        return cls(tuple(description.joint_names), partner, sign, np.asarray(description.joint_range))
 
     def side(self, joint: str) -> Side | None:
         return "left" if joint.startswith("left_") else "right" if joint.startswith("right_") else None

@@ -68,9 +68,8 @@ class ObsConfig:
     noise_gravity: float = 0.05
 
     def frame_size(self, n_motors: int, n_actions: int) -> int:
-        """Features per frame: phase 2, command 3, motor angles relative to home and motor speeds (n_motors
-        each), last action (n_actions, one per leg motor), gyro 3, gravity direction in the IMU frame 3."""
-        return 2 + 3 + 2 * n_motors + n_actions + 3 + 3
+        """Features per frame (`frame_widths`)."""
+        return sum(frame_widths(n_motors, n_actions))
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -79,6 +78,12 @@ class ObsConfig:
     def from_json(cls, text: str) -> ObsConfig:
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in json.loads(text).items() if k in names})
+
+
+def frame_widths(n_motors: int, n_actions: int) -> tuple[int, ...]:
+    """The parts of an `obs_frame`, in order: phase 2, command 3, motor angles relative to home and motor speeds
+    (n_motors each), last action (n_actions, one per leg motor), gyro 3, gravity direction in the IMU frame 3."""
+    return 2, 3, n_motors, n_motors, n_actions, 3, 3
 
 
 def gravity_in_frame(quat, xp: ModuleType = np):
@@ -103,8 +108,7 @@ def mirror_frame(frame, mirror: Mirror, leg_motor_index, xp: ModuleType = np):
     """`obs_frame` of the robot's mirror image (frames on the last axis): half a gait cycle on (the other foot
     leads), sideways and turning commands negated, motors swapped with their partners (`Mirror`), the IMU's
     vectors reflected."""
-    n_motors, n_actions = len(mirror.partner), len(leg_motor_index)
-    split = np.cumsum([2, 3, n_motors, n_motors, n_actions, 3])
+    split = np.cumsum(frame_widths(len(mirror.partner), len(leg_motor_index))[:-1])
     phase, command, motor_pos, motor_vel, last_action, gyro, gravity = xp.split(frame, split, axis=-1)
     return xp.concatenate([
         -phase, command * xp.asarray([1.0, -1.0, -1.0]), mirror.motors(motor_pos, xp), mirror.motors(motor_vel, xp),

@@ -54,19 +54,22 @@ def is_smoke_run(run_dir: Path) -> bool:
     return (run_dir / SMOKE_MARKER).is_file()
 
 
+KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solver-iterations",
+                  "ls_iterations": "--ls-iterations", "backend": "--backend",
+                  "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
+                  "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
+                  "num_envs": "--num-envs"}
+"""`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
+
+
 def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
     """Continue the run in `run_dir` from its last checkpoint. `--push-velocity` and `--timesteps` start its next
     stage (a curriculum: say harder pushes from here on); options that would change anything else are refused."""
     if not (run_dir / "config.json").is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
-    if request.motor_params or request.solver_iterations is not None or request.ls_iterations is not None \
-            or request.backend != "auto" or request.imitation_iterations is not None or request.warm_start is not None \
-            or request.variant is not None or request.upper_body_pose is not None or request.hand_force is not None \
-            or request.num_envs is not None:
-        raise ToddlerbotError("--motor-params/--solver-iterations/--ls-iterations/--backend/--imitation-iterations/"
-                              "--warm-start/--variant/--upper-body-pose/--hand-force/--num-envs: a resumed run "
-                              "keeps the settings it started with (only --push-velocity and --timesteps start a "
-                              "next stage)")
+    if any(getattr(request, field) != getattr(TrainRequest(), field) for field in KEPT_ON_RESUME):
+        raise ToddlerbotError(f"{'/'.join(KEPT_ON_RESUME.values())}: a resumed run keeps the settings it started "
+                              "with (only --push-velocity and --timesteps start a next stage)")
     if request.push_velocity is not None or request.timesteps is not None:
         _next_stage(run_dir, request)
     return TrainPlan(run_dir, resume=True)

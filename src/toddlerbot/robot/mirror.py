@@ -19,9 +19,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 
 AXIS_TOLERANCE = 0.02
-"""Largest |1 - |cos|| between a motor's reflected joint axis and its partner's for the two to mirror."""
-
-IMU_SITE = "imu"
+"""Largest |1 - |cos|| between a joint's reflected axis and its partner's for the two to mirror."""
 
 
 @dataclass(frozen=True)
@@ -44,16 +42,22 @@ class Mirror:
         return -(vector @ xp.asarray(self.imu_reflection).T)
 
 
-def robot_mirror(description: RobotDescription) -> Mirror:
-    """The description's mirror, checked: every motor has a partner whose axis reflects onto its own and the
-    home pose is its own mirror (a clear error names the motor where the robot is not symmetric)."""
-    model = description.model()
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    names = list(description.motor_names)
+def partner_name(name: str) -> str:
+    """``left_x`` <-> ``right_x``; a name on the midline is its own partner."""
+    for side, other in (("left_", "right_"), ("right_", "left_")):
+        if name.startswith(side):
+            return other + name.removeprefix(side)
+    return name
+
+
+def mirror_partners(description: RobotDescription, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(partner index, sign) of each named joint of the model (joints or motors: a motor is the joint it turns),
+    from the axes at the zero configuration; a clear error names the joint without a partner or a mirrored axis."""
+    model, data = _zero_pose(description)
+    names = list(names)
     partner, sign = np.arange(len(names)), np.ones(len(names))
     for i, name in enumerate(names):
-        other = _partner_name(name)
+        other = partner_name(name)
         if other not in names:
             raise ToddlerbotError(f"robot mirror: motor {name} has no partner {other}")
         partner[i] = names.index(other)
@@ -63,21 +67,29 @@ def robot_mirror(description: RobotDescription) -> Mirror:
             raise ToddlerbotError(f"robot mirror: the axes of {name} and {other} are not mirror images "
                                   f"(cos {cos:.3f}; expected +-1)")
         sign[i] = np.sign(cos)
+    return partner, sign
+
+
+def robot_mirror(description: RobotDescription) -> Mirror:
+    """The description's mirror over its motors, checked: every motor has a partner whose axis reflects onto its
+    own and the home pose is its own mirror (a clear error names the motor where the robot is not symmetric)."""
+    names = description.motor_names
+    partner, sign = mirror_partners(description, names)
     home = np.asarray(description.home_motor_pos)
     if not np.allclose(sign * home[partner], home, atol=1e-6):
         worst = names[int(np.argmax(np.abs(sign * home[partner] - home)))]
         raise ToddlerbotError(f"robot mirror: the home pose is not symmetric at {worst}")
-    site = model.site(IMU_SITE).id
-    to_world = data.site_xmat[site].reshape(3, 3)
-    reflection = to_world.T @ np.diag([1.0, -1.0, 1.0]) @ to_world
-    return Mirror(partner, sign, reflection)
+    model, data = _zero_pose(description)
+    to_world = data.site_xmat[model.site(description.handles.imu_site).id].reshape(3, 3)
+    return Mirror(partner, sign, to_world.T @ np.diag([1.0, -1.0, 1.0]) @ to_world)
 
 
-def _partner_name(name: str) -> str:
-    for side, other in (("left_", "right_"), ("right_", "left_")):
-        if name.startswith(side):
-            return other + name.removeprefix(side)
-    return name
+def _zero_pose(description: RobotDescription) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The model and its kinematics at the zero configuration, where the robot is symmetric about y = 0."""
+    model = description.model()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    return model, data
 
 
 def _joint_id(model: mujoco.MjModel, name: str) -> int:
