@@ -68,6 +68,9 @@ PushVelocityOption = Annotated[tuple[float, float] | None, typer.Option(
     help="Pushes in training: each kick's speed uniform between these two m/s (default: from 0 to the recipe's "
          "largest push); a band near the largest trains recovery from the kicks of the robustness benchmark. "
          "With --resume: the run goes on with this band from its last checkpoint (a curriculum in stages).")]
+MirrorLossOption = Annotated[float | None, typer.Option(
+    help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
+         "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
@@ -93,6 +96,7 @@ def train(
     upper_body_pose: UpperBodyPoseOption = None,
     hand_force: HandForceOption = None,
     push_velocity: PushVelocityOption = None,
+    mirror_loss: MirrorLossOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -108,7 +112,7 @@ def train(
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
-                           hand_force, push_velocity)
+                           hand_force, push_velocity, mirror_loss)
     plan = _plan(out, resume, request)
     console.print(f"run directory: {plan.run_dir}")
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))

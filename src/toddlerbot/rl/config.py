@@ -229,8 +229,13 @@ class PPOConfig:
     """Envs of the deterministic evaluation after every epoch; 0 skips it (saves one compilation)."""
     eval_episode_length: int = 1000
     seed: int = 0
+    mirror_loss: float = 0.0
+    """Weight of the mirror-symmetry loss added to PPO's (`toddlerbot.rl.train.PPO.asymmetry`: the policy's mean
+    action against the mirror image of its action on the mirrored observation); 0 trains without it."""
 
     def __post_init__(self) -> None:
+        if not self.mirror_loss >= 0:
+            raise ValueError(f"mirror_loss {self.mirror_loss}: expected a weight >= 0")
         if (self.batch_size * self.num_minibatches) % self.num_envs:
             raise ValueError(f"batch_size * num_minibatches ({self.batch_size * self.num_minibatches}) must be a "
                              f"multiple of num_envs ({self.num_envs})")

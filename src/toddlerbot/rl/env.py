@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import cached_property
 
 import jax
 import jax.numpy as jnp
@@ -26,7 +27,7 @@ import numpy as np
 from brax.envs.base import Env, State
 
 from toddlerbot.actuation.model import ActuatorArrays
-from toddlerbot.policies.rl_inference import GaitReference, leg_gain_scale
+from toddlerbot.policies.rl_inference import GaitReference, leg_gain_scale, mirror_frame, mirror_leg_action
 from toddlerbot.rl import randomization, rewards
 from toddlerbot.rl.config import EnvConfig
 from toddlerbot.rl.model import training_model
@@ -35,6 +36,7 @@ from toddlerbot.rl.physics import BACKENDS, MODEL_FIELDS, Addresses, Frame
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.reference import leg_motor_indices, load_reference
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.mirror import Mirror, robot_mirror
 from toddlerbot.robot.upper_body import upper_body_mask
 
 TRACKING_METRICS = ("lin_vel_error", "ang_vel_error")
@@ -144,6 +146,20 @@ class WalkEnv(Env):
     @property
     def backend(self) -> str:
         return self.cfg.backend
+
+    @cached_property
+    def mirror(self) -> Mirror:
+        """The robot's left-right mirror (checked when first asked: a variant need not be symmetric)."""
+        return robot_mirror(self.description)
+
+    def mirror_actor_obs(self, state: jax.Array) -> jax.Array:
+        """Actor observations (the flattened history, on the last axis) of the robot's mirror image."""
+        frames = state.reshape((*state.shape[:-1], self.cfg.obs.history, self.frame_size))
+        return mirror_frame(frames, self.mirror, self.leg_index, jnp).reshape(state.shape)
+
+    def mirror_action(self, action: jax.Array) -> jax.Array:
+        """Leg actions (on the last axis) of the robot's mirror image."""
+        return mirror_leg_action(action, self.mirror, self.leg_index, jnp)
 
     def reset(self, rng: jax.Array) -> State:
         cfg = self.cfg

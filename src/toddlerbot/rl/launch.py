@@ -37,6 +37,7 @@ class TrainRequest:
     upper_body_pose: float | None = None
     hand_force: float | None = None
     push_velocity: tuple[float, float] | None = None
+    mirror_loss: float | None = None
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
                   "ls_iterations": "--ls-iterations", "backend": "--backend",
                   "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
                   "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
-                  "num_envs": "--num-envs"}
+                  "num_envs": "--num-envs", "mirror_loss": "--mirror-loss"}
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
@@ -185,6 +186,8 @@ def _ppo_overrides(ppo_cfg: config.PPOConfig, request: TrainRequest) -> config.P
             ppo_cfg = replace(ppo_cfg, num_timesteps=request.timesteps)
         if request.num_envs is not None:
             ppo_cfg = config.with_num_envs(ppo_cfg, request.num_envs)
+        if request.mirror_loss is not None:
+            ppo_cfg = replace(ppo_cfg, mirror_loss=request.mirror_loss)
     except ValueError as exc:
-        raise ToddlerbotError(f"--num-envs/--timesteps: {exc}") from exc
+        raise ToddlerbotError(f"--num-envs/--timesteps/--mirror-loss: {exc}") from exc
     return ppo_cfg

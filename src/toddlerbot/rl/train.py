@@ -144,12 +144,14 @@ class PPO:
         self.networks = make_networks(self.obs_size, env.action_size, cfg)
         self.make_policy = ppo_networks.make_inference_fn(self.networks)
         self.optimizer = make_optimizer(cfg)
-        self.loss = functools.partial(
+        if cfg.mirror_loss and not hasattr(env, "mirror_actor_obs"):
+            raise ToddlerbotError(f"mirror_loss {cfg.mirror_loss}: the environment {type(env).__name__} has no "
+                                  "mirror (mirror_actor_obs, mirror_action)")
+        self._ppo_loss = functools.partial(
             ppo_losses.compute_ppo_loss, ppo_network=self.networks, entropy_cost=cfg.entropy_cost,
             discounting=cfg.discounting, reward_scaling=cfg.reward_scaling, gae_lambda=cfg.gae_lambda,
             clipping_epsilon=cfg.clipping_epsilon, normalize_advantage=True,
         )
-        """Brax's PPO loss with this configuration: (params, normaliser, [B, T] batch, key) -> (loss, metrics)."""
         self._loss_and_grad = gradients.loss_and_pgrad(self.loss, pmap_axis_name=AXIS, has_aux=True)
         self.rollouts = cfg.batch_size * cfg.num_minibatches // cfg.num_envs
         updates_total = -(-cfg.num_timesteps // cfg.env_steps_per_update)
@@ -158,6 +160,24 @@ class PPO:
         self.total_steps = self.updates_per_epoch * self.epochs * cfg.env_steps_per_update
         self._p_epoch = jax.pmap(self._epoch, axis_name=AXIS)
         self._p_reset = jax.pmap(self.train_env.reset, axis_name=AXIS)
+
+    def loss(self, params: ppo_losses.PPONetworkParams, normalizer, data: types.Transition, key: jax.Array):
+        """Brax's PPO loss with this configuration, plus ``mirror_loss`` x `asymmetry` where that weight is set:
+        (params, normaliser, [B, T] batch, key) -> (loss, metrics)."""
+        loss, metrics = self._ppo_loss(params, normalizer, data, key)
+        if not self.cfg.mirror_loss:
+            return loss, metrics
+        asymmetry = self.asymmetry(params.policy, normalizer, data.observation)
+        return loss + self.cfg.mirror_loss * asymmetry, {**metrics, "mirror_loss": asymmetry}
+
+    def asymmetry(self, policy_params, normalizer, obs: dict) -> jax.Array:
+        """Mean over the batch of the squared distance between the policy's mean action and the mirror image of
+        its mean action on the mirrored observation: 0 for a policy that is its own mirror image (the mirror
+        symmetry loss of Yu, Turk and Liu, SIGGRAPH 2018)."""
+        apply = functools.partial(self.networks.policy_network.apply, normalizer, policy_params)
+        action, _ = apply(obs)  # the Gaussian's (mean, std) (`make_networks`)
+        mirrored, _ = apply({**obs, "state": self.env.mirror_actor_obs(obs["state"])})
+        return jnp.mean(jnp.sum(jnp.square(action - self.env.mirror_action(mirrored)), axis=-1))
 
     def initial_state(self, key: jax.Array) -> TrainingState:
         return _initial_state(self.networks, self.optimizer, self.obs_size, key)
