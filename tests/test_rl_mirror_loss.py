@@ -13,7 +13,7 @@ jnp = jax.numpy
 
 from brax.training import acting  # noqa: E402
 
-from test_rl_ppo import CFG, TargetEnv  # noqa: E402
+from ppo_support import CFG, TargetEnv  # noqa: E402
 from toddlerbot.errors import ToddlerbotError  # noqa: E402
 from toddlerbot.policies.rl_inference import mirror_frame, mirror_leg_action  # noqa: E402
 from toddlerbot.rl import train  # noqa: E402

@@ -1,9 +1,7 @@
 """PPO stays healthy: bounded per-update KL, a policy std that does not collapse, and Brax's loss on-policy.
 
-These run the project's PPO loop (`toddlerbot.rl.train.PPO`) on a tiny pure-JAX task instead of the MJX robot,
-so they compile in about a minute (slow-marked) instead of several: each step asks for the action that equals
-a random target shown in the observation (reward 1 - mean squared error), which a Gaussian policy learns
-within a few updates.
+These run the project's PPO loop (`toddlerbot.rl.train.PPO`) on the tiny target task of `ppo_support` instead
+of the robot (slow-marked: it compiles in about a minute).
 """
 
 import functools
@@ -15,53 +13,13 @@ jax = pytest.importorskip("jax")
 pytest.importorskip("brax")
 jnp = jax.numpy
 
-from brax.envs.base import Env, State  # noqa: E402
 from brax.training import acting  # noqa: E402
 from brax.training.acme import running_statistics  # noqa: E402
 from brax.training.agents.ppo import losses as ppo_losses  # noqa: E402
 
+from ppo_support import CFG, N_ACT, TargetEnv  # noqa: E402
 from toddlerbot.rl import train  # noqa: E402
-from toddlerbot.rl.config import PPOConfig  # noqa: E402
 
-N_ACT = 4
-
-
-class TargetEnv(Env):
-    """Observation: a random target in [-0.8, 0.8]^4 (offset and scaled so normalisation matters); reward:
-    1 - mean squared distance of the clipped action to it."""
-
-    def _obs(self, target):
-        return {"state": 3.0 + 5.0 * target, "privileged_state": target}
-
-    def reset(self, rng):
-        rng, k = jax.random.split(rng)
-        target = jax.random.uniform(k, (N_ACT,), minval=-0.8, maxval=0.8)
-        return State(None, self._obs(target), jnp.zeros(()), jnp.zeros(()), {}, {"rng": rng, "target": target})
-
-    def step(self, state, action):
-        action = jnp.clip(action, -1.0, 1.0)
-        reward = 1.0 - jnp.mean((action - state.info["target"]) ** 2)
-        rng, k = jax.random.split(state.info["rng"])
-        target = jax.random.uniform(k, (N_ACT,), minval=-0.8, maxval=0.8)
-        return state.replace(obs=self._obs(target), reward=reward, info={**state.info, "rng": rng, "target": target})
-
-    @property
-    def observation_size(self):
-        return {"state": (N_ACT,), "privileged_state": (N_ACT,)}
-
-    @property
-    def action_size(self):
-        return N_ACT
-
-    @property
-    def backend(self):
-        return "none"
-
-
-UPDATES = 25
-CFG = PPOConfig(num_timesteps=UPDATES * 16 * 4 * 8, num_envs=16, episode_length=50, unroll_length=8,
-                batch_size=16, num_minibatches=4, num_updates_per_batch=4, policy_hidden=(32, 32),
-                value_hidden=(32, 32), num_evals=UPDATES, num_eval_envs=0, discounting=0.9, seed=3)
 KL_BOUND = 0.05
 """5x the KL target: what the adaptive learning rate keeps every update's mean KL below."""
 STD_FLOOR = 0.2
