@@ -2,9 +2,12 @@
 action that equals a random target shown in the observation (reward 1 - mean squared error), which a Gaussian
 policy learns within a few updates, so the loop compiles in about a minute instead of several on the robot."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 from brax.envs.base import Env, State
+from brax.training import acting
 
 from toddlerbot.rl.config import PPOConfig
 
@@ -47,3 +50,13 @@ UPDATES = 25
 CFG = PPOConfig(num_timesteps=UPDATES * 16 * 4 * 8, num_envs=16, episode_length=50, unroll_length=8,
                 batch_size=16, num_minibatches=4, num_updates_per_batch=4, policy_hidden=(32, 32),
                 value_hidden=(32, 32), num_evals=UPDATES, num_eval_envs=0, discounting=0.9, seed=3)
+
+
+def unroll_batch(ppo, ts):
+    """One [B, T] batch of `CFG.unroll_length` steps of fresh envs under the policy of training state ``ts``."""
+    env_state = jax.jit(ppo.train_env.reset)(jax.random.split(jax.random.PRNGKey(2), CFG.num_envs))
+    policy = ppo.make_policy((ts.normalizer_params, ts.params.policy, ts.params.value))
+    _, data = jax.jit(functools.partial(acting.generate_unroll, ppo.train_env, policy=policy,
+                                        unroll_length=CFG.unroll_length, extra_fields=("truncation",)))(
+        env_state, key=jax.random.PRNGKey(3))
+    return jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), data)

@@ -11,9 +11,8 @@ jax = pytest.importorskip("jax")
 pytest.importorskip("brax")
 jnp = jax.numpy
 
-from brax.training import acting  # noqa: E402
 
-from ppo_support import CFG, TargetEnv  # noqa: E402
+from ppo_support import CFG, TargetEnv, unroll_batch  # noqa: E402
 from toddlerbot.errors import ToddlerbotError  # noqa: E402
 from toddlerbot.policies.rl_inference import mirror_frame, mirror_leg_action  # noqa: E402
 from toddlerbot.rl import train  # noqa: E402
@@ -36,21 +35,12 @@ class MirroredTargetEnv(TargetEnv):
         return SIGN * action[..., PARTNER]
 
 
-def _batch(ppo, ts):
-    env_state = jax.jit(ppo.train_env.reset)(jax.random.split(jax.random.PRNGKey(2), CFG.num_envs))
-    policy = ppo.make_policy((ts.normalizer_params, ts.params.policy, ts.params.value))
-    _, data = jax.jit(functools.partial(acting.generate_unroll, ppo.train_env, policy=policy,
-                                        unroll_length=CFG.unroll_length, extra_fields=("truncation",)))(
-        env_state, key=jax.random.PRNGKey(3))
-    return jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), data)
-
-
 def test_the_loss_adds_the_weighted_asymmetry_to_ppos():
     weight = 2.5
     plain, mirrored = (train.PPO(MirroredTargetEnv(), PPOConfig(**{**CFG.__dict__, "mirror_loss": w}))
                        for w in (0.0, weight))
     ts = plain.initial_state(jax.random.PRNGKey(0))
-    data = _batch(plain, ts)
+    data = unroll_batch(plain, ts)
     key = jax.random.PRNGKey(4)
     loss, metrics = plain.loss(ts.params, ts.normalizer_params, data, key)
     with_mirror, mirror_metrics = mirrored.loss(ts.params, ts.normalizer_params, data, key)
@@ -77,7 +67,7 @@ def test_training_with_the_mirror_loss_makes_the_policy_its_own_mirror_image():
         env_state = ppo.reset(jax.random.PRNGKey(1))
         for i in range(ppo.epochs):
             ts, env_state, metrics = ppo.epoch(ts, env_state, jax.random.PRNGKey(10 + i))
-        data = _batch(ppo, ts)
+        data = unroll_batch(ppo, ts)
         finals[weight] = (float(ppo.asymmetry(ts.params.policy, ts.normalizer_params, data.observation)),
                           1 - metrics["step_reward"])
     (plain, plain_error), (mirrored, mirrored_error) = finals[0.0], finals[10.0]
@@ -116,20 +106,13 @@ def test_the_shipped_default_is_the_mirror_trained_cpu_recipe_and_survives_0p2_m
     """`walk_rl.npz` (docs/rl.md "Training with the symmetry"): trained on the CPU within two hours with the mirror
     loss and pushes of 0.15-0.35 m/s; in the benchmark 0 falls in 60 trials of 0.2 m/s kicks (seeds 0-5) and 13
     in 60 of 0.3 m/s. Six trials here, at most one fall: a rate with margin, not one trajectory."""
-    from toddlerbot.policies import make_policy
     from toddlerbot.policies.rl_inference import RLPolicyFile
     from toddlerbot.policies.walk_rl import resolve_weights
-    from toddlerbot.robot.description import RobotDescription
-    from toddlerbot.runtime.robustness import conditions, reach_commands, run_trial
-    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+    from walk_support import kick_trials
 
     path = resolve_weights("walk_rl")
     meta = RLPolicyFile(path).meta
     assert meta["mirror_loss"] == 1.0 and meta["push_velocity"] == [0.15, 0.35] and meta["backend"] == "cpu"
     assert meta["device"].startswith("CPU") and meta["walltime_s"] <= 7200  # the CPU recipe within two hours
-    description = RobotDescription.load()
-    kicks = {c.name: c for c in conditions()}["kicks 0.2 m/s"]
-    reach = make_policy("walk-rl", MuJoCoRobot(description), weights=path).command_reach
-    trials = [run_trial(description, lambda robot: make_policy("walk-rl", robot, weights=path), command, kicks,
-                        seed, 8.0) for command in reach_commands(reach)[3:6] for seed in (0, 1)]
+    trials = kick_trials(path, "kicks 0.2 m/s", slice(3, 6))
     assert sum(t.fell for t in trials) <= 1, [(t.command, t.seed, t.fall_time) for t in trials]

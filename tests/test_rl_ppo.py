@@ -4,7 +4,6 @@ These run the project's PPO loop (`toddlerbot.rl.train.PPO`) on the tiny target 
 of the robot (slow-marked: it compiles in about a minute).
 """
 
-import functools
 
 import numpy as np
 import pytest
@@ -13,11 +12,10 @@ jax = pytest.importorskip("jax")
 pytest.importorskip("brax")
 jnp = jax.numpy
 
-from brax.training import acting  # noqa: E402
 from brax.training.acme import running_statistics  # noqa: E402
 from brax.training.agents.ppo import losses as ppo_losses  # noqa: E402
 
-from ppo_support import CFG, N_ACT, TargetEnv  # noqa: E402
+from ppo_support import CFG, N_ACT, TargetEnv, unroll_batch  # noqa: E402
 from toddlerbot.rl import train  # noqa: E402
 
 KL_BOUND = 0.05
@@ -65,12 +63,7 @@ def test_first_minibatch_is_on_policy_and_matches_brax_loss():
     # a normaliser that has seen data already, as after the first update
     warm = jax.vmap(TargetEnv().reset)(jax.random.split(jax.random.PRNGKey(5), 64)).obs
     ts = ts.replace(normalizer_params=running_statistics.update(ts.normalizer_params, warm))
-    env_state = jax.jit(ppo.train_env.reset)(jax.random.split(jax.random.PRNGKey(2), CFG.num_envs))
-    policy = ppo.make_policy((ts.normalizer_params, ts.params.policy, ts.params.value))
-    _, data = jax.jit(functools.partial(acting.generate_unroll, ppo.train_env, policy=policy,
-                                        unroll_length=CFG.unroll_length, extra_fields=("truncation",)))(
-        env_state, key=jax.random.PRNGKey(3))
-    data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), data)  # [B, T]
+    data = unroll_batch(ppo, ts)  # [B, T]
 
     loss, metrics = ppo.loss(ts.params, ts.normalizer_params, data, jax.random.PRNGKey(4))
     # Brax's Gaussian KL adds 1e-5 inside its log: log(1 + 1e-5) per action dimension for equal distributions

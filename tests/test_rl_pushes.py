@@ -129,19 +129,13 @@ def test_the_shipped_push_policy_is_the_cpu_recipe_with_the_band_and_survives_0p
     """`walk_rl_push.npz` (docs/rl.md "Pushes near the largest", "Mirror symmetry"): in the benchmark 0 falls in
     30 trials of 0.2 m/s kicks run symmetric as walk-rl does (2 alone; the default policy 4, alone 8). Six trials
     here, at most two falls: a rate with margin, not one trajectory."""
-    from toddlerbot.policies import make_policy
     from toddlerbot.policies.rl_inference import RLPolicyFile
     from toddlerbot.policies.walk_rl import resolve_weights
-    from toddlerbot.runtime.robustness import conditions, reach_commands, run_trial
-    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+    from walk_support import kick_trials
 
     path = resolve_weights("walk_rl_push")
     meta = RLPolicyFile(path).meta
     assert meta["push_velocity"] == [0.15, 0.35] and meta["backend"] == "cpu"
     assert meta["device"].startswith("CPU") and meta["walltime_s"] <= 7200  # the CPU recipe within two hours
-    description = RobotDescription.load()
-    kicks = {c.name: c for c in conditions()}["kicks 0.2 m/s"]
-    reach = make_policy("walk-rl", MuJoCoRobot(description), weights=path).command_reach
-    trials = [run_trial(description, lambda robot: make_policy("walk-rl", robot, weights=path), command, kicks,
-                        seed, 8.0) for command in reach_commands(reach)[:3] for seed in (0, 1)]
+    trials = kick_trials(path, "kicks 0.2 m/s", slice(None, 3))
     assert sum(t.fell for t in trials) <= 2, [(t.command, t.seed, t.fall_time) for t in trials]

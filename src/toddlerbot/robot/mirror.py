@@ -53,7 +53,10 @@ def partner_name(name: str) -> str:
 def mirror_partners(description: RobotDescription, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     """(partner index, sign) of each named joint of the model (joints or motors: a motor is the joint it turns),
     from the axes at the zero configuration; a clear error names the joint without a partner or a mirrored axis."""
-    model, data = _zero_pose(description)
+    return _partners(*_zero_pose(description), names)
+
+
+def _partners(model: mujoco.MjModel, data: mujoco.MjData, names) -> tuple[np.ndarray, np.ndarray]:
     names = list(names)
     partner, sign = np.arange(len(names)), np.ones(len(names))
     for i, name in enumerate(names):
@@ -74,12 +77,12 @@ def robot_mirror(description: RobotDescription) -> Mirror:
     """The description's mirror over its motors, checked: every motor has a partner whose axis reflects onto its
     own and the home pose is its own mirror (a clear error names the motor where the robot is not symmetric)."""
     names = description.motor_names
-    partner, sign = mirror_partners(description, names)
+    model, data = _zero_pose(description)
+    partner, sign = _partners(model, data, names)
     home = np.asarray(description.home_motor_pos)
     if not np.allclose(sign * home[partner], home, atol=1e-6):
         worst = names[int(np.argmax(np.abs(sign * home[partner] - home)))]
         raise ToddlerbotError(f"robot mirror: the home pose is not symmetric at {worst}")
-    model, data = _zero_pose(description)
     to_world = data.site_xmat[model.site(description.handles.imu_site).id].reshape(3, 3)
     return Mirror(partner, sign, to_world.T @ np.diag([1.0, -1.0, 1.0]) @ to_world)
 
