@@ -68,6 +68,9 @@ PushVelocityOption = Annotated[tuple[float, float] | None, typer.Option(
     help="Pushes in training: each kick's speed uniform between these two m/s (default: from 0 to the recipe's "
          "largest push); a band near the largest trains recovery from the kicks of the robustness benchmark. "
          "With --resume: the run goes on with this band from its last checkpoint (a curriculum in stages).")]
+PushIntervalOption = Annotated[tuple[float, float] | None, typer.Option(
+    help="Pushes in training: seconds from one push to the next, uniform between these two (default: the "
+         "recipe's 2-5 s); shorter trains recovery from kicks in quick succession.")]
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
@@ -96,6 +99,7 @@ def train(
     upper_body_pose: UpperBodyPoseOption = None,
     hand_force: HandForceOption = None,
     push_velocity: PushVelocityOption = None,
+    push_interval: PushIntervalOption = None,
     mirror_loss: MirrorLossOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
@@ -112,7 +116,7 @@ def train(
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
-                           hand_force, push_velocity, mirror_loss)
+                           hand_force, push_velocity, push_interval, mirror_loss)
     plan = _plan(out, resume, request)
     console.print(f"run directory: {plan.run_dir}")
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))

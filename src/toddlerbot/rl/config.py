@@ -99,6 +99,7 @@ class RandomizationConfig:
     action_delay_prob: float = 0.5
     """Probability that an episode applies each action one control step late."""
     push_interval_s: tuple[float, float] = (2.0, 5.0)
+    """s; time from one push to the next, uniform in this band (the first push too, from the reset)."""
     push_velocity: float = 0.3
     """m/s; largest horizontal velocity kick of a push."""
     push_velocity_min: float = 0.0
@@ -120,6 +121,9 @@ class RandomizationConfig:
         if not 0.0 <= self.push_velocity_min <= self.push_velocity < float("inf"):
             raise ValueError(f"push velocities {self.push_velocity_min}..{self.push_velocity}: expected "
                              f"0 <= smallest <= largest, finite, m/s")
+        if not 0.0 < self.push_interval_s[0] <= self.push_interval_s[1] < float("inf"):
+            raise ValueError(f"push interval {self.push_interval_s[0]}..{self.push_interval_s[1]}: expected "
+                             f"0 < shortest <= longest, finite, s")
         if not 0.0 <= self.hand_force < float("inf"):
             raise ValueError(f"hand_force {self.hand_force}: expected a finite force >= 0 N")
 

@@ -37,6 +37,7 @@ class TrainRequest:
     upper_body_pose: float | None = None
     hand_force: float | None = None
     push_velocity: tuple[float, float] | None = None
+    push_interval: tuple[float, float] | None = None
     mirror_loss: float | None = None
 
 
@@ -59,7 +60,8 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
                   "ls_iterations": "--ls-iterations", "backend": "--backend",
                   "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
                   "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
-                  "num_envs": "--num-envs", "mirror_loss": "--mirror-loss"}
+                  "num_envs": "--num-envs", "mirror_loss": "--mirror-loss",
+                  "push_interval": "--push-interval"}
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
@@ -151,8 +153,8 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
 
 def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
     """The request's spec variant (checked against the spec now) and its randomisation overrides: upper-body pose,
-    hand pull and push band (the pull and the pushes also on top of a warm start's environment: they change only
-    what PPO trains with)."""
+    hand pull, push band and push interval (the pull and the pushes also on top of a warm start's environment: they
+    change only what PPO trains with)."""
     if request.variant is not None:
         from toddlerbot.robot.description import RobotDescription
 
@@ -161,7 +163,8 @@ def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.E
     smallest, largest = request.push_velocity or (None, None)
     overrides = {"--upper-body-pose": {"upper_body_pose": request.upper_body_pose},
                  "--hand-force": {"hand_force": request.hand_force},
-                 "--push-velocity": {"push_velocity_min": smallest, "push_velocity": largest}}
+                 "--push-velocity": {"push_velocity_min": smallest, "push_velocity": largest},
+                 "--push-interval": {"push_interval_s": request.push_interval}}
     for option, fields in overrides.items():
         if any(value is None for value in fields.values()):
             continue
