@@ -1,5 +1,5 @@
 """Pushes in training: each kick's speed is drawn from a band (`push_velocity_min`..`push_velocity`), set by
-`rl train --push-velocity LO HI`."""
+`rl train --push-velocity LO HI`, and the time to the next push from another (`push_interval_s`, `--push-interval`)."""
 
 from dataclasses import replace
 
@@ -17,26 +17,32 @@ from toddlerbot.rl.reference import standing_table  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 
-def _kicks(band: tuple[float, float], randomize: bool = True, n: int = 300) -> tuple[np.ndarray, np.ndarray]:
-    """(kicks (n, 2) m/s, torso velocity change (n, 2) m/s) of a due push for n keys."""
+def _push_env(band: tuple[float, float], randomize: bool = True, interval: tuple[float, float] = (2.0, 5.0)):
     description = RobotDescription.load()
     cfg = smoke_env_config()
     cfg = replace(cfg, randomize=randomize, randomization=replace(
-        cfg.randomization, push_velocity_min=band[0], push_velocity=band[1]))
-    env = WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.6),
-                  gain_scales=(np.ones(description.n_motors), np.zeros((2, description.n_motors))))
+        cfg.randomization, push_velocity_min=band[0], push_velocity=band[1], push_interval_s=interval))
+    return WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.6),
+                   gain_scales=(np.ones(description.n_motors), np.zeros((2, description.n_motors))))
+
+
+def _kicks(band: tuple[float, float], randomize: bool = True, n: int = 300,
+           interval: tuple[float, float] = (2.0, 5.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(kicks (n, 2) m/s, torso velocity change (n, 2) m/s, time to the next push (n,) s) of a due push for n
+    keys."""
+    env = _push_env(band, randomize, interval)
     state = env.reset(jax.random.PRNGKey(0))
     info = dict(state.info, push_timer=jnp.zeros(()))
 
     def kick(key):
         data, pushed = env._push(state.pipeline_state, dict(info), key)
-        return pushed["push"], data.qvel[:2] - state.pipeline_state.qvel[:2]
+        return pushed["push"], data.qvel[:2] - state.pipeline_state.qvel[:2], pushed["push_timer"]
 
     return tuple(np.asarray(a) for a in jax.vmap(kick)(jax.random.split(jax.random.PRNGKey(1), n)))
 
 
 def test_push_speeds_fill_the_band_in_every_direction_and_move_the_torso_by_them():
-    kicks, moved = _kicks((0.2, 0.35))
+    kicks, moved, _ = _kicks((0.2, 0.35))
     speed = np.linalg.norm(kicks, axis=1)
     assert speed.min() >= 0.2 - 1e-6 and speed.max() <= 0.35 + 1e-6
     assert speed.min() < 0.21 and speed.max() > 0.34  # 300 draws reach both ends of the band
@@ -46,10 +52,30 @@ def test_push_speeds_fill_the_band_in_every_direction_and_move_the_torso_by_them
 
 
 def test_no_push_without_randomisation_and_the_default_band_starts_at_zero():
-    kicks, moved = _kicks((0.2, 0.35), randomize=False, n=8)
+    kicks, moved, _ = _kicks((0.2, 0.35), randomize=False, n=8)
     assert np.all(kicks == 0.0) and np.all(moved == 0.0)
     default = RandomizationConfig()
     assert (default.push_velocity_min, default.push_velocity) == (0.0, 0.3)
+
+
+def test_the_time_to_the_next_push_fills_the_interval_band():
+    _, _, timer = _kicks((0.2, 0.35), interval=(1.5, 3.0))
+    assert timer.min() >= 1.5 and timer.max() <= 3.0
+    assert timer.min() < 1.56 and timer.max() > 2.94 and abs(timer.mean() - 2.25) < 0.08  # uniform over the band
+    assert RandomizationConfig().push_interval_s == (2.0, 5.0)
+
+
+@pytest.mark.parametrize("interval", [(3.0, 1.5), (0.0, 2.0), (1.0, float("inf"))])
+def test_a_bad_push_interval_is_refused_by_the_config_and_by_rl_train_in_one_line(tmp_path, interval):
+    from toddlerbot.rl.launch import TrainRequest, new_run_plan
+
+    with pytest.raises(ValueError, match=r"push interval .*: expected 0 < shortest <= longest, finite, s"):
+        RandomizationConfig(push_interval_s=interval)
+    with pytest.raises(ToddlerbotError, match=r"^--push-interval: push interval .*: expected 0 < shortest"):
+        new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, push_interval=interval))
+    assert not (tmp_path / "bad").exists()  # nothing written for a refused request
+    plan = new_run_plan(tmp_path / "run", TrainRequest(smoke=True, push_interval=(1.5, 3.0)))
+    assert plan.env.randomization.push_interval_s == (1.5, 3.0)
 
 
 @pytest.mark.parametrize("band", [(0.4, 0.3), (-0.1, 0.3), (0.1, float("inf"))])
@@ -111,7 +137,8 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
 @pytest.mark.parametrize(("request_fields", "message"), [
     ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
     ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),
-    ({"hand_force": 1.0}, r"--num-envs/--mirror-loss: a resumed run keeps the settings it started with"),
+    ({"hand_force": 1.0}, r"--mirror-loss/--push-interval: a resumed run keeps the settings it started with"),
+    ({"push_interval": (1.0, 2.0)}, r"--push-interval: a resumed run keeps the settings it started with"),
     ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity and --timesteps"),
 ])
 def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_was(tmp_path, request_fields,
