@@ -2,7 +2,8 @@
 
 Ten commands across the policy's reach, each walked for `--seconds` under every condition (nominal, torso 10 %
 heavier, floor friction 0.5, small random perturbations, velocity kicks of 0.1, 0.2 and 0.3 m/s, the upper body
-held at a random pose 0.3 and 0.5 of the way to its limits) and `--seeds` seeds, on the robot of `--variant`;
+held at a random pose 0.3 and 0.5 of the way to its limits: with `--variant` only, unless named in `--conditions`)
+and `--seeds` seeds, on the robot of `--variant`;
 prints a table of falls (falls / trials per cell) and the totals per condition. Trials run in `--workers`
 subprocesses that print one JSON line per trial (nothing is pickled between processes).
 
@@ -101,14 +102,17 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--seconds", type=float, default=8.0)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--conditions", default=",".join(c.name for c in conditions()))
+    parser.add_argument("--conditions", default=None,
+                        help="comma-separated (default: all; the posed ones only with --variant, as a policy of the "
+                             "base robot is not trained to walk with its arms posed)")
     parser.add_argument("--kick-grid", type=float, default=None, metavar="SPEED",
                         help="one kick of SPEED m/s per trial over directions x gait phases instead")
     parser.add_argument("--asymmetric", action="store_true",
                         help="walk-rl without its mirror image (docs/rl.md \"Mirror symmetry\")")
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    names = args.conditions.split(",")
+    names = args.conditions.split(",") if args.conditions else \
+        [c.name for c in conditions() if args.variant or not c.upper_body_pose]
     unknown = set(names) - {c.name for c in conditions()}
     if unknown:
         parser.error(f"unknown condition(s) {sorted(unknown)}; expected some of {[c.name for c in conditions()]}")
