@@ -17,20 +17,17 @@ from toddlerbot.rl.reference import standing_table  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 
-def _push_env(band: tuple[float, float], randomize: bool = True, interval: tuple[float, float] = (2.0, 5.0)):
+def _kicks(band: tuple[float, float], randomize: bool = True, n: int = 300,
+           interval: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(kicks (n, 2) m/s, torso velocity change (n, 2) m/s, time to the next push (n,) s) of a due push for n
+    keys (``interval``: the push interval band, None: the configuration's)."""
     description = RobotDescription.load()
     cfg = smoke_env_config()
     cfg = replace(cfg, randomize=randomize, randomization=replace(
-        cfg.randomization, push_velocity_min=band[0], push_velocity=band[1], push_interval_s=interval))
-    return WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.6),
-                   gain_scales=(np.ones(description.n_motors), np.zeros((2, description.n_motors))))
-
-
-def _kicks(band: tuple[float, float], randomize: bool = True, n: int = 300,
-           interval: tuple[float, float] = (2.0, 5.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(kicks (n, 2) m/s, torso velocity change (n, 2) m/s, time to the next push (n,) s) of a due push for n
-    keys."""
-    env = _push_env(band, randomize, interval)
+        cfg.randomization, push_velocity_min=band[0], push_velocity=band[1],
+        push_interval_s=interval or cfg.randomization.push_interval_s))
+    env = WalkEnv(cfg, description, reference=standing_table(description, cfg.command, period=0.6),
+                  gain_scales=(np.ones(description.n_motors), np.zeros((2, description.n_motors))))
     state = env.reset(jax.random.PRNGKey(0))
     info = dict(state.info, push_timer=jnp.zeros(()))
 

@@ -21,7 +21,7 @@ from toddlerbot.cli.options import (
 from toddlerbot.cli.output import console
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.walk_rl import default_weights
-from toddlerbot.rl.config import PHYSICS_BACKENDS
+from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig
 from toddlerbot.rl.launch import TrainRequest
 from toddlerbot.rl.onnx_export import EXPORT_FORMATS
 
@@ -69,8 +69,9 @@ PushVelocityOption = Annotated[tuple[float, float] | None, typer.Option(
          "largest push); a band near the largest trains recovery from the kicks of the robustness benchmark. "
          "With --resume: the run goes on with this band from its last checkpoint (a curriculum in stages).")]
 PushIntervalOption = Annotated[tuple[float, float] | None, typer.Option(
-    help="Pushes in training: seconds from one push to the next, uniform between these two (default: the "
-         "recipe's 2-5 s); shorter trains recovery from kicks in quick succession.")]
+    help="Pushes in training: seconds from one push to the next, uniform between these two (default: "
+         "{:g}-{:g} s); shorter trains recovery from kicks in quick succession.".format(
+             *RandomizationConfig().push_interval_s))]
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
