@@ -34,8 +34,8 @@ def quantities(**overrides):
 
 
 def test_weights_are_table_6_and_cover_every_term():
-    assert RewardConfig().weights == TABLE_6
-    assert set(rewards.TERMS) == set(TABLE_6)
+    assert RewardConfig().weights == {**TABLE_6, "path_xy": 0.0}  # the path term is ours, off by default
+    assert set(rewards.TERMS) == set(TABLE_6) | {"path_xy"}
     with pytest.raises(ValueError, match="missing"):
         rewards.check_weights(RewardConfig(weights={"survival": 1.0}))
 

@@ -75,6 +75,9 @@ PushIntervalOption = Annotated[tuple[float, float] | None, typer.Option(
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
+RewardWeightOption = Annotated[list[str] | None, typer.Option(
+    help="Override a reward term's weight, NAME=WEIGHT (repeatable; e.g. path_xy=5 for the position-tracking term "
+         "that is off by default: docs/rl.md \"Rewards\").")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
@@ -102,6 +105,7 @@ def train(
     push_velocity: PushVelocityOption = None,
     push_interval: PushIntervalOption = None,
     mirror_loss: MirrorLossOption = None,
+    reward_weight: RewardWeightOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -111,15 +115,14 @@ def train(
     scalars (RUN/tensorboard; --wandb: also Weights & Biases). --motor-params: the robot trains on the fitted
     motors, domain randomisation scales around them. --variant with --upper-body-pose (and --hand-force): a
     policy for a variant that walks whatever its arms do (and hold)."""
-    training_budget(minutes, epochs, "--epochs")
-    for option, count in (("--timesteps", timesteps), ("--num-envs", num_envs)):
-        training_budget(None, count, option)
+    for limit, count, option in ((minutes, epochs, "--epochs"), (None, timesteps, "--timesteps"),
+                                 (None, num_envs, "--num-envs")):
+        training_budget(limit, count, option)
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
-                           hand_force, push_velocity, push_interval, mirror_loss)
+                           hand_force, push_velocity, push_interval, mirror_loss, tuple(reward_weight or ()))
     plan = _plan(out, resume, request)
-    console.print(f"run directory: {plan.run_dir}")
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 
 
@@ -158,6 +161,8 @@ def _train_with_progress(plan, minutes: float | None, epochs: int | None, sinks)
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from toddlerbot.rl.train import train as run_training
+
+    console.print(f"run directory: {plan.run_dir}")
 
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
                   TimeElapsedColumn(), console=console) as bar:

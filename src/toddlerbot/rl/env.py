@@ -175,6 +175,7 @@ class WalkEnv(Env):
             "ref_yaw": _yaw(frame.qpos[3:7]), "last_action": zeros, "last_last_action": zeros,
             "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": frame.feet_pos,
             "push_timer": self._push_interval(k_push), "push": jnp.zeros(2), "avg_vel": jnp.zeros(3),
+            "path_error": jnp.zeros(2),
             "upper_body": self._upper_body_pose(k_cmd), "hand_force": self._hand_force(k_cmd),
             "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
@@ -217,9 +218,12 @@ class WalkEnv(Env):
         lin_vel = _rotate_z(qvel[0:3], -yaw)
         velocity = jnp.concatenate([lin_vel[:2], qvel[5:6]])
         info["avg_vel"] = info["avg_vel"] + cfg.ctrl_dt / cfg.reward.velocity_average_s * (velocity - info["avg_vel"])
+        info["path_error"] = info["path_error"] + cfg.ctrl_dt * (
+            lin_vel[:2] - info["command"][:2] - info["path_error"] / cfg.reward.path_memory_s)
         q = rewards.StepQuantities(
             torso_quat=torso_quat, ref_torso_quat=_yaw_quat(info["ref_yaw"]),
-            lin_vel=lin_vel, ang_vel=qvel[3:6], avg_vel=info["avg_vel"], command=info["command"],
+            lin_vel=lin_vel, ang_vel=qvel[3:6], avg_vel=info["avg_vel"], path_error=info["path_error"],
+            command=info["command"],
             leg_pos=qpos[self.motor_qadr][self.leg_index], ref_leg_pos=ref_leg,
             home_leg_pos=jnp.asarray(self.home_motor_pos[self.leg_index]), contact=contact,
             ref_contact=jnp.round(ref_contact), first_contact=first_contact, air_time=air_time,
@@ -327,4 +331,6 @@ class WalkEnv(Env):
             "air_time": info["air_time"], "torso_height": frame.qpos[2:3],
             "floor_friction": info["dr"].floor_friction[None], "avg_vel": info["avg_vel"],
         }
+        if cfg.reward.weights["path_xy"]:  # only then, so that the critics of runs without the term keep their shape
+            privileged["path_error"] = info["path_error"]
         return {"state": actor, "privileged_state": critic_obs(actor, clean, privileged)}, info

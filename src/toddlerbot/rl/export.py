@@ -111,6 +111,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "hand_force": env_cfg.randomization.hand_force,
             "push_velocity": stages[-1]["push_velocity"],
             "push_interval_s": list(env_cfg.randomization.push_interval_s),
+            "reward_weights": env_cfg.reward.weights,
             "push_stages": [[stage["from_env_steps"], *stage["push_velocity"]] for stage in stages],
             "motor_params": json.loads(record.read_text()) if record.is_file() else []}
     space = run_dir / ACTION_SPACE

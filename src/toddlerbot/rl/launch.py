@@ -4,6 +4,7 @@ compiles. Importing it starts no JAX (`is_smoke_run` is asked before the XLA fla
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -39,6 +40,8 @@ class TrainRequest:
     push_velocity: tuple[float, float] | None = None
     push_interval: tuple[float, float] | None = None
     mirror_loss: float | None = None
+    reward_weights: tuple[str, ...] = ()
+    """``NAME=WEIGHT`` overrides of `RewardConfig.weights`."""
 
 
 @dataclass(frozen=True)
@@ -61,7 +64,7 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
                   "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
                   "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
                   "num_envs": "--num-envs", "mirror_loss": "--mirror-loss",
-                  "push_interval": "--push-interval"}
+                  "push_interval": "--push-interval", "reward_weights": "--reward-weight"}
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
@@ -126,9 +129,10 @@ def _warm_start_source(request: TrainRequest) -> WarmStartSource | None:
     if request.warm_start is None:
         return None
     if request.motor_params or request.imitation_iterations is not None or request.variant is not None \
-            or request.upper_body_pose is not None:
+            or request.upper_body_pose is not None or request.reward_weights:
         raise ToddlerbotError("--warm-start: the source run's warm start fixes its --motor-params, "
-                              "--imitation-iterations, --variant and --upper-body-pose")
+                              "--imitation-iterations, --variant, --upper-body-pose and --reward-weight (its "
+                              "critic learned the source's rewards)")
     return warm_start_source(request.warm_start)
 
 
@@ -142,7 +146,8 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
             else request.ls_iterations)
     except ValueError as exc:
         raise ToddlerbotError(f"--solver-iterations/--ls-iterations: {exc}") from exc
-    env_cfg = _robot_variant(env_cfg, request)
+    env_cfg = replace(_robot_variant(env_cfg, request),
+                      reward=replace(env_cfg.reward, weights=reward_weights(env_cfg.reward.weights, request)))
     if not request.motor_params:
         return env_cfg
     from toddlerbot.actuation.params_file import catalogue_with_params
@@ -173,6 +178,24 @@ def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.E
         except ValueError as exc:
             raise ToddlerbotError(f"{option}: {exc}") from exc
     return env_cfg
+
+
+def reward_weights(weights: dict[str, float], request: TrainRequest) -> dict[str, float]:
+    """`weights` with the request's ``NAME=WEIGHT`` overrides (each checked: a known term, a finite weight >= 0)."""
+    weights = dict(weights)
+    for item in request.reward_weights:
+        name, _, text = item.partition("=")
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if name not in weights:
+            raise ToddlerbotError(f"--reward-weight {item}: unknown reward term {name!r}; expected one of "
+                                  f"{', '.join(sorted(weights))}")
+        if not math.isfinite(value) or value < 0:
+            raise ToddlerbotError(f"--reward-weight {item}: expected NAME=WEIGHT with a finite weight >= 0")
+        weights[name] = value
+    return weights
 
 
 def _recipe(backend: str, request: TrainRequest) -> tuple[config.PPOConfig, config.ImitationConfig]:

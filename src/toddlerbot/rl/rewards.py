@@ -32,6 +32,10 @@ class StepQuantities(NamedTuple):
     avg_vel: jax.Array
     """(3,) vx, vy (yaw frame, m/s) and yaw rate (rad/s) of the torso, exponentially averaged over
     `RewardConfig.velocity_average_s`: the walking velocity without the in-cycle sway."""
+    path_error: jax.Array
+    """(2,) x, y (yaw frame, m) of the torso from the path the commands lead along, forgotten with the time
+    constant `RewardConfig.path_memory_s`: a walking-speed bias accumulates here (what `eval tracking` measures
+    as the position error), a push's displacement too."""
     command: jax.Array
     """(3,) vx, vy m/s, yaw rate rad/s."""
     leg_pos: jax.Array
@@ -82,6 +86,11 @@ def torso_quat(q: StepQuantities, c: RewardConfig) -> jax.Array:
 
 def lin_vel_xy(q: StepQuantities, c: RewardConfig) -> jax.Array:
     return _kernel(jnp.sum((q.avg_vel[:2] - q.command[:2]) ** 2), c.velocity_sigma)
+
+
+def path_xy(q: StepQuantities, c: RewardConfig) -> jax.Array:
+    """Position tracking: stay on the commanded path (not in Table 6; off unless weighted)."""
+    return _kernel(jnp.sum(q.path_error**2), c.path_sigma)
 
 
 def lin_vel_z(q: StepQuantities, c: RewardConfig) -> jax.Array:
@@ -176,7 +185,7 @@ def survival(q: StepQuantities, c: RewardConfig) -> jax.Array:
 TERMS: dict[str, Term] = {
     f.__name__: f
     for f in (
-        torso_quat, lin_vel_xy, lin_vel_z, ang_vel_xy, ang_vel_z, leg_motor_pos, feet_contact,
+        torso_quat, lin_vel_xy, path_xy, lin_vel_z, ang_vel_xy, ang_vel_z, leg_motor_pos, feet_contact,
         feet_air_time, feet_clearance, feet_distance, feet_slip, align_ground, stand_still, torso_roll,
         torso_pitch, collision, leg_action_rate, leg_action_acc, motor_torque, energy, survival,
     )

@@ -53,6 +53,7 @@ from toddlerbot.rl.env import TRACKING_METRICS, WalkEnv
 from toddlerbot.rl.export import ACTION_SPACE, MOTOR_PARAMS_RECORD, motor_params_record
 from toddlerbot.rl.imitation import WarmStart
 from toddlerbot.rl.precision import use_full_precision
+from toddlerbot.rl.rewards import TERMS
 from toddlerbot.rl.wrappers import wrap_for_training
 
 AXIS = "devices"
@@ -306,13 +307,19 @@ def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
         env_cfg = EnvConfig(
             **{k: v for k, v in tuples(env).items() if k not in ("obs", "command", "reward", "randomization")},
             obs=ObsConfig(**env["obs"]), command=CommandConfig(**tuples(env["command"])),
-            reward=RewardConfig(**tuples(env["reward"])),
+            reward=_reward_config(tuples(env["reward"])),
             randomization=RandomizationConfig(**tuples(env["randomization"])),
         )
         return env_cfg, PPOConfig(**tuples(raw["ppo"]))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise ToddlerbotError(f"{path}: not a training configuration ({reason})") from None
+
+
+def _reward_config(saved: dict) -> RewardConfig:
+    """A saved reward configuration; a term added since the run was saved has weight 0 (the run trained without
+    it)."""
+    return RewardConfig(**{**saved, "weights": {**dict.fromkeys(TERMS, 0.0), **saved["weights"]}})
 
 
 # checkpoints ----------------------------------------------------------------------------------------------------
