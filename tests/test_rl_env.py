@@ -3,6 +3,8 @@
 The physics test JIT-compiles one environment step (slow on CPU: about a minute), so it is marked ``slow``.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -48,6 +50,16 @@ def test_each_env_gets_its_own_randomisation_draw(env, states):
     assert torso_mass == pytest.approx(expected, rel=1e-5)
 
 
+def test_the_critic_sees_the_path_error_only_where_the_path_term_is_weighted(env, states):
+    cfg = env.cfg
+    weighted = replace(cfg, reward=replace(cfg.reward, weights={**cfg.reward.weights, "path_xy": 5.0}))
+    env_with_path = WalkEnv(weighted, env.description, reference=env.reference, gain_scales=env.gain_scales)
+    state = jax.jit(env_with_path.reset)(jax.random.PRNGKey(0))
+    assert cfg.reward.weights["path_xy"] == 0
+    assert state.obs["privileged_state"].shape[-1] == states.obs["privileged_state"].shape[-1] + 2
+    assert state.obs["state"].shape[-1] == states.obs["state"].shape[-1]  # the actor's observation is unchanged
+
+
 def test_observations_have_history_and_privileged_extras(env, states):
     frame = env.frame_size
     actor = np.asarray(states.obs["state"])
@@ -77,4 +89,9 @@ def test_zero_actions_keep_the_robot_standing_and_rewarded(env, states):
     sigma = env.cfg.reward.velocity_sigma
     expected = np.exp(-sigma * np.sum((avg[:, :2] - command[:, :2]) ** 2, axis=1))
     np.testing.assert_allclose(np.asarray(state.metrics["lin_vel_xy"]), expected, rtol=1e-4)
+    # standing still against a command, the path error grows backwards along it: -command x memory x (1 - e^-t/m)
+    memory = env.cfg.reward.path_memory_s
+    behind = -command[:, :2] * memory * (1 - np.exp(-0.5 / memory))
+    np.testing.assert_allclose(np.asarray(state.info["path_error"]), behind, atol=0.01)
+    assert np.max(np.abs(behind)) > 0.02  # the commands are large enough for the check to mean something
     assert np.all(np.asarray(state.info["time"]) == pytest.approx(0.5))

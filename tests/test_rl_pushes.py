@@ -134,7 +134,7 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
 @pytest.mark.parametrize(("request_fields", "message"), [
     ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
     ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),
-    ({"hand_force": 1.0}, r"--push-interval/--reward-weight: a resumed run keeps the settings it started with"),
+    ({"hand_force": 1.0}, r"--mirror-loss/--push-interval/--reward-weight: a resumed run keeps the settings"),
     ({"push_interval": (1.0, 2.0)}, r"--push-interval/--reward-weight: a resumed run keeps the settings"),
     ({"reward_weights": ("path_xy=5",)}, r"--reward-weight: a resumed run keeps the settings it started with"),
     ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity and --timesteps"),

@@ -22,7 +22,7 @@ def quantities(**overrides):
     z2, z3, z12 = jnp.zeros(2), jnp.zeros(3), jnp.zeros(12)
     q = dict(
         torso_quat=jnp.array([1.0, 0, 0, 0]), ref_torso_quat=jnp.array([1.0, 0, 0, 0]), lin_vel=z3, ang_vel=z3,
-        avg_vel=z3, command=z3, leg_pos=z12, ref_leg_pos=z12, home_leg_pos=z12, contact=jnp.ones(2),
+        avg_vel=z3, path_error=z2, command=z3, leg_pos=z12, ref_leg_pos=z12, home_leg_pos=z12, contact=jnp.ones(2),
         ref_contact=jnp.ones(2),
         first_contact=z2, air_time=z2, feet_height=z2, feet_vel_xy=jnp.zeros((2, 2)), feet_up_z=jnp.ones(2),
         feet_lateral_distance=jnp.array(0.1), roll=jnp.array(0.0), pitch=jnp.array(0.0),
@@ -60,6 +60,18 @@ def test_velocity_tracking_reads_the_averaged_velocity_not_the_sway():
     # a 0.04 m/s bias of the walking speed costs 15 % of the term
     biased = quantities(command=[0.1, 0.0, 0.0], avg_vel=[0.06, 0.0, 0.0])
     assert float(rewards.lin_vel_xy(biased, cfg)) == pytest.approx(0.852, abs=1e-3)
+
+
+def test_the_path_term_makes_a_small_speed_bias_cost_more_than_the_velocity_term_does():
+    cfg = RewardConfig()
+    assert float(rewards.path_xy(quantities(), cfg)) == 1.0
+    # a 2 cm/s forward bias held for a while: the leaky path error settles at bias x memory = 4 cm
+    bias = 0.02
+    drift = quantities(path_error=[bias * cfg.path_memory_s, 0.0], avg_vel=[bias, 0.0, 0.0])
+    assert float(rewards.path_xy(drift, cfg)) == pytest.approx(np.exp(-200 * 0.04**2), rel=1e-5)  # 0.726
+    assert 1 - float(rewards.path_xy(drift, cfg)) > 6 * (1 - float(rewards.lin_vel_xy(drift, cfg)))  # 0.27 vs 0.04
+    sideways = quantities(path_error=[0.0, -0.04])
+    assert float(rewards.path_xy(sideways, cfg)) == pytest.approx(float(rewards.path_xy(drift, cfg)))
 
 
 def test_penalties_grow_with_the_mistake():
