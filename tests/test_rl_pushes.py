@@ -111,7 +111,8 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
     from toddlerbot.rl.launch import TrainRequest, resume_plan
 
     run = _run_at(tmp_path, 400)
-    assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35], "num_timesteps": 1000}]
+    assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
+                                           "push_interval_s": [2.0, 5.0], "num_timesteps": 1000}]
     plan = resume_plan(run, TrainRequest(push_velocity=(0.25, 0.4), timesteps=2000))
     assert plan.resume and plan.env is None  # the run reads its (new) configuration itself
     env_cfg, ppo_cfg = train.load_config(run)
@@ -131,13 +132,26 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
         (0, [0.15, 0.35]), (400, [0.3, 0.3])]
 
 
+def test_a_resumed_run_goes_on_with_pushes_more_often_as_a_recorded_stage(tmp_path):
+    from toddlerbot.rl import train
+    from toddlerbot.rl.launch import TrainRequest, resume_plan
+
+    run = _run_at(tmp_path, 400)
+    resume_plan(run, TrainRequest(push_interval=(1.5, 3.0)))
+    env_cfg, _ = train.load_config(run)
+    assert env_cfg.randomization.push_interval_s == (1.5, 3.0)
+    assert (env_cfg.randomization.push_velocity_min, env_cfg.randomization.push_velocity) == (0.15, 0.35)  # kept
+    assert [(s["from_env_steps"], s["push_velocity"], s["push_interval_s"]) for s in train.training_stages(run)] == [
+        (0, [0.15, 0.35], [2.0, 5.0]), (400, [0.15, 0.35], [1.5, 3.0])]
+
+
 @pytest.mark.parametrize(("request_fields", "message"), [
     ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
     ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),
-    ({"hand_force": 1.0}, r"--mirror-loss/--push-interval/--reward-weight: a resumed run keeps the settings"),
-    ({"push_interval": (1.0, 2.0)}, r"--push-interval/--reward-weight: a resumed run keeps the settings"),
+    ({"hand_force": 1.0}, r"--mirror-loss/--reward-weight: a resumed run keeps the settings it started with"),
+    ({"push_interval": (3.0, 1.0)}, r"^--push-interval: push interval 3\.0\.\.1\.0: expected 0 < shortest"),
     ({"reward_weights": ("path_xy=5",)}, r"--reward-weight: a resumed run keeps the settings it started with"),
-    ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity and --timesteps"),
+    ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval and --timesteps"),
 ])
 def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_was(tmp_path, request_fields,
                                                                                      message):

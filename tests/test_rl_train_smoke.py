@@ -134,6 +134,7 @@ def test_export_of_the_smoke_run_matches_jax_policy(smoke_run, tmp_path):
     assert policy.meta["reward_weights"] == env_cfg.reward.weights and policy.meta["reward_weights"]["path_xy"] == 0
     first = RLPolicyFile(export.export_run(run, tmp_path / "first.npz", checkpoint=f"step_{half:012d}.msgpack"))
     assert first.meta["push_stages"] == [[0, *band]]  # the second stage began after this checkpoint
+    assert policy.meta["push_interval_stages"] == [[0, 2.0, 5.0], [half, 2.0, 5.0]]
 
 
 def test_smoke_run_dashboards_hold_the_json_lines_records(smoke_run):

@@ -138,5 +138,5 @@ def test_rl_train_checks_the_variant_options_before_compiling(tmp_path):
     (tmp_path / "old" / "config.json").write_text("{}")
     for request in (TrainRequest(variant="gripper"), TrainRequest(hand_force=1.0)):
         with pytest.raises(ToddlerbotError, match="--variant/--upper-body-pose/--hand-force/--num-envs/"
-                                                  "--mirror-loss/--push-interval/--reward-weight: a resumed run keeps"):
+                                                  "--mirror-loss/--reward-weight: a resumed run keeps"):
             resume_plan(tmp_path / "old", request)

@@ -70,7 +70,8 @@ PushVelocityOption = Annotated[tuple[float, float] | None, typer.Option(
          "With --resume: the run goes on with this band from its last checkpoint (a curriculum in stages).")]
 PushIntervalOption = Annotated[tuple[float, float] | None, typer.Option(
     help="Pushes in training: seconds from one push to the next, uniform between these two (default: "
-         "{:g}-{:g} s); shorter trains recovery from kicks in quick succession.".format(
+         "{:g}-{:g} s); shorter trains recovery from kicks in quick succession. With --resume: the run goes on "
+         "with these intervals from its last checkpoint (a stage, as with --push-velocity).".format(
              *RandomizationConfig().push_interval_s))]
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "

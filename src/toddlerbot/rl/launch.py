@@ -63,33 +63,34 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
                   "ls_iterations": "--ls-iterations", "backend": "--backend",
                   "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
                   "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
-                  "num_envs": "--num-envs", "mirror_loss": "--mirror-loss",
-                  "push_interval": "--push-interval", "reward_weights": "--reward-weight"}
+                  "num_envs": "--num-envs", "mirror_loss": "--mirror-loss", "reward_weights": "--reward-weight"}
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
 def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
-    """Continue the run in `run_dir` from its last checkpoint. `--push-velocity` and `--timesteps` start its next
-    stage (a curriculum: say harder pushes from here on); options that would change anything else are refused."""
+    """Continue the run in `run_dir` from its last checkpoint. `--push-velocity`, `--push-interval` and
+    `--timesteps` start its next stage (a curriculum: say harder or more frequent pushes from here on); options that
+    would change anything else are refused."""
     if not (run_dir / "config.json").is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if any(getattr(request, field) != getattr(TrainRequest(), field) for field in KEPT_ON_RESUME):
         raise ToddlerbotError(f"{'/'.join(KEPT_ON_RESUME.values())}: a resumed run keeps the settings it started "
-                              "with (only --push-velocity and --timesteps start a next stage)")
-    if request.push_velocity is not None or request.timesteps is not None:
+                              "with (only --push-velocity, --push-interval and --timesteps start a next stage)")
+    if (request.push_velocity, request.push_interval, request.timesteps) != (None, None, None):
         _next_stage(run_dir, request)
     return TrainPlan(run_dir, resume=True)
 
 
 def _next_stage(run_dir: Path, request: TrainRequest) -> None:
-    """config.json takes the new push band and step budget (checked first), and its `stages` list the stage that
-    starts at the last checkpoint, so that an export knows which bands trained which checkpoint."""
+    """config.json takes the new push band, push interval and step budget (checked first), and its `stages` list the
+    stage that starts at the last checkpoint, so that an export knows which pushes trained which checkpoint."""
     from toddlerbot.rl import train
 
     env_cfg, ppo_cfg = train.load_config(run_dir)
     paths = train.checkpoint_paths(run_dir)
     start = train.checkpoint_env_steps(paths[-1]) if paths else 0
-    env_cfg = _robot_variant(env_cfg, TrainRequest(push_velocity=request.push_velocity))
+    env_cfg = _robot_variant(env_cfg, TrainRequest(push_velocity=request.push_velocity,
+                                                   push_interval=request.push_interval))
     ppo_cfg = _ppo_overrides(ppo_cfg, TrainRequest(timesteps=request.timesteps))
     if ppo_cfg.num_timesteps <= start:
         raise ToddlerbotError(f"--timesteps {ppo_cfg.num_timesteps}: the run is already at {start} PPO env steps; "

@@ -270,14 +270,15 @@ def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig,
 
 
 def training_stage(from_env_steps: int, env_cfg: EnvConfig, ppo_cfg: PPOConfig) -> dict:
-    """One stage of a run: from this PPO env step on, pushes in this band, until this many env steps."""
+    """One stage of a run: from this PPO env step on, pushes in this band at these intervals, until this many env
+    steps."""
     band = env_cfg.randomization
     return {"from_env_steps": int(from_env_steps), "push_velocity": [band.push_velocity_min, band.push_velocity],
-            "num_timesteps": ppo_cfg.num_timesteps}
+            "push_interval_s": list(band.push_interval_s), "num_timesteps": ppo_cfg.num_timesteps}
 
 
 def training_stages(run_dir: Path) -> list[dict]:
-    """The run's stages, oldest first: one unless `rl train --resume` changed the push band or the budget."""
+    """The run's stages, oldest first: one unless `rl train --resume` changed the pushes or the budget."""
     raw = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
     if "stages" in raw:
         return raw["stages"]
