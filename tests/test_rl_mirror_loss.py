@@ -102,10 +102,11 @@ def test_a_mirror_loss_needs_an_env_with_a_mirror_and_a_weight_of_at_least_zero(
     assert new_run_plan(tmp_path / "run", TrainRequest(smoke=True, mirror_loss=0.5)).ppo.mirror_loss == 0.5
 
 
-def test_the_shipped_default_is_the_mirror_trained_cpu_recipe_and_survives_0p2_mps_kicks():
-    """`walk_rl.npz` (docs/rl.md "Training with the symmetry"): trained on the CPU within two hours with the mirror
-    loss and pushes of 0.15-0.35 m/s; in the benchmark 0 falls in 60 trials of 0.2 m/s kicks (seeds 0-5) and 13
-    in 60 of 0.3 m/s. Six trials here, at most one fall: a rate with margin, not one trajectory."""
+def test_the_shipped_default_is_the_cpu_recipe_with_the_path_term_and_survives_0p3_mps_kicks():
+    """`walk_rl.npz` (docs/rl.md "A term on the path"): trained on the CPU within two hours with the mirror loss,
+    pushes of 0.15-0.35 m/s every 1.5-3 s and the path term; in the benchmark 3 falls in 60 trials of 0.3 m/s kicks
+    (seeds 0-5; the default before it 13). Six trials here, at most one fall: a rate with margin, not one
+    trajectory."""
     from toddlerbot.policies.rl_inference import RLPolicyFile
     from toddlerbot.policies.walk_rl import resolve_weights
     from walk_support import kick_trials
@@ -114,5 +115,6 @@ def test_the_shipped_default_is_the_mirror_trained_cpu_recipe_and_survives_0p2_m
     meta = RLPolicyFile(path).meta
     assert meta["mirror_loss"] == 1.0 and meta["push_velocity"] == [0.15, 0.35] and meta["backend"] == "cpu"
     assert meta["device"].startswith("CPU") and meta["walltime_s"] <= 7200  # the CPU recipe within two hours
-    trials = kick_trials(path, "kicks 0.2 m/s", slice(3, 6))
+    assert meta["push_interval_s"] == [1.5, 3.0] and meta["reward_weights"]["path_xy"] == 5.0
+    trials = kick_trials(path, "kicks 0.3 m/s", slice(3, 6))
     assert sum(t.fell for t in trials) <= 1, [(t.command, t.seed, t.fall_time) for t in trials]
