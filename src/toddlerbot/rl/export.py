@@ -69,7 +69,7 @@ def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
     return record
 
 
-def _interval(stage: dict, env_cfg) -> list[float]:
+def _interval(stage: dict, env_cfg: EnvConfig) -> list[float]:
     """A stage's push interval, s (stages recorded before a resume could change it ran the configuration's)."""
     return stage.get("push_interval_s", list(env_cfg.randomization.push_interval_s))
 

@@ -189,7 +189,7 @@ def reward_weights(weights: dict[str, float], request: TrainRequest) -> dict[str
         try:
             value = float(text)
         except ValueError:
-            value = float("nan")
+            value = math.nan  # not a number: refused below with the finite-weight message
         if name not in weights:
             raise ToddlerbotError(f"--reward-weight {item}: unknown reward term {name!r}; expected one of "
                                   f"{', '.join(sorted(weights))}")
