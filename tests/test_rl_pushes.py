@@ -145,6 +145,19 @@ def test_a_resumed_run_goes_on_with_pushes_more_often_as_a_recorded_stage(tmp_pa
         (0, [0.15, 0.35], [2.0, 5.0]), (400, [0.15, 0.35], [1.5, 3.0])]
 
 
+def test_stages_recorded_before_the_interval_could_change_read_as_the_configuration_s(tmp_path):
+    import json
+
+    from toddlerbot.rl import train
+
+    run = _run_at(tmp_path, 400)
+    raw = json.loads((run / "config.json").read_text())
+    raw["stages"] = [{"from_env_steps": 0, "push_velocity": [0.15, 0.35], "num_timesteps": 1000}]  # an older run's
+    (run / "config.json").write_text(json.dumps(raw))
+    assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
+                                           "push_interval_s": [2.0, 5.0], "num_timesteps": 1000}]
+
+
 @pytest.mark.parametrize(("request_fields", "message"), [
     ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
     ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),

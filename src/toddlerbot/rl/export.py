@@ -69,11 +69,6 @@ def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
     return record
 
 
-def _interval(stage: dict, env_cfg: EnvConfig) -> list[float]:
-    """A stage's push interval, s (stages recorded before a resume could change it ran the configuration's)."""
-    return stage.get("push_interval_s", list(env_cfg.randomization.push_interval_s))
-
-
 def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None,
                checkpoint: str | None = None) -> Path:
     """Export a checkpoint of a training run (for the run's robot: packaged spec, its variant and params.json):
@@ -115,10 +110,10 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "upper_body_pose": env_cfg.randomization.upper_body_pose,
             "hand_force": env_cfg.randomization.hand_force,
             "push_velocity": stages[-1]["push_velocity"],
-            "push_interval_s": _interval(stages[-1], env_cfg),
+            "push_interval_s": stages[-1]["push_interval_s"],
             "reward_weights": env_cfg.reward.weights,
             "push_stages": [[stage["from_env_steps"], *stage["push_velocity"]] for stage in stages],
-            "push_interval_stages": [[stage["from_env_steps"], *_interval(stage, env_cfg)] for stage in stages],
+            "push_interval_stages": [[stage["from_env_steps"], *stage["push_interval_s"]] for stage in stages],
             "motor_params": json.loads(record.read_text()) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None

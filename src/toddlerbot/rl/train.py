@@ -278,11 +278,13 @@ def training_stage(from_env_steps: int, env_cfg: EnvConfig, ppo_cfg: PPOConfig) 
 
 
 def training_stages(run_dir: Path) -> list[dict]:
-    """The run's stages, oldest first: one unless `rl train --resume` changed the pushes or the budget."""
+    """The run's stages, oldest first: one unless `rl train --resume` changed the pushes or the budget. Stages
+    recorded before a resume could change the push interval ran the configuration's."""
     raw = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
-    if "stages" in raw:
-        return raw["stages"]
     env_cfg, ppo_cfg = load_config(run_dir)
+    if "stages" in raw:
+        interval = list(env_cfg.randomization.push_interval_s)
+        return [{"push_interval_s": interval, **stage} for stage in raw["stages"]]
     return [training_stage(0, env_cfg, ppo_cfg)]
 
 
