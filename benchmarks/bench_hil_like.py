@@ -5,9 +5,11 @@
 control period lasts 20 +- the jitter (HIL's own: 15.9-24.3 ms, 1st-99th percentile); the IMU reading is
 some ms old (on average: 10 ms reports, each 5 ms late); motor angles come in 4,096 ticks per turn; and the
 command guard slew-limits targets as on hardware (`robot.safety.SLEW_SPEEDS` x the no-load speed, or
-``--slew``). The delays are `toddlerbot.sim.loop_delay.DelayedRobot`'s. Printed: falls and the yaw turned over
-seeds with all effects, then with each one left out (the ablation that found the slew limit's part in walk-zmp's
-HIL falls; docs/hardware.md), then with the delays scaled (the margin a slower host or the real robot's bus needs).
+``--slew``). The delays are `toddlerbot.sim.loop_delay.DelayedRobot`'s. Printed: falls, the yaw turned, where
+the torso ends (dx, dy in the start heading's frame) and the position error `eval tracking` computes, per seed,
+with none of the effects (the simulator), with all of them, then with each one left out (the ablation that found
+the slew limit's part in walk-zmp's HIL falls; docs/hardware.md), then with the delays scaled (the margin a slower
+host or the real robot's bus needs).
 
 Run: PYTHONPATH=src python benchmarks/bench_hil_like.py [--policy walk-zmp] [--seeds 5] [--slew 2.0] \
          [--delay-scales 2,3]
@@ -30,7 +32,7 @@ from toddlerbot.robot.interface import Observation
 from toddlerbot.robot.safety import SLEW_SPEEDS, slew_step
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
-from toddlerbot.runtime.summary import summarize
+from toddlerbot.runtime.summary import RunSummary, summarize
 from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, DEFAULT_SECONDS
 from toddlerbot.sim.loop_delay import HIL_LOOP_DELAY, DelayedRobot, LoopDelay
 
@@ -64,16 +66,14 @@ class HilLikeRobot(DelayedRobot):
         return dataclasses.replace(obs, motor_pos=q, joint_pos=self._A @ q)
 
 
-def walks(description: RobotDescription, policy: str, effects: HilEffects,
-          seeds: int) -> list[tuple[float | None, float]]:
-    """(fall time in s or None, yaw turned in rad) per seed, over the default tracking schedule."""
+def walks(description: RobotDescription, policy: str, effects: HilEffects, seeds: int) -> list[RunSummary]:
+    """One run's summary per seed of the period jitter, over the default tracking schedule."""
     out = []
     for seed in range(seeds):
         robot = HilLikeRobot(description, effects, seed)
         result = run_policy(robot, make_policy(policy, robot), CommandSchedule.parse(DEFAULT_COMMANDS),
                             DEFAULT_SECONDS, stop_on_fall=True)
-        summary = summarize(result.log, result.fell, result.fall_time)
-        out.append((result.fall_time, summary.yaw_change_rad))
+        out.append(summarize(result.log, result.fell, result.fall_time))
     return out
 
 
@@ -93,18 +93,21 @@ def main() -> None:
                "jitter": {"delay": dataclasses.replace(every.delay, jitter_ms=0)},
                "imu_age": {"delay": dataclasses.replace(every.delay, imu_ms=0)},
                "ticks": {"ticks": False}, "slew": {"slew": 0.0}}
-    rows = [("all effects", every),
+    rows = [("no effect", HilEffects(delay=LoopDelay(), ticks=False, slew=0.0)), ("all effects", every),
             *((f"without {name}", dataclasses.replace(every, **change)) for name, change in without.items()),
             *((f"delays x{f:g}", dataclasses.replace(every, delay=every.delay.scaled(f)))
               for f in map(float, args.delay_scales.split(",")) if f)]
     for label, effects in rows:
         start = time.perf_counter()
         runs = walks(description, args.policy, effects, args.seeds)
-        fell = [f"{t:.1f} s" for t, _ in runs if t is not None]
-        yaws = ", ".join(f"{y:.2f}" for _, y in runs)
+        fell = [f"{run.fall_time_s:.1f} s" for run in runs if run.fell]
+        yaws = ", ".join(f"{run.yaw_change_rad:.2f}" for run in runs)
+        ends = ", ".join("({:.3f}, {:.3f})".format(*run.displacement_m) for run in runs)
+        errors = ", ".join(f"{run.tracking.position_m:.3f}" for run in runs)
         delay = effects.delay
         print(f"{label:18s} ({delay.target_ms} ms late, IMU {delay.imu_ms} ms) falls {len(fell)}/{len(runs)} {fell}, "
-              f"yaw turned {yaws} rad ({time.perf_counter() - start:.0f} s wall)", flush=True)
+              f"yaw turned {yaws} rad, ends at dx, dy {ends} m, position error {errors} m "
+              f"({time.perf_counter() - start:.0f} s wall)", flush=True)
 
 
 if __name__ == "__main__":

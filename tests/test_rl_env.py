@@ -95,3 +95,38 @@ def test_zero_actions_keep_the_robot_standing_and_rewarded(env, states):
     np.testing.assert_allclose(np.asarray(state.info["path_error"]), behind, atol=0.01)
     assert np.max(np.abs(behind)) > 0.02  # the commands are large enough for the check to mean something
     assert np.all(np.asarray(state.info["time"]) == pytest.approx(0.5))
+
+
+def test_an_imu_age_band_draws_each_episode_s_age_and_leaves_every_other_draw_as_before():
+    from toddlerbot.rl import randomization
+    from toddlerbot.rl.config import RandomizationConfig
+
+    keys = jax.random.split(jax.random.PRNGKey(3), 6)
+    fresh = [randomization.sample(k, RandomizationConfig(), 20, 10, 30) for k in keys]
+    aged = [randomization.sample(k, RandomizationConfig(imu_age_s=(0.005, 0.015)), 20, 10, 30) for k in keys]
+    ages = np.array([float(d.imu_age) for d in aged])
+    assert np.all((ages >= 0.005) & (ages <= 0.015)) and len(np.unique(ages)) == 6
+    assert all(float(d.imu_age) == 0.0 for d in fresh)  # the default: fresh readings
+    for before, after in zip(fresh, aged, strict=True):  # runs from before the age existed draw as they did
+        for name in ("floor_friction", "kp_scale", "obs_noise_level", "action_delay"):
+            np.testing.assert_array_equal(getattr(before, name), getattr(after, name))
+
+
+def test_an_aged_imu_reading_lies_between_the_previous_control_step_s_and_this_one_s():
+    from toddlerbot.rl.observations import Sensors, aged_imu
+
+    def sensors(gyro, quat):
+        return Sensors(jnp.zeros(3), jnp.zeros(3), jnp.asarray(gyro, jnp.float32), jnp.asarray(quat, jnp.float32))
+
+    half_turn = np.array([np.cos(0.05), 0.0, 0.0, np.sin(0.05)])  # 0.1 rad of yaw
+    previous, now = sensors([0.2, 0.0, -1.0], [1.0, 0.0, 0.0, 0.0]), sensors([0.4, 0.0, 1.0], half_turn)
+    np.testing.assert_allclose(aged_imu(previous, now, 0.0).gyro, now.gyro)
+    np.testing.assert_allclose(aged_imu(previous, now, 1.0).gyro, previous.gyro)
+    middle = aged_imu(previous, now, 0.5)
+    np.testing.assert_allclose(middle.gyro, [0.3, 0.0, 0.0], atol=1e-6)
+    assert np.linalg.norm(middle.imu_quat) == pytest.approx(1.0, abs=1e-6)
+    assert 2 * np.arctan2(float(middle.imu_quat[3]), float(middle.imu_quat[0])) == pytest.approx(0.05, abs=1e-4)
+    # the same orientation written with the other sign is the same reading, not a flip through the origin
+    flipped = aged_imu(sensors([0.2, 0.0, -1.0], [-1.0, 0.0, 0.0, 0.0]), now, 0.5)
+    np.testing.assert_allclose(flipped.imu_quat, middle.imu_quat, atol=1e-6)
+    np.testing.assert_array_equal(middle.motor_pos, now.motor_pos)  # the motors are read fresh

@@ -112,7 +112,8 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
 
     run = _run_at(tmp_path, 400)
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
-                                           "push_interval_s": [2.0, 5.0], "num_timesteps": 1000}]
+                                           "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
+                                           "num_timesteps": 1000}]
     plan = resume_plan(run, TrainRequest(push_velocity=(0.25, 0.4), timesteps=2000))
     assert plan.resume and plan.env is None  # the run reads its (new) configuration itself
     env_cfg, ppo_cfg = train.load_config(run)
@@ -145,6 +146,19 @@ def test_a_resumed_run_goes_on_with_pushes_more_often_as_a_recorded_stage(tmp_pa
         (0, [0.15, 0.35], [2.0, 5.0]), (400, [0.15, 0.35], [1.5, 3.0])]
 
 
+def test_a_resumed_run_goes_on_with_older_imu_readings_as_a_recorded_stage(tmp_path):
+    from toddlerbot.rl import train
+    from toddlerbot.rl.launch import TrainRequest, resume_plan
+
+    run = _run_at(tmp_path, 400)
+    resume_plan(run, TrainRequest(imu_age=(0.0, 0.02)))
+    env_cfg, _ = train.load_config(run)
+    assert env_cfg.randomization.imu_age_s == (0.0, 0.02)
+    assert env_cfg.randomization.push_interval_s == (2.0, 5.0)  # kept
+    assert [(s["from_env_steps"], s["imu_age_s"], s["push_interval_s"]) for s in train.training_stages(run)] == [
+        (0, [0.0, 0.0], [2.0, 5.0]), (400, [0.0, 0.02], [2.0, 5.0])]
+
+
 def test_stages_recorded_before_the_interval_could_change_read_as_the_configuration_s(tmp_path):
     import json
 
@@ -155,7 +169,8 @@ def test_stages_recorded_before_the_interval_could_change_read_as_the_configurat
     raw["stages"] = [{"from_env_steps": 0, "push_velocity": [0.15, 0.35], "num_timesteps": 1000}]  # an older run's
     (run / "config.json").write_text(json.dumps(raw))
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
-                                           "push_interval_s": [2.0, 5.0], "num_timesteps": 1000}]
+                                           "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
+                                           "num_timesteps": 1000}]  # and read fresh IMU readings
 
 
 @pytest.mark.parametrize(("request_fields", "message"), [
@@ -164,7 +179,10 @@ def test_stages_recorded_before_the_interval_could_change_read_as_the_configurat
     ({"hand_force": 1.0}, r"--mirror-loss/--reward-weight: a resumed run keeps the settings it started with"),
     ({"push_interval": (3.0, 1.0)}, r"^--push-interval: push interval 3\.0\.\.1\.0: expected 0 < shortest"),
     ({"reward_weights": ("path_xy=5",)}, r"--reward-weight: a resumed run keeps the settings it started with"),
-    ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval and --timesteps"),
+    ({"imu_age": (0.02, 0.01)}, r"^--imu-age: IMU age 0\.02\.\.0\.01: expected 0 <= youngest <= oldest, s$"),
+    ({"imu_age": (0.0, 0.03)}, r"^--imu-age: IMU age up to 0\.03 s: expected at most the control period 0\.02 s$"),
+    ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval, --imu-age and "
+                      r"--timesteps start a next stage"),
 ])
 def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_was(tmp_path, request_fields,
                                                                                      message):

@@ -73,6 +73,10 @@ PushIntervalOption = Annotated[tuple[float, float] | None, typer.Option(
          "{:g}-{:g} s); shorter trains recovery from kicks in quick succession. With --resume: the run goes on "
          "with these intervals from its last checkpoint (a stage, as with --push-velocity).".format(
              *RandomizationConfig().push_interval_s))]
+ImuAgeOption = Annotated[tuple[float, float] | None, typer.Option(
+    help="The IMU reading the policy sees is this many seconds old, uniform between these two per episode, at most "
+         "one control period (default 0 0: fresh); a real BNO08x's are 5-15 ms old. With --resume: the run goes "
+         "on with these ages from its last checkpoint (a stage, as with --push-velocity).")]
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
@@ -105,24 +109,24 @@ def train(
     hand_force: HandForceOption = None,
     push_velocity: PushVelocityOption = None,
     push_interval: PushIntervalOption = None,
+    imu_age: ImuAgeOption = None,
     mirror_loss: MirrorLossOption = None,
     reward_weight: RewardWeightOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
 ) -> None:
-    """Train with PPO (on a CPU: the CPU recipe of docs/rl.md, a DAgger warm start from walk-zmp then PPO; with a
-    GPU: the one-GPU configuration; --smoke: a tiny run) with checkpoints, a training curve and TensorBoard
-    scalars (RUN/tensorboard; --wandb: also Weights & Biases). --motor-params: the robot trains on the fitted
-    motors, domain randomisation scales around them. --variant with --upper-body-pose (and --hand-force): a
-    policy for a variant that walks whatever its arms do (and hold)."""
+    """Train with PPO (CPU: docs/rl.md's CPU recipe, a DAgger warm start from walk-zmp then PPO; GPU: the one-GPU
+    configuration; --smoke: a tiny run) with checkpoints, a curve and TensorBoard scalars (--wandb: also W&B).
+    --motor-params: the robot trains on the fitted motors, randomisation scales around them. --variant with
+    --upper-body-pose (and --hand-force): a policy for a variant that walks whatever its arms do (and hold)."""
     for limit, count, option in ((minutes, epochs, "--epochs"), (None, timesteps, "--timesteps"),
                                  (None, num_envs, "--num-envs")):
         training_budget(limit, count, option)
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
-                           hand_force, push_velocity, push_interval, mirror_loss, tuple(reward_weight or ()))
+                           hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()))
     plan = _plan(out, resume, request)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 

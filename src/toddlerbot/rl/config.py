@@ -104,6 +104,12 @@ class RandomizationConfig:
     (the simulator) are within the training range (a cloned policy trained on 0.5-1.5 fell on clean inputs)."""
     action_delay_prob: float = 0.5
     """Probability that an episode applies each action one control step late."""
+    imu_age_s: tuple[float, float] = (0.0, 0.0)
+    """s; age of the IMU reading (gyro, gravity direction) the actor sees, per episode uniform in this band, at most
+    one control period: the reading is interpolated between the previous control step's and this one's. A real
+    BNO08x report is some ms old when the policy reads it (hardware-in-the-loop: 10 ms on average,
+    `toddlerbot.sim.loop_delay.HIL_LOOP_DELAY`), and a policy trained on fresh readings tracks worse with it
+    (docs/hardware.md). (0, 0): fresh, as before."""
     push_interval_s: tuple[float, float] = (2.0, 5.0)
     """s; time from one push to the next, uniform in this band (the first push too, from the reset)."""
     push_velocity: float = 0.3
@@ -132,6 +138,8 @@ class RandomizationConfig:
                              f"0 < shortest <= longest, finite, s")
         if not 0.0 <= self.hand_force < float("inf"):
             raise ValueError(f"hand_force {self.hand_force}: expected a finite force >= 0 N")
+        if not 0.0 <= self.imu_age_s[0] <= self.imu_age_s[1] < float("inf"):
+            raise ValueError(f"IMU age {self.imu_age_s[0]}..{self.imu_age_s[1]}: expected 0 <= youngest <= oldest, s")
 
 
 CONTACT_SETS = ("feet_hands", "all")
@@ -190,6 +198,9 @@ class EnvConfig:
             raise ValueError(f"backend {self.backend!r}: expected auto or one of {', '.join(PHYSICS_BACKENDS)}")
         if self.jacobian not in JACOBIANS:
             raise ValueError(f"jacobian {self.jacobian!r}: expected one of {', '.join(JACOBIANS)}")
+        if self.randomization.imu_age_s[1] > self.ctrl_dt:
+            raise ValueError(f"IMU age up to {self.randomization.imu_age_s[1]} s: expected at most the control period "
+                             f"{self.ctrl_dt} s")
 
     @property
     def n_substeps(self) -> int:

@@ -31,7 +31,7 @@ from toddlerbot.policies.rl_inference import GaitReference, leg_gain_scale, mirr
 from toddlerbot.rl import randomization, rewards
 from toddlerbot.rl.config import EnvConfig
 from toddlerbot.rl.model import training_model
-from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, critic_obs, push_frame
+from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, aged_imu, critic_obs, push_frame
 from toddlerbot.rl.physics import BACKENDS, MODEL_FIELDS, Addresses, Frame
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.reference import leg_motor_indices, load_reference
@@ -316,7 +316,9 @@ class WalkEnv(Env):
         cfg = self.cfg
         sensors = Sensors(motor_pos=frame.qpos[self.motor_qadr], motor_vel=frame.qvel[self.motor_dadr],
                           gyro=frame.gyro, imu_quat=frame.imu_quat)
-        noisy, gravity = add_noise(key, sensors, cfg.obs, info["dr"].obs_noise_level)
+        # the reset has no earlier reading: there the IMU is fresh
+        aged = aged_imu(info.get("sensors", sensors), sensors, info["dr"].imu_age / cfg.ctrl_dt)
+        noisy, gravity = add_noise(key, aged, cfg.obs, info["dr"].obs_noise_level)
         home = jnp.asarray(self.home_motor_pos)
         frame_obs = actor_frame(info["time"], info["command"], noisy, gravity, home, info["last_action"], cfg.obs)
         clean = actor_frame(info["time"], info["command"], sensors, -frame.imu_z, home, info["last_action"],

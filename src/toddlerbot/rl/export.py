@@ -114,6 +114,8 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "reward_weights": env_cfg.reward.weights,
             "push_stages": [[stage["from_env_steps"], *stage["push_velocity"]] for stage in stages],
             "push_interval_stages": [[stage["from_env_steps"], *stage["push_interval_s"]] for stage in stages],
+            "imu_age_s": stages[-1]["imu_age_s"],
+            "imu_age_stages": [[stage["from_env_steps"], *stage["imu_age_s"]] for stage in stages],
             "motor_params": json.loads(record.read_text()) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None

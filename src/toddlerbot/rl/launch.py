@@ -39,6 +39,7 @@ class TrainRequest:
     hand_force: float | None = None
     push_velocity: tuple[float, float] | None = None
     push_interval: tuple[float, float] | None = None
+    imu_age: tuple[float, float] | None = None
     mirror_loss: float | None = None
     reward_weights: tuple[str, ...] = ()
     """``NAME=WEIGHT`` overrides of `RewardConfig.weights`."""
@@ -68,29 +69,31 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
 
 
 def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
-    """Continue the run in `run_dir` from its last checkpoint. `--push-velocity`, `--push-interval` and
+    """Continue the run in `run_dir` from its last checkpoint. `--push-velocity`, `--push-interval`, `--imu-age` and
     `--timesteps` start its next stage (a curriculum: say harder or more frequent pushes from here on); options that
     would change anything else are refused."""
     if not (run_dir / "config.json").is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if any(getattr(request, field) != getattr(TrainRequest(), field) for field in KEPT_ON_RESUME):
         raise ToddlerbotError(f"{'/'.join(KEPT_ON_RESUME.values())}: a resumed run keeps the settings it started "
-                              "with (only --push-velocity, --push-interval and --timesteps start a next stage)")
-    if (request.push_velocity, request.push_interval, request.timesteps) != (None, None, None):
+                              "with (only --push-velocity, --push-interval, --imu-age and --timesteps start a next "
+                              "stage)")
+    if (request.push_velocity, request.push_interval, request.imu_age, request.timesteps) != (None,) * 4:
         _next_stage(run_dir, request)
     return TrainPlan(run_dir, resume=True)
 
 
 def _next_stage(run_dir: Path, request: TrainRequest) -> None:
-    """config.json takes the new push band, push interval and step budget (checked first), and its `stages` list the
-    stage that starts at the last checkpoint, so that an export knows which pushes trained which checkpoint."""
+    """config.json takes the new push band, push interval, IMU age and step budget (checked first), and its `stages`
+    list the stage that starts at the last checkpoint, so that an export knows which pushes trained which
+    checkpoint."""
     from toddlerbot.rl import train
 
     env_cfg, ppo_cfg = train.load_config(run_dir)
     paths = train.checkpoint_paths(run_dir)
     start = train.checkpoint_env_steps(paths[-1]) if paths else 0
     env_cfg = _robot_variant(env_cfg, TrainRequest(push_velocity=request.push_velocity,
-                                                   push_interval=request.push_interval))
+                                                   push_interval=request.push_interval, imu_age=request.imu_age))
     ppo_cfg = _ppo_overrides(ppo_cfg, TrainRequest(timesteps=request.timesteps))
     if ppo_cfg.num_timesteps <= start:
         raise ToddlerbotError(f"--timesteps {ppo_cfg.num_timesteps}: the run is already at {start} PPO env steps; "
@@ -159,8 +162,8 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
 
 def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
     """The request's spec variant (checked against the spec now) and its randomisation overrides: upper-body pose,
-    hand pull, push band and push interval (the pull and the pushes also on top of a warm start's environment: they
-    change only what PPO trains with)."""
+    hand pull, push band, push interval and IMU age (the pull, the pushes and the age also on top of a warm start's
+    environment: they change only what PPO trains with)."""
     if request.variant is not None:
         from toddlerbot.robot.description import RobotDescription
 
@@ -170,7 +173,8 @@ def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.E
     overrides = {"--upper-body-pose": {"upper_body_pose": request.upper_body_pose},
                  "--hand-force": {"hand_force": request.hand_force},
                  "--push-velocity": {"push_velocity_min": smallest, "push_velocity": largest},
-                 "--push-interval": {"push_interval_s": request.push_interval}}
+                 "--push-interval": {"push_interval_s": request.push_interval},
+                 "--imu-age": {"imu_age_s": request.imu_age}}
     for option, fields in overrides.items():
         if any(value is None for value in fields.values()):
             continue

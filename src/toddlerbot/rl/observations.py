@@ -37,6 +37,15 @@ def add_noise(key: jax.Array, s: Sensors, cfg: ObsConfig, level: jax.Array) -> t
     return noisy, u(k[3], gravity_in_frame(s.imu_quat, jnp), cfg.noise_gravity)
 
 
+def aged_imu(previous: Sensors, now: Sensors, fraction: jax.Array) -> Sensors:
+    """``now`` with its IMU reading (gyro, orientation) ``fraction`` of a control period old: interpolated towards
+    the ``previous`` control step's (the orientation normalised, taken on ``now``'s side of the sphere)."""
+    gyro = now.gyro + fraction * (previous.gyro - now.gyro)
+    before = jnp.where(jnp.dot(previous.imu_quat, now.imu_quat) < 0, -previous.imu_quat, previous.imu_quat)
+    quat = now.imu_quat + fraction * (before - now.imu_quat)
+    return now._replace(gyro=gyro, imu_quat=quat / jnp.linalg.norm(quat))
+
+
 def actor_frame(t: jax.Array, command: jax.Array, s: Sensors, gravity: jax.Array, home_motor_pos: jax.Array,
                 last_action: jax.Array, cfg: ObsConfig) -> jax.Array:
     return obs_frame(t, command, s.motor_pos, home_motor_pos, s.motor_vel, last_action, s.gyro, gravity, cfg,

@@ -37,6 +37,8 @@ class DRParams(NamedTuple):
     obs_noise_level: jax.Array
     action_delay: jax.Array
     """1.0: actions take effect one control step late."""
+    imu_age: jax.Array
+    """s; age of the IMU reading the actor sees."""
 
 
 def nominal(nv: int, nbody: int, n_motors: int) -> DRParams:
@@ -44,7 +46,7 @@ def nominal(nv: int, nbody: int, n_motors: int) -> DRParams:
     one = jnp.ones(())
     return DRParams(one, jnp.ones(nv), jnp.ones(nv), jnp.ones(nv), jnp.ones(nbody), jnp.zeros(()),
                     jnp.ones(n_motors), jnp.ones(n_motors), jnp.ones(n_motors), jnp.ones(n_motors), one,
-                    jnp.zeros(()))
+                    jnp.zeros(()), jnp.zeros(()))
 
 
 def sample(key: jax.Array, cfg: RandomizationConfig, nv: int, nbody: int, n_motors: int) -> DRParams:
@@ -66,6 +68,8 @@ def sample(key: jax.Array, cfg: RandomizationConfig, nv: int, nbody: int, n_moto
         q_dot_max_scale=u(cfg.q_dot_max_scale, (n_motors,)),
         obs_noise_level=u(cfg.obs_noise_level),
         action_delay=(jax.random.uniform(next(keys)) < cfg.action_delay_prob).astype(jnp.float32),
+        # a key of its own, so that the draws above stay those of runs from before the IMU age existed
+        imu_age=jax.random.uniform(jax.random.fold_in(key, 13), minval=cfg.imu_age_s[0], maxval=cfg.imu_age_s[1]),
     )
 
 

@@ -270,21 +270,23 @@ def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig,
 
 
 def training_stage(from_env_steps: int, env_cfg: EnvConfig, ppo_cfg: PPOConfig) -> dict:
-    """One stage of a run: from this PPO env step on, pushes in this band at these intervals, until this many env
-    steps."""
+    """One stage of a run: from this PPO env step on, pushes in this band at these intervals and IMU readings this
+    old, until this many env steps."""
     band = env_cfg.randomization
     return {"from_env_steps": int(from_env_steps), "push_velocity": [band.push_velocity_min, band.push_velocity],
-            "push_interval_s": list(band.push_interval_s), "num_timesteps": ppo_cfg.num_timesteps}
+            "push_interval_s": list(band.push_interval_s), "imu_age_s": list(band.imu_age_s),
+            "num_timesteps": ppo_cfg.num_timesteps}
 
 
 def training_stages(run_dir: Path) -> list[dict]:
-    """The run's stages, oldest first: one unless `rl train --resume` changed the pushes or the budget. Stages
-    recorded before a resume could change the push interval ran the configuration's."""
+    """The run's stages, oldest first: one unless `rl train --resume` changed the pushes, the IMU age or the budget.
+    Stages recorded before a resume could change the push interval ran the configuration's; those recorded before
+    the IMU age existed, fresh readings."""
     raw = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
     env_cfg, ppo_cfg = load_config(run_dir)
     if "stages" in raw:
         interval = list(env_cfg.randomization.push_interval_s)
-        return [{"push_interval_s": interval, **stage} for stage in raw["stages"]]
+        return [{"push_interval_s": interval, "imu_age_s": [0.0, 0.0], **stage} for stage in raw["stages"]]
     return [training_stage(0, env_cfg, ppo_cfg)]
 
 
