@@ -6,15 +6,22 @@ import time
 import numpy as np
 import pytest
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.hardware.imu import REPORT_INTERVAL_S, ImuReading
 from toddlerbot.hardware.imu_stream import (
+    POSE_REPORT,
     REPORT,
     ImuPublisher,
     ImuStreamError,
+    Pose,
     StreamImu,
+    StreamMocap,
     decode,
+    decode_pose,
     encode,
+    encode_pose,
     imu_socket_path,
+    open_mocap,
 )
 
 pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
@@ -31,6 +38,15 @@ def test_reports_round_trip_and_anything_else_is_ignored():
     assert (seq, sim_time) == (7, 1.25) and reading.quat[3] == 0.5 and reading.ang_vel[0] == 0.5
     assert decode(packet[:-1]) is None and decode(b"XXXX" + packet[4:]) is None
     assert decode(encode(1, 0.0, ImuReading(np.full(4, np.nan), np.zeros(3), np.zeros(3)))) is None
+
+
+def test_pose_reports_round_trip_and_are_not_imu_reports():
+    packet = encode_pose(3, 2.5, Pose(pos=np.array([0.1, -0.2, 0.3]), quat=np.array([0.0, 0.0, 0.0, 1.0])))
+    assert len(packet) == POSE_REPORT.size == 72
+    seq, sim_time, pose = decode_pose(packet)
+    assert (seq, sim_time) == (3, 2.5) and pose.pos.tolist() == [0.1, -0.2, 0.3] and pose.quat[3] == 1.0
+    assert decode(packet) is None and decode_pose(encode(1, 0.0, _reading(0.0))) is None
+    assert decode_pose(b"XXXX" + packet[4:]) is None
 
 
 def test_the_socket_is_named_after_the_bus_port():
@@ -70,3 +86,43 @@ def test_no_emulator_and_a_silent_one_are_one_line_errors(tmp_path):
     with pytest.raises(ImuStreamError, match=r"no report for 0\.\d\d s \(the emulator stopped\?\)"):
         imu.read()
     imu.close()
+
+
+def _pose(t: float) -> Pose:
+    return Pose(pos=np.array([t, 0.0, 0.3]), quat=np.array([1.0, 0.0, 0.0, 0.0]))
+
+
+def test_motion_capture_readers_get_the_pose_now_and_imu_readers_the_imu(tmp_path):
+    clock = time.perf_counter
+    publisher = ImuPublisher(tmp_path / "imu.sock", lambda: (clock(), _reading(clock())), latency_s=0.02,
+                             pose=lambda: (clock(), _pose(clock()))).start()
+    try:
+        mocap, imu = StreamMocap(tmp_path / "imu.sock"), StreamImu(tmp_path / "imu.sock")
+        ages = []
+        for _ in range(20):
+            pose, reading = mocap.read(), imu.read()
+            ages.append((clock() - pose.pos[0], clock() - reading.ang_vel[0]))
+            time.sleep(REPORT_INTERVAL_S / 2)
+        mocap.close()
+        imu.close()
+    finally:
+        publisher.stop()
+    pose_age, imu_age = np.median(ages, axis=0)
+    assert pose_age < 0.02 <= imu_age  # the pose is not delayed as the IMU's reports are
+    assert publisher.pose_reports > 5 and publisher.reports > 5
+
+
+def test_motion_capture_from_nowhere_is_a_one_line_error_before_torque(tmp_path):
+    assert open_mocap("none", "/dev/pts/99") is None
+    with pytest.raises(ToddlerbotError, match=r"^--mocap 'optitrack': expected one of none, emulator$"):
+        open_mocap("optitrack", "/dev/pts/99")
+    with pytest.raises(ImuStreamError, match=r"no emulated motion capture at .*: start the emulator with"):
+        open_mocap("emulator", "/dev/pts/99")
+    # an emulator with an IMU but no body to track (no --hil plant) publishes no pose
+    port = "/dev/pts/98"
+    publisher = ImuPublisher(imu_socket_path(port), lambda: (0.0, _reading(0.0))).start()
+    try:
+        with pytest.raises(ImuStreamError, match=r"^emulated motion capture .*: no report within 1 s$"):
+            open_mocap("emulator", port)
+    finally:
+        publisher.stop()

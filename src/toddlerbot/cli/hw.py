@@ -15,6 +15,7 @@ from rich.table import Table
 from toddlerbot.cli.options import (
     AsymmetricOption,
     ImuOption,
+    MocapOption,
     MotorParamsOption,
     RobotOptions,
     SpecOption,
@@ -154,7 +155,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         camera: CameraOpt = None, threads: ThreadsOpt = None, seconds: SecondsOpt = 5.0, control_dt: DtOpt = CONTROL_DT,
         log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,
         spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None,
-        asymmetric: AsymmetricOption = False) -> None:
+        asymmetric: AsymmetricOption = False, mocap: MocapOption = "none") -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
     with 128 + its number, a fall (the IMU tilted past the simulator's threshold) with 1. A run that stops early
@@ -170,12 +171,11 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
         _check_run(policy, seconds, control_dt, latency_ms, log)
         robot = _real_robot(RobotOptions.of(spec_path, variant, motor_params), port, calibration, control_dt, baud,
-                            latency_ms)
+                            latency_ms, tracked=mocap != "none")
         pol = _hw_policy(robot, policy, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
                                          "camera": camera, "threads": threads,
                                          **symmetric_option(policy, asymmetric)}, stack)
-        robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
-        stack.callback(robot.imu.close)
+        _open_sensors(robot, imu, mocap, port, pol, stack)
         result = drive(robot, pol, CommandSchedule.parse(command), seconds, log, lambda partial: save_or_fallback(
             partial.save, log, f"the log of the {partial.time.size} steps before the stop"))
     except BusInterrupt as exc:
@@ -199,13 +199,28 @@ def _check_run(policy: str, seconds: float, control_dt: float, latency_ms: float
 
 
 def _real_robot(options: RobotOptions, port: str, calibration: Path, control_dt: float, baud: int,
-                latency_ms: float):
+                latency_ms: float, tracked: bool = False):
+    """The robot on ``port``; ``tracked``: watched by motion capture (`TrackedRealRobot`, its mocap opened later)."""
     from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.real_robot import RealRobot
+    from toddlerbot.hardware.real_robot import RealRobot, TrackedRealRobot
 
     description = options.description()
-    return RealRobot(description, port, load_calibration(calibration, description), control_dt=control_dt,
-                     baudrate=baud, calibration_source=str(calibration), latency_ms=latency_ms)
+    return (TrackedRealRobot if tracked else RealRobot)(
+        description, port, load_calibration(calibration, description), control_dt=control_dt, baudrate=baud,
+        calibration_source=str(calibration), latency_ms=latency_ms)
+
+
+def _open_sensors(robot, imu: str, mocap: str, port: str, pol, stack: ExitStack) -> None:
+    """The robot's IMU (refused as none for a policy that balances) and motion capture, closed however the run
+    ends."""
+    from toddlerbot.hardware.imu_stream import open_mocap
+
+    robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
+    stack.callback(robot.imu.close)
+    capture = open_mocap(mocap, port)
+    if capture is not None:
+        robot.mocap = capture
+        stack.callback(capture.close)
 
 
 def _hw_policy(robot, policy: str, options: dict, stack: ExitStack):
@@ -227,6 +242,11 @@ def _report_run(policy: str, result, pol, log: Path | None) -> None:
                   f"median largest tracking error {np.rad2deg(np.median(error)):.2f} deg")
     if pol.status is not None:  # e.g. dp's inference, and how its camera stopped if it did
         console.print(pol.status.describe(), highlight=False)
+    if np.all(np.isfinite(result.log.base_pos)):  # motion capture watched the run
+        from toddlerbot.runtime.summary import summarize
+
+        summary = summarize(result.log, result.fell, result.fall_time)
+        console.print(f"{policy} by motion capture: {summary.motion_text()}", highlight=False)
     if log:
         save_or_fallback(result.log.save, log, "the run log")
     if result.fell:

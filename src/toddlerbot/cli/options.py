@@ -85,6 +85,9 @@ def symmetric_option(policy: str, asymmetric: bool) -> dict[str, bool]:
     return {"symmetric": False}
 
 
+MocapOption = Annotated[str, typer.Option("--mocap", help="Motion capture of the torso's pose, logged as ground truth "
+                                          "so that the run's tracking errors are measured as in the simulator: "
+                                          "none, or emulator (the true pose of `hw emulate --hil` on --port).")]
 ImuOption = Annotated[str, typer.Option("--imu", help="The IMU: bno08x (the robot's, over I2C), emulator (the "
                                         "simulated IMU of `hw emulate --hil` on --port) or none (an upright, still "
                                         "stand-in; walking policies refuse it).")]

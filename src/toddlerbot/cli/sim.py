@@ -183,15 +183,9 @@ def _report(policy: str, result, pol, scene, log: Path | None, summary_json: Pat
         extra = (({} if scene is None else {"task": scene.to_dict()})
                  | ({} if pol.status is None else {pol.name: pol.status.to_dict()}))
         atomic_write_text(summary_json, json_text(summary.to_dict() | extra, indent=2))
-    t = summary.tracking
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
-    console.print(
-        f"[bold]{policy}[/] {summary.duration_s:.2f} s: {status}; displacement "
-        f"({summary.displacement_m[0]:+.3f}, {summary.displacement_m[1]:+.3f}) m, path {summary.distance_m:.3f} m, "
-        f"yaw change {summary.yaw_change_rad:+.3f} rad\n"
-        f"tracking errors: position {t.position_m:.3f} m, linear velocity {t.lin_vel_mps:.3f} m/s, "
-        f"angular velocity {t.ang_vel_radps:.3f} rad/s; compute {summary.mean_compute_ms:.2f} ms/step"
-    )
+    console.print(f"[bold]{policy}[/] {summary.duration_s:.2f} s: {status}; {summary.motion_text()}; compute "
+                  f"{summary.mean_compute_ms:.2f} ms/step")
     for part in (scene, pol.status):
         if part is not None:
             console.print(part.describe(), highlight=False)

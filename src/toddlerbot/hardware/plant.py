@@ -29,6 +29,7 @@ from toddlerbot.hardware.control_table import (
 )
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
 from toddlerbot.hardware.imu import ImuReading
+from toddlerbot.hardware.imu_stream import Pose
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import FALL_TILT_RAD
 from toddlerbot.sim.actuated import MotorAddresses, compile_substeps, step_actuated
@@ -180,6 +181,9 @@ class HilPlant(TorsoGroundTruth):
         self.imu_sample: tuple[float, ImuReading] = (0.0, self._read_imu())
         """(simulated time, IMU reading) after the latest physics batch (replaced whole: safe to read from
         another thread)."""
+        self.pose_sample: tuple[float, Pose] = (0.0, self._read_pose())
+        """(simulated time, the torso's world pose) after the latest physics batch: what motion capture sees (replaced
+        whole, like `imu_sample`)."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._lock: threading.Lock | None = None
@@ -210,6 +214,9 @@ class HilPlant(TorsoGroundTruth):
         d = self.data.sensordata
         quat, gyro, accel = (d[s.adr[0]:s.adr[0] + s.dim[0]].copy() for s in self._imu)
         return ImuReading(quat=quat, ang_vel=gyro, lin_acc=accel)
+
+    def _read_pose(self) -> Pose:
+        return Pose(pos=self.base_pos, quat=self.base_quat)
 
     def _publish(self) -> None:
         publish(self.motors, self.data.qpos[self.qadr], self.data.qvel[self.vadr],
@@ -255,6 +262,7 @@ class HilPlant(TorsoGroundTruth):
             else:
                 self.powered_turn += float((self.powered_end[1] - previous[1] + np.pi) % (2 * np.pi) - np.pi)
         self.imu_sample = (self.sim_time, self._read_imu())
+        self.pose_sample = (self.sim_time, self._read_pose())
 
     def _run(self) -> None:
         dt = self.model.opt.timestep

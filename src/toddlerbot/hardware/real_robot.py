@@ -28,8 +28,9 @@ from toddlerbot.hardware.driver import (
     motors_of,
 )
 from toddlerbot.hardware.imu import Imu, StaticImu
+from toddlerbot.hardware.imu_stream import StreamMocap
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import CONTROL_DT, Observation, Robot
+from toddlerbot.robot.interface import CONTROL_DT, GroundTruth, Observation, Robot, tilt
 from toddlerbot.robot.safety import slew_step
 
 STARTUP_MARGIN = 0.25
@@ -173,3 +174,25 @@ class RealRobot(Robot):
     def close(self) -> None:
         self.bus.close()
         self.imu.close()
+
+
+class TrackedRealRobot(RealRobot, GroundTruth):
+    """A `RealRobot` watched by motion capture (`mocap`, set before the run: `StreamMocap` of the HIL emulator): the
+    runner logs the torso pose it reports as ground truth, so the run's tracking errors are computed as in the
+    simulator. Falls are still the IMU's (`Robot.fallen`): motion capture only watches."""
+
+    mocap: StreamMocap
+
+    @property
+    def base_pos(self) -> np.ndarray:
+        return self.mocap.read().pos
+
+    @property
+    def base_quat(self) -> np.ndarray:
+        return self.mocap.read().quat
+
+    def torso_height(self) -> float:
+        return float(self.base_pos[2])
+
+    def torso_uprightness(self) -> float:
+        return float(np.cos(tilt(self.base_quat)))

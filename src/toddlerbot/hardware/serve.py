@@ -1,5 +1,6 @@
 """`hw emulate`: serve an emulated bus on a pseudo-terminal until stopped, then its statistics (with the HIL
-plant's ground truth: torso height, uprightness and planar motion while powered)."""
+plant's ground truth: torso height, uprightness and planar motion while powered). A HIL plant's IMU and torso pose
+are published beside the bus (`toddlerbot.hardware.imu_stream`)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ def serve_until_stopped(bus: EmulatedBus, on_ready: Callable[[str], None]) -> di
     it) until Ctrl-C or a stop signal; returns the statistics."""
     server = PtyServer(bus)
     plant = bus.plant
-    imu = (ImuPublisher(imu_socket_path(server.path), lambda: plant.imu_sample).start()
+    imu = (ImuPublisher(imu_socket_path(server.path), lambda: plant.imu_sample, pose=lambda: plant.pose_sample).start()
            if isinstance(plant, HilPlant) else None)
     raise_on_stop_signals()  # every stop signal ends serving, even a SIGINT a background shell job ignores
     try:
@@ -41,7 +42,7 @@ def serve_until_stopped(bus: EmulatedBus, on_ready: Callable[[str], None]) -> di
     report = {"packets": bus.stats.packets_in, "bytes_in": bus.stats.bytes_in, "bytes_out": bus.stats.bytes_out,
               "crc_errors": bus.stats.crc_errors}
     if isinstance(plant, HilPlant):
-        report |= _plant_report(plant) | {"imu_reports": imu.reports}
+        report |= _plant_report(plant) | {"imu_reports": imu.reports, "pose_reports": imu.pose_reports}
     return report
 
 

@@ -41,6 +41,13 @@ class RunSummary:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def motion_text(self) -> str:
+        """Where the torso went and how well it tracked, two lines."""
+        t, (dx, dy) = self.tracking, self.displacement_m
+        return (f"displacement ({dx:+.3f}, {dy:+.3f}) m, path {self.distance_m:.3f} m, yaw change "
+                f"{self.yaw_change_rad:+.3f} rad\ntracking errors: position {t.position_m:.3f} m, linear velocity "
+                f"{t.lin_vel_mps:.3f} m/s, angular velocity {t.ang_vel_radps:.3f} rad/s")
+
 
 def summarize(log: RunLog, fell: bool, fall_time: float | None, window_s: float = WalkConfig.cycle_time) -> RunSummary:
     dt = log.control_dt
