@@ -103,10 +103,10 @@ def test_a_mirror_loss_needs_an_env_with_a_mirror_and_a_weight_of_at_least_zero(
 
 
 def test_the_shipped_default_is_the_cpu_recipe_with_the_path_term_and_survives_0p3_mps_kicks():
-    """`walk_rl.npz` (docs/rl.md "A term on the path"): trained on the CPU within two hours with the mirror loss,
-    pushes of 0.15-0.35 m/s every 1.5-3 s and the path term; in the benchmark 3 falls in 60 trials of 0.3 m/s kicks
-    (seeds 0-5; the default before it 13). Six trials here, at most one fall: a rate with margin, not one
-    trajectory."""
+    """`walk_rl.npz` (docs/rl.md "Pushes every 1-2 s"): trained on the CPU within two hours with the mirror loss,
+    pushes of 0.15-0.35 m/s every 1.5-3 s and the path term, then a stage with pushes every 1-2 s; in the benchmark
+    1 fall in 120 trials of 0.3 m/s kicks (seeds 0-11; the default before it 6). Six trials here, at most one fall:
+    a rate with margin, not one trajectory."""
     from toddlerbot.policies.rl_inference import RLPolicyFile
     from toddlerbot.policies.walk_rl import resolve_weights
     from walk_support import kick_trials
@@ -115,6 +115,7 @@ def test_the_shipped_default_is_the_cpu_recipe_with_the_path_term_and_survives_0
     meta = RLPolicyFile(path).meta
     assert meta["mirror_loss"] == 1.0 and meta["push_velocity"] == [0.15, 0.35] and meta["backend"] == "cpu"
     assert meta["device"].startswith("CPU") and meta["walltime_s"] <= 7200  # the CPU recipe within two hours
-    assert meta["push_interval_s"] == [1.5, 3.0] and meta["reward_weights"]["path_xy"] == 5.0
+    assert meta["push_interval_s"] == [1.0, 2.0] and meta["reward_weights"]["path_xy"] == 5.0
+    assert meta["push_interval_stages"] == [[0, 1.5, 3.0], [meta["push_stages"][1][0], 1.0, 2.0]]
     trials = kick_trials(path, "kicks 0.3 m/s", slice(3, 6))
     assert sum(t.fell for t in trials) <= 1, [(t.command, t.seed, t.fall_time) for t in trials]
