@@ -47,7 +47,7 @@ POSE_REPORT = struct.Struct("<4sId3d4d")
 POSE_MAGIC = b"TBPO"
 SUBSCRIBE_POSE = b"subscribe-pose"
 FIRST_REPORT_TIMEOUT_S = 1.0
-"""How long a reader waits for its first report before saying that no IMU is being published."""
+"""How long a reader waits for its first report before saying that no IMU (or pose) is being published."""
 STALE_S = 0.25
 """A reader whose newest report is older than this (wall clock, s) reports the IMU lost."""
 
@@ -106,8 +106,8 @@ class ImuPublisher:
 
     ``sample()`` returns (simulated time, reading) of the robot now; the publisher keeps a short history of them
     (taken at the report rate) and delivers the newest one that is at least `latency_s` old, so a report lags
-    the robot as the real sensor's does. ``pose()`` returns (simulated time, torso pose) now (None: no pose to
-    publish, a pose subscription is ignored)."""
+    the robot as the real sensor's does. ``pose()`` returns (simulated time, torso pose) now; without it (None) a
+    pose subscription is ignored."""
 
     def __init__(self, path: Path, sample: Callable[[], tuple[float, ImuReading]],
                  interval_s: float = REPORT_INTERVAL_S, latency_s: float = LATENCY_S,
