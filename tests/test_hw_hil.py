@@ -108,10 +108,12 @@ def _hw_run(port: str, cal_file: Path, *args: str, timeout: float = 180) -> subp
                           timeout=timeout)
 
 
-TRACKING_BARS = (0.16, 0.024, 0.084)
-"""Position (m), linear (m/s) and angular velocity (rad/s) errors a HIL walk stays within: issue 19's 1.5 x the
-appendix's Table 7 sim errors for the velocities; for the position 0.16 m, the simulator's 0.123 m bar plus what
-the loop's delays cost (`benchmarks/bench_hil_like.py`; docs/hardware.md), so that a loaded CI machine passes."""
+HIL_TRACKING_BOUNDS = {"walk-rl": (0.16, 0.024, 0.084), "walk-zmp": (0.16, 0.032, 0.084)}
+"""Position (m), linear (m/s) and angular velocity (rad/s) errors a HIL walk stays within. walk-rl: issue 19's
+1.5 x the appendix's Table 7 sim errors for the velocities (HIL 0.009-0.010 m/s, 0.026-0.028 rad/s), and for the
+position the simulator's 0.123 m bar plus what the loop's delays cost (`benchmarks/bench_hil_like.py`), so that a
+loaded CI machine passes (HIL 0.051-0.064 m). walk-zmp, the same but 0.032 m/s: HIL 0.016 m/s quiet and 0.021 beside
+two busy loops (docs/hardware.md)."""
 
 
 @pytest.mark.slow
@@ -150,8 +152,9 @@ def test_walking_policies_walk_the_tracking_schedule_in_real_time_on_the_emulate
     tracked = summary.tracking
     assert f"{policy} by motion capture: displacement" in run.stdout, seen
     assert np.hypot(*summary.displacement_m) == pytest.approx(moved, abs=0.05), seen  # the ramp moves it a little
-    assert tracked.position_m < TRACKING_BARS[0] and tracked.lin_vel_mps < TRACKING_BARS[1], (tracked, seen)
-    assert tracked.ang_vel_radps < TRACKING_BARS[2], (tracked, seen)
+    position, linear, angular = HIL_TRACKING_BOUNDS[policy]
+    assert tracked.position_m < position and tracked.lin_vel_mps < linear, (tracked, seen)
+    assert tracked.ang_vel_radps < angular, (tracked, seen)
 
 
 TOPPLE = """name: topple
