@@ -145,27 +145,24 @@ HELD_OUT_SCHEDULES = {
 }
 """Schedules no training run saw (commands are drawn at random in training): 0.15 m/s forward, -0.08 m/s backward,
 +-0.06 m/s sideways, +-0.35 rad/s turns and a curve."""
-TABLE7_SIM = (0.082, 0.016, 0.056)
-"""Appendix Table 7, simulation: position m, linear velocity m/s, angular velocity rad/s."""
 
 
 def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | None, asymmetric: bool = False) -> None:
     """Table 7 errors of each policy (``walk-rl`` with ``weights``) on the default and the held-out schedules in the
     CPU simulator (1 ms physics, actuator model), against 1.5 x the appendix's simulation errors."""
     from toddlerbot.robot.description import RobotDescription
-    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, evaluate_policy, plot_velocity_tracking
+    from toddlerbot.runtime.tracking import DEFAULT_COMMANDS, TRACKING_BARS, evaluate_policy, plot_velocity_tracking
 
     description = RobotDescription.load()
-    bars = tuple(1.5 * x for x in TABLE7_SIM)
-    print(f"tracking errors (position m, lin vel m/s, ang vel rad/s); bars 1.5 x Table 7: {bars}")
+    print(f"tracking errors (position m, lin vel m/s, ang vel rad/s); bars 1.5 x Table 7: {TRACKING_BARS}")
     for name in policies:
         for label, schedule in {"default": DEFAULT_COMMANDS, **HELD_OUT_SCHEDULES}.items():
             seconds = float(schedule.split(";")[-1].split(":")[0]) + 2.0 if label != "default" else 26.0
             t0 = time.perf_counter()
             r = evaluate_policy(description, name, schedule, seconds, weights=weights if name == "walk-rl" else None,
                                 symmetric=not asymmetric)  # an option only walk-rl takes (make_policy)
-            ok = r.falls == 0 and all(e <= b for e, b in zip((r.position_m, r.lin_vel_mps, r.ang_vel_radps), bars,
-                                                              strict=True))
+            errors = (r.position_m, r.lin_vel_mps, r.ang_vel_radps)
+            ok = r.falls == 0 and all(e <= b for e, b in zip(errors, TRACKING_BARS, strict=True))
             wall = time.perf_counter() - t0
             print(f"  {name:8s} {label:9s}: {r.position_m:.3f} m, {r.lin_vel_mps:.3f} m/s, "
                   f"{r.ang_vel_radps:.3f} rad/s, falls {r.falls} ({r.duration_s:.0f} s simulated, {wall:.0f} s wall) "

@@ -19,6 +19,7 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import load_spec
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.runner import run_policy
+from toddlerbot.runtime.tracking import TRACKING_BARS
 
 pytestmark = pytest.mark.realtime  # emulator or browser in wall-clock time: runs alone (conftest.py)
 
@@ -108,7 +109,8 @@ def _hw_run(port: str, cal_file: Path, *args: str, timeout: float = 180) -> subp
                           timeout=timeout)
 
 
-HIL_TRACKING_BOUNDS = {"walk-rl": (0.16, 0.024, 0.084), "walk-zmp": (0.16, 0.032, 0.084)}
+_, LINEAR_BAR, ANGULAR_BAR = TRACKING_BARS  # 0.024 m/s, 0.084 rad/s
+HIL_TRACKING_BOUNDS = {"walk-rl": (0.16, LINEAR_BAR, ANGULAR_BAR), "walk-zmp": (0.16, 0.032, ANGULAR_BAR)}
 """Position (m), linear (m/s) and angular velocity (rad/s) errors a HIL walk stays within. walk-rl: issue 19's
 1.5 x the appendix's Table 7 sim errors for the velocities (HIL 0.009-0.010 m/s, 0.026-0.028 rad/s), and for the
 position the simulator's 0.123 m bar plus what the loop's delays cost (`benchmarks/bench_hil_like.py`), so that a

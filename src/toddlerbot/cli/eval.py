@@ -77,10 +77,12 @@ def _schedule(commands: str | None, seconds: float | None) -> tuple[str, float]:
 
 
 def _print(policy: str, summary: dict, plot: Path | None) -> None:
+    from toddlerbot.runtime.tracking import TABLE7_SIM
+
     console.print(f"[bold]{policy}[/]: position {summary['position_m']:.3f} m, linear velocity "
                   f"{summary['lin_vel_mps']:.3f} m/s, angular velocity {summary['ang_vel_radps']:.3f} rad/s, "
                   f"falls {summary['falls']} ({summary['duration_s']:.1f} s simulated)")
-    console.print("appendix Table 7 (simulation): 0.082 m, 0.016 m/s, 0.056 rad/s")
+    console.print("appendix Table 7 (simulation): {:.3f} m, {:.3f} m/s, {:.3f} rad/s".format(*TABLE7_SIM))
     if plot is not None:
         console.print(f"plot: {plot}")
 

@@ -70,18 +70,25 @@ def imu_socket_path(bus_port: str) -> Path:
     return Path(tempfile.gettempdir()) / f"toddlerbot-imu-{name}.sock"
 
 
+def _unpack(data: bytes, report: struct.Struct, magic: bytes) -> tuple[int, float, np.ndarray] | None:
+    """(sequence, simulated time, values) of a ``report`` packet; None for anything that is not a finite one."""
+    if len(data) != report.size:
+        return None
+    found, seq, sim_time, *values = report.unpack(data)
+    if found != magic or not np.all(np.isfinite(values)):
+        return None
+    return seq, sim_time, np.asarray(values)
+
+
 def encode(seq: int, sim_time: float, reading: ImuReading) -> bytes:
     return REPORT.pack(MAGIC, seq & 0xFFFFFFFF, sim_time, *reading.quat, *reading.ang_vel, *reading.lin_acc)
 
 
 def decode(data: bytes) -> tuple[int, float, ImuReading] | None:
     """(sequence, simulated time, reading) of a report; None for anything that is not one."""
-    if len(data) != REPORT.size:
+    if (report := _unpack(data, REPORT, MAGIC)) is None:
         return None
-    magic, seq, sim_time, *values = REPORT.unpack(data)
-    if magic != MAGIC or not np.all(np.isfinite(values)):
-        return None
-    v = np.asarray(values)
+    seq, sim_time, v = report
     return seq, sim_time, ImuReading(quat=v[0:4], ang_vel=v[4:7], lin_acc=v[7:10])
 
 
@@ -91,12 +98,9 @@ def encode_pose(seq: int, sim_time: float, pose: Pose) -> bytes:
 
 def decode_pose(data: bytes) -> tuple[int, float, Pose] | None:
     """(sequence, simulated time, pose) of a pose report; None for anything that is not one."""
-    if len(data) != POSE_REPORT.size:
+    if (report := _unpack(data, POSE_REPORT, POSE_MAGIC)) is None:
         return None
-    magic, seq, sim_time, *values = POSE_REPORT.unpack(data)
-    if magic != POSE_MAGIC or not np.all(np.isfinite(values)):
-        return None
-    v = np.asarray(values)
+    seq, sim_time, v = report
     return seq, sim_time, Pose(pos=v[0:3], quat=v[3:7])
 
 

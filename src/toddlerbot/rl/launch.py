@@ -68,32 +68,34 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
+STAGE_OPTIONS = {"push_velocity": "--push-velocity", "push_interval": "--push-interval", "imu_age": "--imu-age"}
+"""`TrainRequest` fields of the randomisation that a resume may change: each starts a next stage (as a new step
+budget, ``--timesteps``, does)."""
+
+
 def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
-    """Continue the run in `run_dir` from its last checkpoint. `--push-velocity`, `--push-interval`, `--imu-age` and
-    `--timesteps` start its next stage (a curriculum: say harder or more frequent pushes from here on); options that
-    would change anything else are refused."""
+    """Continue the run in `run_dir` from its last checkpoint. `STAGE_OPTIONS` and `--timesteps` start its next
+    stage (a curriculum: say harder or more frequent pushes from here on); options that would change anything else
+    are refused."""
     if not (run_dir / "config.json").is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if any(getattr(request, field) != getattr(TrainRequest(), field) for field in KEPT_ON_RESUME):
         raise ToddlerbotError(f"{'/'.join(KEPT_ON_RESUME.values())}: a resumed run keeps the settings it started "
-                              "with (only --push-velocity, --push-interval, --imu-age and --timesteps start a next "
-                              "stage)")
-    if (request.push_velocity, request.push_interval, request.imu_age, request.timesteps) != (None,) * 4:
+                              f"with (only {', '.join(STAGE_OPTIONS.values())} and --timesteps start a next stage)")
+    if request.timesteps is not None or any(getattr(request, field) is not None for field in STAGE_OPTIONS):
         _next_stage(run_dir, request)
     return TrainPlan(run_dir, resume=True)
 
 
 def _next_stage(run_dir: Path, request: TrainRequest) -> None:
-    """config.json takes the new push band, push interval, IMU age and step budget (checked first), and its `stages`
-    list the stage that starts at the last checkpoint, so that an export knows which pushes trained which
-    checkpoint."""
+    """config.json takes the new `STAGE_OPTIONS` and step budget (checked first), and its `stages` list the stage
+    that starts at the last checkpoint, so that an export knows which pushes trained which checkpoint."""
     from toddlerbot.rl import train
 
     env_cfg, ppo_cfg = train.load_config(run_dir)
     paths = train.checkpoint_paths(run_dir)
     start = train.checkpoint_env_steps(paths[-1]) if paths else 0
-    env_cfg = _robot_variant(env_cfg, TrainRequest(push_velocity=request.push_velocity,
-                                                   push_interval=request.push_interval, imu_age=request.imu_age))
+    env_cfg = _robot_variant(env_cfg, TrainRequest(**{field: getattr(request, field) for field in STAGE_OPTIONS}))
     ppo_cfg = _ppo_overrides(ppo_cfg, TrainRequest(timesteps=request.timesteps))
     if ppo_cfg.num_timesteps <= start:
         raise ToddlerbotError(f"--timesteps {ppo_cfg.num_timesteps}: the run is already at {start} PPO env steps; "

@@ -31,6 +31,10 @@ DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.05,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,
 """The default evaluation schedule (runtime command syntax, 26 s), inside the trained command ranges: stand, walk
 forward at 0.1 then 0.05 m/s, stop, side-step, turn in place, walk on a curve, stop."""
 DEFAULT_SECONDS = 26.0
+TABLE7_SIM = (0.082, 0.016, 0.056)
+"""Appendix Table 7, simulation: position m, linear velocity m/s, angular velocity rad/s."""
+TRACKING_BARS = tuple(1.5 * x for x in TABLE7_SIM)
+"""What a walking policy must track within (issue 19): 1.5 x `TABLE7_SIM`."""
 
 
 @dataclass(frozen=True)
