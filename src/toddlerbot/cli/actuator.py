@@ -12,8 +12,8 @@ from rich.table import Table
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.envelope_plot import plot_torque_envelope
 from toddlerbot.actuation.params_file import load_params
-from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_file
 from toddlerbot.files import json_text
 
 app = typer.Typer(help="Actuator model: parameters per motor model and the torque-speed plot.", no_args_is_help=True)

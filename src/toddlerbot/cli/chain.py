@@ -8,8 +8,9 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import ImuOption, open_robot_imu, output_file
+from toddlerbot.cli.options import ImuOption, open_robot_imu
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_file
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 

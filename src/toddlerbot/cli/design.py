@@ -8,8 +8,9 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.options import MotorParamsOption, RobotOptions, SpecOption, VariantOption, output_dir, within
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions, SpecOption, VariantOption, within
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.design.budget import PowerInputs
 from toddlerbot.design.report import HEIGHT_RANGE_M, MASS_RANGE_KG, DesignReport, design_report
 from toddlerbot.errors import ToddlerbotError

@@ -13,11 +13,10 @@ from toddlerbot.cli.options import (
     WandbOption,
     dashboards,
     duration,
-    output_dir,
-    output_file,
     training_budget,
 )
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir, output_file
 from toddlerbot.dp import require_torch
 from toddlerbot.dp.config import PRESETS
 from toddlerbot.errors import ToddlerbotError

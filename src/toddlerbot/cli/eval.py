@@ -12,10 +12,10 @@ from toddlerbot.cli.options import (
     MotorParamsOption,
     RobotOptions,
     duration,
-    output_file,
     symmetric_option,
 )
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_file
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 from toddlerbot.policies import policy_names

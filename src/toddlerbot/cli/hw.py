@@ -23,10 +23,10 @@ from toddlerbot.cli.options import (
     check_run_policy,
     duration,
     open_robot_imu,
-    output_file,
     symmetric_option,
 )
 from toddlerbot.cli.output import console, save_or_fallback
+from toddlerbot.cli.output_paths import output_file
 from toddlerbot.files import json_text
 from toddlerbot.policies import policy_names
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD

@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import output_dir, output_file
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir, output_file
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 

@@ -9,8 +9,9 @@ from typing import Annotated, Literal
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.options import MotorParamsOption, RobotOptions, SpecOption, VariantOption, output_file
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions, SpecOption, VariantOption
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_file
 from toddlerbot.files import atomic_write_text, json_text
 from toddlerbot.robot.builder import Base
 

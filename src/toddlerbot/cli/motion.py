@@ -8,8 +8,9 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import MotorParamsOption, RobotOptions, output_file
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_file
 from toddlerbot.errors import ToddlerbotError
 
 app = typer.Typer(help="Keyframe motions: edit them in the browser.", no_args_is_help=True)

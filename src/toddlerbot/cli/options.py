@@ -4,8 +4,6 @@ before any work starts (a run is never started only to fail at its end)."""
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -136,40 +134,6 @@ def positive(value: float, option: str, unit: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ToddlerbotError(f"{option} {value}: expected a finite number of {unit} > 0")
     return value
-
-
-def output_file(path: Path, option: str) -> Path:
-    """`path` once a file has been shown writable there: the parent folders are created and a probe file is created
-    and removed beside it (`os.access` is not enough: it says yes to root under /proc); an existing folder or
-    special file (device, FIFO, socket) at `path` is refused."""
-    if path.exists() and not path.is_file():
-        kind = "a directory" if path.is_dir() else "a special file"
-        raise ToddlerbotError(f"{option} {path}: is {kind}, expected the name of a regular file to write")
-    _probe(path.absolute().parent, path.name, option, path)
-    return path
-
-
-def output_dir(path: Path, option: str) -> Path:
-    """`path` as a folder to write files into, shown writable by creating a probe file in it (or, if it does not
-    exist yet, in its parent, created if missing: the command creates the folder itself once its input checks
-    out); an existing file at `path` is refused."""
-    if path.exists() and not path.is_dir():
-        raise ToddlerbotError(f"{option} {path}: is not a folder, expected a folder to write into")
-    _probe(path.absolute() if path.is_dir() else path.absolute().parent, path.name, option, path)
-    return path
-
-
-def _probe(folder: Path, name: str, option: str, path: Path) -> None:
-    existing = next(p for p in (folder, *folder.parents) if p.exists())
-    if not existing.is_dir():
-        raise ToddlerbotError(f"{option} {path}: cannot write there ({existing} is not a folder)")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(prefix=f".{name}.", suffix=".probe", dir=folder)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise ToddlerbotError(f"{option} {path}: cannot write there ({exc.strerror or exc})") from None
 
 
 TensorBoardOption = Annotated[bool, typer.Option(

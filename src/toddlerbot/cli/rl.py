@@ -14,11 +14,10 @@ from toddlerbot.cli.options import (
     WandbModeOption,
     WandbOption,
     dashboards,
-    output_dir,
-    output_file,
     training_budget,
 )
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir, output_file
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig

@@ -16,12 +16,11 @@ from toddlerbot.cli.options import (
     VariantOption,
     check_run_policy,
     duration,
-    output_dir,
-    output_file,
     positive,
     symmetric_option,
 )
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir, output_file
 from toddlerbot.cli.progress import RunProgress
 from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError

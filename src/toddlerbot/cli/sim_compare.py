@@ -8,8 +8,9 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from toddlerbot.cli.options import MotorParamsOption, RobotOptions, output_dir
+from toddlerbot.cli.options import MotorParamsOption, RobotOptions
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.files import json_text
 
 

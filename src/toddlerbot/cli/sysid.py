@@ -13,8 +13,8 @@ from rich.table import Table
 
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.params_file import load_params
-from toddlerbot.cli.options import output_file
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_file
 from toddlerbot.cli.sysid_record import Profile, profile_names, record_command
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking

@@ -8,8 +8,9 @@ from typing import Annotated, Literal
 
 import typer
 
-from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, output_dir, within
+from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, within
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.tasks.scenes import SCENES
 from toddlerbot.teleop.launch import MAX_TELEOP_SECONDS
