@@ -1,5 +1,6 @@
-"""Reading YAML input files that a user (or an attacker) hands to a command: bounded size, UTF-8, bounded alias
-expansion, one-line errors naming the file.
+"""Reading input files that a user (or an attacker) hands to a command: bounded size (every file a command reads
+is read through `read_bytes`/`read_text`/`read_yaml`, or checked by `sized_file` before a library opens it), UTF-8,
+bounded YAML alias expansion, one-line errors naming the file.
 
 ``yaml.safe_load`` never runs code, but it happily decodes a 50 MB file for minutes and builds "billion laughs"
 documents whose aliases expand to exponentially many nodes once validated. `read_yaml` refuses both first.
@@ -7,6 +8,7 @@ documents whose aliases expand to exponentially many nodes once validated. `read
 
 from __future__ import annotations
 
+import stat
 from pathlib import Path
 
 import yaml
@@ -31,6 +33,17 @@ def read_text(path: str | Path, what: str, error: type[ToddlerbotError] = Toddle
     """The UTF-8 text of `path`, read up to `max_bytes` (so /dev/zero or a FIFO cannot make it read forever);
     `error` naming the file for a missing, oversized or non-UTF-8 one. `kind` says what a `what` is in messages."""
     path = Path(path)
+    data = read_bytes(path, what, error, max_bytes)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: not UTF-8 text (byte {exc.start}); a {what} is {kind}") from None
+
+
+def read_bytes(path: str | Path, what: str, error: type[ToddlerbotError] = ToddlerbotError,
+               max_bytes: int = MAX_YAML_BYTES) -> bytes:
+    """The bytes of `path`, read up to `max_bytes`; `error` naming the file for a missing or oversized one."""
+    path = Path(path)
     try:
         with path.open("rb") as f:
             data = f.read(max_bytes + 1)
@@ -38,10 +51,23 @@ def read_text(path: str | Path, what: str, error: type[ToddlerbotError] = Toddle
         raise error(f"{path}: cannot read {what} ({exc.strerror or exc})") from None
     if len(data) > max_bytes:
         raise error(f"{path}: {_size(path, max_bytes)} is too large for a {what} (at most {max_bytes} bytes)")
+    return data
+
+
+def sized_file(path: str | Path, what: str, error: type[ToddlerbotError] = ToddlerbotError,
+               max_bytes: int = MAX_YAML_BYTES) -> Path:
+    """`path` if it is a regular file of at most `max_bytes`, for a reader that opens it itself (numpy, torch):
+    a device or FIFO (/dev/zero) and an oversized file are refused before a byte is read."""
+    path = Path(path)
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise error(f"{path}: not UTF-8 text (byte {exc.start}); a {what} is {kind}") from None
+        info = path.stat()
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what} ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise error(f"{path}: not a regular file; a {what} is a file")
+    if info.st_size > max_bytes:
+        raise error(f"{path}: {info.st_size} bytes is too large for a {what} (at most {max_bytes} bytes)")
+    return path
 
 
 def _size(path: Path, max_bytes: int) -> str:

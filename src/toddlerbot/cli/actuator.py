@@ -38,7 +38,7 @@ def plot(
     params_path: ParamsOption = None,
 ) -> None:
     """Plot the torque limit versus joint speed (appendix Figure 12) for one motor model."""
-    output_file(output, "--output")
+    output_file(output, "--output", [params_path])
     name, params = _params(motor, params_path)
     plot_torque_envelope(params, name, output)
     console.print(f"wrote {output} ({name})")

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import ImuOption, open_robot_imu
+from toddlerbot.cli.options import ImuOption, open_robot_imu, seed_option
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_file
 from toddlerbot.errors import ToddlerbotError
@@ -18,7 +18,7 @@ app = typer.Typer(help="Skill chains: run a chain file's skills in order (docs/m
 
 NameArgument = Annotated[str, typer.Argument(help="Shipped chain (wagon, pick) or a chain file.")]
 ChainFileOption = Annotated[Path | None, typer.Option("--chain", help="Chain file to run instead of NAME's.")]
-SeedOption = Annotated[int, typer.Option("--seed", help="Scene seed (sim: shifts the wagon a little; places the pick "
+SeedOption = Annotated[int, seed_option(help="Scene seed (sim: shifts the wagon a little; places the pick "
                                                         "task's cube as `dp eval --seed` does).")]
 JsonOption = Annotated[bool, typer.Option("--json", help="Print the outcome as JSON.")]
 VideoOption = Annotated[Path | None, typer.Option("--video", help="MP4 of the run (sim): scene and head camera.")]

@@ -13,6 +13,7 @@ from toddlerbot.cli.options import (
     WandbOption,
     dashboards,
     duration,
+    seed_option,
     training_budget,
 )
 from toddlerbot.cli.output import console
@@ -147,7 +148,7 @@ def evaluate(
     task: TaskOption = "pick",
     checkpoint: EvalCheckpointOption = None,
     episodes: EpisodesOption = 50,
-    seed: Annotated[int, typer.Option(help="First scene seed (use seeds the demonstrations did not).")] = 1000,
+    seed: Annotated[int, seed_option(help="First scene seed (use seeds the demonstrations did not).")] = 1000,
     seconds: SecondsOption = None,
     json_output: Annotated[bool, typer.Option("--json", help="Print JSON: success_rate, episodes, inference_ms.")]
     = False,

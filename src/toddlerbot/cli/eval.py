@@ -47,9 +47,10 @@ def tracking(
     if policy not in policy_names():
         raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(policy_names())}")
     schedule_text, seconds = _schedule(commands, seconds)
+    robot = RobotOptions.of(motor_params=motor_params)
     if plot is not None:
-        output_file(plot, "--plot")
-    description = RobotOptions.of(motor_params=motor_params).description()
+        output_file(plot, "--plot", [weights, *robot.files])
+    description = robot.description()
     with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not as_json else _null():
         result = evaluate_policy(description, policy, schedule_text, seconds, weights,
                                  **symmetric_option(policy, asymmetric))

@@ -23,6 +23,7 @@ from toddlerbot.cli.options import (
     check_run_policy,
     duration,
     open_robot_imu,
+    seed_option,
     symmetric_option,
 )
 from toddlerbot.cli.output import console, save_or_fallback
@@ -48,7 +49,7 @@ def emulate(
                                                      "voltage=V, overload=ID[+ID], seed=N (repeatable).")] = None,
     no_fast_sync_read: Annotated[bool, typer.Option("--no-fast-sync-read", help="Emulate firmware "
                                                     "without Fast Sync Read.")] = False,
-    offsets_seed: Annotated[int, typer.Option("--offsets-seed", help="Seed of the hidden mounting offsets.")] = 0,
+    offsets_seed: Annotated[int, seed_option("Seed of the hidden mounting offsets.", "--offsets-seed")] = 0,
     write_calibration: Annotated[Path | None, typer.Option("--write-calibration", help="Also write the emulated "
                                                            "robot's true zero offsets as a calibration file.")] = None,
     spec_path: SpecOption = None,

@@ -63,9 +63,10 @@ def main() -> None:
 
 
 def _error(message: str, code: int) -> None:
-    # soft_wrap: one line whatever the terminal width (rich wraps at 80 columns when not on a terminal)
-    Console(stderr=True, soft_wrap=True).print(f"[bold red]error:[/] {escape(' '.join(message.splitlines()))}",
-                                               highlight=False)
+    # soft_wrap: one line whatever the terminal width (rich wraps at 80 columns when not on a terminal); no emoji:
+    # a quoted ":x:" (a passwd line) stays text
+    Console(stderr=True, soft_wrap=True, emoji=False).print(
+        f"[bold red]error:[/] {escape(' '.join(message.splitlines()))}", highlight=False)
     sys.exit(code)
 
 

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from toddlerbot.cli.options import seed_option
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir, output_file
 from toddlerbot.errors import ToddlerbotError
@@ -39,7 +40,7 @@ def demo(
     out: DatasetOutOption,
     task: TaskOption = "pick",
     episodes: EpisodesOption = 10,
-    seed: Annotated[int, typer.Option("--seed", help="First scene seed (then seed+1, ...).")] = 0,
+    seed: Annotated[int, seed_option("First scene seed (then seed+1, ...).")] = 0,
     video: VideoOption = None,
     snapshot: SnapshotOption = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing dataset.")] = False,
@@ -88,7 +89,7 @@ def _check_demo_outputs(out: Path, video: Path | None, snapshot: Path | None, ov
 def demo_rate(
     task: TaskOption = "pick",
     episodes: Annotated[int, typer.Option("--episodes", min=1, max=10_000, help="Seeds to try.")] = 50,
-    seed: Annotated[int, typer.Option("--seed", help="First seed.")] = 0,
+    seed: Annotated[int, seed_option("First seed.")] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
     """Success rate of the scripted demonstrator over consecutive seeds (no rendering)."""

@@ -39,8 +39,9 @@ def build(
     motor_params: MotorParamsOption = None,
 ) -> None:
     """Write the MJCF of the robot (deterministic: same spec, same bytes)."""
-    output_file(output, "--output")
-    description, base, label = _load(RobotOptions.of(spec_path, variant, motor_params), base)
+    robot = RobotOptions.of(spec_path, variant, motor_params)
+    output_file(output, "--output", robot.files)
+    description, base, label = _load(robot, base)
     mjspec = description.mjspec(base, scene)  # compiled: a model MuJoCo cannot compile is never written
     atomic_write_text(output, mjspec.to_xml())
     console.print(f"wrote {output} ({description.spec.name}, {label}{', scene' if scene else ''})")
@@ -100,7 +101,7 @@ def render(
 
     from toddlerbot.sim.render import render_views, write_png
 
-    output_file(output, "--output")
+    output_file(output, "--output", [spec_path])
     description, base, label = _load(RobotOptions.of(spec_path, variant), base)
     model = description.model(base, scene=True)
     data = mujoco.MjData(model)

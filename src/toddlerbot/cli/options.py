@@ -58,6 +58,20 @@ class RobotOptions:
     def description(self) -> RobotDescription:
         return self.load()[0]
 
+    @property
+    def files(self) -> tuple[Path | None, ...]:
+        """The files these options read (the spec and every params.json): inputs no output may overwrite."""
+        return (self.spec, *self.motor_params)
+
+MAX_SEED = 2**32 - 1
+"""Largest seed a command takes: numpy's generators refuse negative seeds, JAX's keys hold 32 bits."""
+
+
+def seed_option(help: str, flag: str = "--seed", smallest: int = 0):
+    """The typer option of a seed: a whole number in [`smallest`, `MAX_SEED`], refused in one line otherwise."""
+    return typer.Option(flag, min=smallest, max=MAX_SEED, help=help)
+
+
 MAX_RUN_SECONDS = 3600.0
 """Longest run a command accepts, s: an hour (the battery's run time; a simulated hour logs about 180,000 steps)."""
 

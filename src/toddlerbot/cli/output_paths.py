@@ -50,10 +50,17 @@ def output_dir(path: Path, option: str, inputs: Inputs = (), default: bool = Fal
     return path
 
 
-def _check_place(path: Path, option: str, inputs: Inputs, into_package: bool) -> None:
+def not_an_input(path: Path, option: str, inputs: Inputs) -> Path:
+    """`path` unless it is one of `inputs` or lies inside an input folder (for inputs known only once the first
+    input is read, e.g. the logs a manifest names)."""
     for given in inputs:
         if given is not None and _overlaps(path, Path(given)):
             raise ToddlerbotError(f"{option} {path}: would overwrite this command's input {given}; write elsewhere")
+    return path
+
+
+def _check_place(path: Path, option: str, inputs: Inputs, into_package: bool) -> None:
+    not_an_input(path, option, inputs)
     if not into_package and path.resolve().is_relative_to(PACKAGE_DIR):
         raise ToddlerbotError(f"{option} {path}: is inside the installed toddlerbot package ({PACKAGE_DIR}); "
                               "write elsewhere")

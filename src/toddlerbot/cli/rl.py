@@ -14,6 +14,7 @@ from toddlerbot.cli.options import (
     WandbModeOption,
     WandbOption,
     dashboards,
+    seed_option,
     training_budget,
 )
 from toddlerbot.cli.output import console
@@ -94,7 +95,7 @@ def train(
     resume: ResumeOption = None,
     timesteps: TimestepsOption = None,
     num_envs: NumEnvsOption = None,
-    seed: Annotated[int, typer.Option(help="PRNG seed.")] = 0,
+    seed: Annotated[int, seed_option("PRNG seed.")] = 0,
     minutes: MinutesOption = None,
     epochs: EpochsOption = None,
     solver_iterations: SolverIterationsOption = None,

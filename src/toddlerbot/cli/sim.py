@@ -17,6 +17,7 @@ from toddlerbot.cli.options import (
     check_run_policy,
     duration,
     positive,
+    seed_option,
     symmetric_option,
 )
 from toddlerbot.cli.output import console
@@ -58,7 +59,7 @@ TaskOpt = Annotated[str | None, typer.Option("--task", help="Run in a manipulati
                                              "gripper variant; the head camera as the camera of --policy dp).")]
 CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
                                                     "`dp train`/`dp export` (default: the one shipped for --task).")]
-SeedOpt = Annotated[int, typer.Option("--seed", help="For --task: scene seed (the cube's pose).")]
+SeedOpt = Annotated[int, seed_option(help="For --task: scene seed (the cube's pose).")]
 ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch "
                                                  "(default 1).")]
 
@@ -75,11 +76,13 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.runtime.runner import SimulatedClock, WallClock, run_policy
 
+    robot_options = RobotOptions.of(spec, variant, motor_params)
     _check_options(policy, seconds, control_hz, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
                    "threads": threads}, {"--log": log, "--video": video, "--snapshot": snapshot,
-                                         "--summary-json": summary_json})
+                                         "--summary-json": summary_json},
+                   [command_file, motion, weights, checkpoint, *robot_options.files])
     schedule = _schedule(command, command_file)
-    description, base = RobotOptions.of(spec, variant, motor_params).load()
+    description, base = robot_options.load()
     _check_control_rate(control_hz, description.spec.simulation.timestep)
     realtime = realtime or viewer
     options = {"motion": motion, "weights": weights, "checkpoint": checkpoint, "threads": threads,
@@ -100,7 +103,8 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     _report(policy, result, pol, scene, log, summary_json, render_skipped)
 
 
-def _check_options(policy: str, seconds: float, control_hz: float, policy_options: dict, outputs: dict) -> None:
+def _check_options(policy: str, seconds: float, control_hz: float, policy_options: dict, outputs: dict,
+                   inputs: list) -> None:
     from toddlerbot.policies import check_policy_options
 
     check_run_policy(policy)
@@ -109,7 +113,7 @@ def _check_options(policy: str, seconds: float, control_hz: float, policy_option
     positive(control_hz, "--control-hz", "Hz")
     for option, path in outputs.items():
         if path is not None:
-            output_file(path, option)
+            output_file(path, option, inputs)
 
 
 def _schedule(command: str | None, command_file: Path | None):

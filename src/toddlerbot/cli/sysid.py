@@ -13,12 +13,13 @@ from rich.table import Table
 
 from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.params_file import load_params
+from toddlerbot.cli.options import seed_option, within
 from toddlerbot.cli.output import console
-from toddlerbot.cli.output_paths import output_file
-from toddlerbot.cli.sysid_record import Profile, profile_names, record_command
+from toddlerbot.cli.output_paths import not_an_input, output_dir, output_file
+from toddlerbot.cli.sysid_record import Profile, excitation_runs, profile_names, record_command
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
-from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, excitation_set
+from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES
 from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.fit_run import fit_provenance, params_for
@@ -67,7 +68,7 @@ def fit_command(
     fit_kp_scale: FitKpScaleOption = False,
     model: FitModelOption = DEFAULT_MODEL,
     kp: GainsOption = None,
-    seed: Annotated[int, typer.Option("--seed", min=1, help="CMA-ES seed (>= 1); same seed, same result.")] = 1,
+    seed: Annotated[int, seed_option("CMA-ES seed (>= 1); same seed, same result.", smallest=1)] = 1,
     evals: EvalsOption = DEFAULT_EVALS,
     popsize: PopsizeOption = 32,
     restarts: Annotated[int, typer.Option("--restarts", min=0, help="Most IPOP restarts on stagnation.")] = 4,
@@ -75,8 +76,10 @@ def fit_command(
 ) -> None:
     """Fit an actuator model to the manifest's runs; prints each parameter's standard error, the parameters left
     at a bound and the ones kept fixed (with the reason)."""
-    output_file(output, "--output")  # an unwritable -o fails now, not after minutes of fitting
-    m = _runs(manifest, kp)
+    output_file(output, "--output", [manifest, start])  # an unwritable -o fails now, not after minutes of fitting
+    listed = load_manifest(manifest)
+    not_an_input(output, "--output", (run.file for run in listed.runs))
+    m = select_gains(listed, kp) if kp else listed
     start_params = None if start is None else params_for(start, m, manifest)
     with Progress(TextColumn("fitting"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"),
                   TimeElapsedColumn(), console=console, transient=True) as bar:
@@ -119,6 +122,8 @@ def eval_command(
                                                              "position and velocity, simulated torque.")] = None,
 ) -> None:
     """Tracking MAE/RMSE (degrees) of a parameter set per run and overall."""
+    if plot is not None:
+        output_dir(plot, "--plot", [manifest, params])
     m = _runs(manifest, kp)
     p = params_for(params, m, manifest)
     ev = evaluate(m, p)
@@ -145,7 +150,7 @@ def excite(
     = '{"type": "pendulum", "mass": 0.49, "length": 0.1}',
     profile: Annotated[list[Profile] | None, typer.Option("--profile", help="Repeatable.")] = None,
     kp: Annotated[list[int] | None, typer.Option("--kp", help="Firmware kp values to cycle (repeatable).")] = None,
-    duration: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
+    seconds: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
     rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = 200.0,
     amplitude: Annotated[float, typer.Option("--amplitude", help="Goal amplitude, rad.")] = 0.5,
     center: Annotated[float, typer.Option("--center", help="Goal centre, rad.")] = 0.0,
@@ -153,13 +158,15 @@ def excite(
     params: Annotated[Path | None, typer.Option("--params", help="params.json for --simulate (default: catalogue).")]
     = None,
     noise_deg: Annotated[float, typer.Option("--noise-deg", help="Position noise std for --simulate, deg.")] = 0.1,
-    seed: Annotated[int, typer.Option("--seed", help="Noise seed for --simulate.")] = 0,
+    seed: Annotated[int, seed_option("Noise seed for --simulate.")] = 0,
 ) -> None:
     """Write excitation profiles (one CSV per profile x kp) and a manifest; --simulate fills in positions."""
+    output_dir(output, "--output", [params])
+    within(noise_deg, "--noise-deg", 0.0, 10.0, "degrees")
     model = default_catalogue()[motor]
     rig_obj = parse_rig(_json_arg(rig, "--rig"), "--rig")
-    runs_ex = excitation_set(profile_names(profile, DEFAULT_PROFILES), tuple(kp or DEFAULT_KP), duration, rate,
-                             amplitude, center)
+    runs_ex = excitation_runs(profile_names(profile, DEFAULT_PROFILES), tuple(kp or DEFAULT_KP), seconds, rate,
+                              amplitude, center)
     p = load_params(params)[1] if params is not None else model.actuator
     import numpy as np
 

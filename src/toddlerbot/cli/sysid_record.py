@@ -7,12 +7,17 @@ import json
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 from toddlerbot.actuation.catalogue import default_catalogue
+from toddlerbot.cli.options import duration, within
 from toddlerbot.cli.output import console
+from toddlerbot.cli.output_paths import output_dir
+from toddlerbot.robot.safety import MAX_FIRMWARE_GAIN
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.excitation import PROFILES, excitation_set
+from toddlerbot.sysid.excitation import PROFILES, Excitation, excitation_set
+from toddlerbot.sysid.logs import MAX_DURATION_S
 from toddlerbot.sysid.rigs import Rig, parse_rig
 
 RECORD_PROFILES = ("chirp", "steps", "sinusoids", "drop")
@@ -25,6 +30,17 @@ Profile = enum.Enum("Profile", {name: name for name in PROFILES}, type=str)
 def profile_names(profiles: list[Profile] | None, default: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(p.value for p in profiles) if profiles else default
 
+
+def excitation_runs(profiles: tuple[str, ...], kp: tuple[int, ...], seconds: float, rate: float, amplitude: float,
+                    center: float = 0.0) -> list[Excitation]:
+    """`excitation_set` of option values, each checked first (a 1e9 s run would allocate terabytes)."""
+    duration(seconds, "--duration", MAX_DURATION_S)
+    within(rate, "--rate", 1.0, 1000.0, "Hz")
+    within(amplitude, "--amplitude", 0.0, np.pi, "rad")
+    within(center, "--center", -np.pi, np.pi, "rad")
+    for gain in kp:
+        within(gain, "--kp", 0, MAX_FIRMWARE_GAIN, "firmware units")
+    return excitation_set(profiles, kp, seconds, rate, amplitude, center)
 
 
 def _rig(text: str, mass: float, length: float, load_inertia: float | None) -> Rig:
@@ -67,7 +83,7 @@ def record_command(
     load_inertia: Annotated[float | None, typer.Option("--load-inertia", help="Test-bed inertia, kg*m^2.")] = None,
     profile: ProfileOption = None,
     kp: KpOption = None,
-    duration: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
+    seconds: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
     rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = 200.0,
     amplitude: Annotated[float, typer.Option("--amplitude", help="Goal amplitude, rad.")] = 0.5,
     settle: Annotated[float, typer.Option("--settle", help="Seconds to reach the first goal of each run.")] = 1.0,
@@ -81,11 +97,11 @@ def record_command(
 
     from toddlerbot.sysid.bus_record import record_on_bus
 
+    output_dir(output, "--output")
+    duration(settle, "--settle", 60.0)
     model = default_catalogue()[motor]
     rig_obj = _rig(rig, mass, length, load_inertia)
-    if not 1.0 <= rate <= 1000.0 or duration <= 0:
-        raise SysIDError(f"--rate must be 1-1000 Hz and --duration > 0 s, got {rate} Hz, {duration} s")
-    runs = excitation_set(profile_names(profile, RECORD_PROFILES), tuple(kp or RECORD_KP), duration, rate, amplitude)
+    runs = excitation_runs(profile_names(profile, RECORD_PROFILES), tuple(kp or RECORD_KP), seconds, rate, amplitude)
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("recording", total=len(runs))
         manifest = record_on_bus(port, motor_id, model, runs, output, rig_obj, settle, baudrate, min_voltage,

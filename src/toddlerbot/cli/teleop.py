@@ -8,7 +8,7 @@ from typing import Annotated, Literal
 
 import typer
 
-from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, within
+from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, seed_option, within
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.errors import ToddlerbotError
@@ -35,7 +35,7 @@ LinkOption = Annotated[str | None, typer.Option("--link", help="Leader link endp
                                                                "one, manipulation.link.DEFAULT_ENDPOINT).")]
 PortOption = Annotated[str | None, typer.Option("--port", help="Serial port of the robot (real backend).")]
 CalibrationOption = Annotated[Path | None, typer.Option("--calibration", help="Robot calibration YAML (real).")]
-SeedOption = Annotated[int, typer.Option("--seed", help="Scene seed (pick).")]
+SeedOption = Annotated[int, seed_option(help="Scene seed (pick).")]
 ViewerOption = Annotated[bool, typer.Option("--viewer", help="Show the MuJoCo viewer (sim; needs a display).")]
 ChainsOption = Annotated[list[str] | None, typer.Option(
     "--chain", help="Skill chain (shipped name or file) run while its button is held; default (sim): the shipped "

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toddlerbot.errors import ToddlerbotError
+from toddlerbot.errors import ToddlerbotError, quoted
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.yaml_input import read_yaml
 
@@ -118,7 +118,7 @@ def parse_motion(raw: object, description: RobotDescription, source: str) -> Mot
         for j in joints:
             value = frame[j]
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-                raise MotionError(f"{where}: {j} must be a number of degrees, got {value!r}")
+                raise MotionError(f"{where}: {j} must be a number of degrees, got {quoted(value)}")
             lo, hi = description.joint_range[valid.index(j)]
             rad = np.deg2rad(value)
             if not lo - 1e-9 <= rad <= hi + 1e-9:
@@ -127,7 +127,7 @@ def parse_motion(raw: object, description: RobotDescription, source: str) -> Mot
             pose.append(rad)
         t = frame["t"]
         if isinstance(t, bool) or not isinstance(t, (int, float)) or not np.isfinite(t):
-            raise MotionError(f"{where}: t must be a finite number of seconds, got {t!r}")
+            raise MotionError(f"{where}: t must be a finite number of seconds, got {quoted(t)}")
         times.append(float(t))
         poses.append(pose)
     if times[0] != 0.0 or any(b <= a for a, b in itertools.pairwise(times)):

@@ -24,7 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from toddlerbot.errors import ToddlerbotError
+from toddlerbot.errors import ToddlerbotError, quoted
 from toddlerbot.yaml_input import read_yaml
 
 BUTTONS = ("l1", "r1", "l2", "r2")
@@ -103,13 +103,13 @@ def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> Chai
     button = None if top.get("button") is None else _choice(top["button"], BUTTONS, src, "button")
     raw_skills = top.get("skills")
     if not isinstance(raw_skills, list) or not raw_skills:
-        raise ChainFileError(f"{src}: skills: expected a non-empty list of skills, got {raw_skills!r}")
+        raise ChainFileError(f"{src}: skills: expected a non-empty list of skills, got {quoted(raw_skills)}")
     skills, names = [], set()
     for i, raw in enumerate(raw_skills):
         raw = _mapping(raw, src, f"skill {i + 1}")
         name = raw.get("name")
         if not isinstance(name, str) or not name:
-            raise ChainFileError(f"{src}: skill {i + 1}: name: expected a non-empty string, got {name!r}")
+            raise ChainFileError(f"{src}: skill {i + 1}: name: expected a non-empty string, got {quoted(name)}")
         if name in names:
             raise ChainFileError(f"{src}: skill {name}: name: used twice")
         names.add(name)
@@ -118,7 +118,7 @@ def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> Chai
         hold = raw.get("hold", [])
         if not isinstance(hold, list) or any(g not in groups for g in hold):
             raise ChainFileError(f"{where}: hold: expected a list of motor groups from {', '.join(groups)}, "
-                                 f"got {hold!r}")
+                                 f"got {quoted(hold)}")
         timeout = raw.get("timeout")
         if timeout is not None:
             timeout = _positive(timeout, where, "timeout")
@@ -138,7 +138,8 @@ def _switch(raw: object, where: str, predicates: Mapping) -> Switch:
     raw = _mapping(raw, where, "until")
     keys = [k for k in ("after", "predicate", "button") if k in raw]
     if len(keys) != 1:
-        raise ChainFileError(f"{where}: until: expected exactly one of after, predicate, button; got {sorted(raw)}")
+        raise ChainFileError(f"{where}: until: expected exactly one of after, predicate, button; "
+                             f"got {quoted(sorted(raw))}")
     if keys[0] == "after":
         _only(raw, ("after",), where, "until")
         return Switch(after=_positive(raw["after"], where, "until.after"))
@@ -195,12 +196,12 @@ def _typed(value: object, hint: object, where: str, field: str) -> object:
         if len(value) == size:
             return tuple(_typed(v, float, where, f"{field}[{i}]") for i, v in enumerate(value))
     name = getattr(hint, "__name__", str(hint))
-    raise ChainFileError(f"{where}: {field}: expected {name}, got {value!r}")
+    raise ChainFileError(f"{where}: {field}: expected {name}, got {quoted(value)}")
 
 
 def _mapping(value: object, where: str, what: str) -> dict:
     if not isinstance(value, dict):
-        raise ChainFileError(f"{where}: {what}: expected a mapping, got {value!r}")
+        raise ChainFileError(f"{where}: {what}: expected a mapping, got {quoted(value)}")
     return value
 
 
@@ -212,12 +213,12 @@ def _only(raw: Mapping, allowed: tuple[str, ...], where: str, what: str) -> None
 
 def _choice(value: object, allowed: tuple, where: str, field: str) -> str:
     if value not in allowed:
-        raise ChainFileError(f"{where}: {field}: expected one of {', '.join(map(str, allowed))}, got {value!r}")
+        raise ChainFileError(f"{where}: {field}: expected one of {', '.join(map(str, allowed))}, got {quoted(value)}")
     return value  # type: ignore[return-value]
 
 
 def _positive(value: object, where: str, field: str) -> float:
     number = _typed(value, float, where, field)
     if not number > 0:  # type: ignore[operator]
-        raise ChainFileError(f"{where}: {field}: expected a positive number of seconds, got {value!r}")
+        raise ChainFileError(f"{where}: {field}: expected a positive number of seconds, got {quoted(value)}")
     return number  # type: ignore[return-value]

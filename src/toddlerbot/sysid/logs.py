@@ -19,6 +19,7 @@ import numpy as np
 
 from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
+from toddlerbot.yaml_input import read_text
 
 REQUIRED_COLUMNS = ("time", "goal_position", "position")
 OPTIONAL_COLUMNS = ("velocity", "current", "torque_enable", "voltage")
@@ -36,6 +37,8 @@ MAX_SPEED = 100.0
 or rpm."""
 MAX_CURRENT_A = 50.0
 """Largest |current|, A (X-series servos stall at 0.5-5 A): above is mA."""
+MAX_LOG_BYTES = 200_000_000
+"""Largest log file, bytes: an hour at 200 Hz with every column is about 70 MB."""
 VOLTAGE_RANGE_V = (0.0, 30.0)
 """Supply voltage, V: > 0 and at most 30 (X-series servos take 3.7-14.8 V); above is mV."""
 
@@ -79,10 +82,7 @@ def read_table(path: str | Path, required: tuple[str, ...], optional: tuple[str,
     """(numeric CSV columns by header name, file line number of each row): at least 2 rows, all finite, time
     strictly increasing; raise `SysIDError` naming the file, line and column at fault."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SysIDError(f"{path}: cannot read log ({getattr(exc, 'strerror', None) or exc})") from None
+    text = read_text(path, "log", SysIDError, MAX_LOG_BYTES, "a CSV text file")
     rows = list(csv.reader(io.StringIO(text)))
     if not rows:
         raise SysIDError(f"{path}: empty log; expected a header row with columns {', '.join(required)}")

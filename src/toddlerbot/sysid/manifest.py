@@ -23,13 +23,17 @@ import numpy as np
 import yaml
 
 from toddlerbot.actuation.catalogue import MotorModel, default_catalogue
-from toddlerbot.errors import SpecError
+from toddlerbot.errors import SpecError, quoted
 from toddlerbot.files import atomic_write_text
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.logs import VOLTAGE_RANGE_V, MotorLog, read_log
 from toddlerbot.sysid.rigs import Rig, RobotJointRig, parse_rig, rig_to_dict
 from toddlerbot.sysid.robot_joint import rig_motor
+from toddlerbot.yaml_input import read_text
+
+MAX_MANIFEST_BYTES = 1_000_000
+"""Largest manifest, bytes (a manifest of a thousand logs is about 60 kB)."""
 
 
 @dataclass(frozen=True)
@@ -46,10 +50,7 @@ def load_manifest(path: str | Path, description: RobotDescription | None = None)
     packaged robot with the catalogue's parameters."""
     path = Path(path)
     catalogue = description.catalogue if description is not None else default_catalogue()
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SysIDError(f"{path}: cannot read manifest ({exc.strerror or exc})") from None
+    text = read_text(path, "manifest", SysIDError, MAX_MANIFEST_BYTES)
     try:
         raw: Any = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as exc:
@@ -71,7 +72,8 @@ def load_manifest(path: str | Path, description: RobotDescription | None = None)
     if not isinstance(raw["logs"], list) or not raw["logs"]:
         raise SysIDError(f"{path}: 'logs' must be a non-empty list of {{file, kp, kd}}")
     default_voltage = _voltage(raw.get("voltage"), path, "voltage")
-    runs = []
+    runs: list[MotorLog] = []
+    listed: dict[Path, int] = {}
     folder = path.parent.resolve()
     for i, entry in enumerate(raw["logs"]):
         if not isinstance(entry, dict) or "file" not in entry or "kp" not in entry:
@@ -81,12 +83,16 @@ def load_manifest(path: str | Path, description: RobotDescription | None = None)
             raise SysIDError(f"{path}: logs[{i}] names {str(entry['file'])[:200]!r}, which is outside the "
                              f"manifest's folder {path.parent}; logs must sit in that folder or below it")
         if not log_path.is_file():
-            raise SysIDError(f"{path}: logs[{i}] names {entry['file']!r}, but {log_path} does not exist")
+            raise SysIDError(f"{path}: logs[{i}] names {quoted(entry['file'])}, but {log_path} does not exist")
+        first = listed.setdefault(log_path.resolve(), i)
+        if first != i:  # one run counted twice (e.g. at two gains) would bias the fit and hide its error
+            raise SysIDError(f"{path}: logs[{i}] names {quoted(entry['file'])}, which logs[{first}] already names; "
+                             "each log may be listed once")
         try:
             kp, kd = float(entry["kp"]), float(entry.get("kd", 0))
         except (TypeError, ValueError):
-            raise SysIDError(f"{path}: logs[{i}]: kp/kd must be numbers, got {entry.get('kp')!r}, "
-                             f"{entry.get('kd')!r}") from None
+            raise SysIDError(f"{path}: logs[{i}]: kp/kd must be numbers, got {quoted(entry.get('kp'))}, "
+                             f"{quoted(entry.get('kd'))}") from None
         run = read_log(log_path, kp, kd)
         voltage = _voltage(entry.get("voltage"), path, f"logs[{i}].voltage") or default_voltage
         if run.voltage is None and voltage is not None:
@@ -113,7 +119,7 @@ def _voltage(value: Any, path: Path, key: str) -> float | None:
     lo, hi = VOLTAGE_RANGE_V
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or \
             not lo < value <= hi:
-        raise SysIDError(f"{path}: {key} must be a supply voltage > {lo:g} and <= {hi:g} V, got {value!r}")
+        raise SysIDError(f"{path}: {key} must be a supply voltage > {lo:g} and <= {hi:g} V, got {quoted(value)}")
     return float(value)
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
+from toddlerbot.errors import quoted
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sysid.errors import SysIDError
 
@@ -109,7 +110,7 @@ def parse_rig(raw: Any, source: str, description: RobotDescription | None = None
             continue
         value = raw[name]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise SysIDError(f"{source}: rig field {name!r} must be a finite number >= 0, got {value!r}")
+            raise SysIDError(f"{source}: rig field {name!r} must be a finite number >= 0, got {quoted(value)}")
         values[name] = float(value)
     if kind == "testbed" and values["load_inertia"] <= 0:
         raise SysIDError(f"{source}: rig field 'load_inertia' must be > 0 kg*m^2")

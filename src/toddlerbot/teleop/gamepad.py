@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from toddlerbot.errors import ToddlerbotError
+from toddlerbot.errors import ToddlerbotError, quoted
 from toddlerbot.yaml_input import read_yaml
 
 DEFAULT_MAPPING = Path(__file__).with_name("teleop_mapping.yaml")
@@ -90,7 +90,7 @@ def load_mapping(path: str | Path | None = None) -> TeleopMapping:
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = ".".join(str(p) for p in err["loc"])
-        raise MappingError(f"{path}: {loc}: {err['msg']} (got {err.get('input')!r})") from None
+        raise MappingError(f"{path}: {loc}: {err['msg']} (got {quoted(err.get('input'))})") from None
     for trigger in mapping.triggers:
         if trigger not in SKILLS:
             raise MappingError(f"{path}: triggers.{trigger}: expected one of {', '.join(SKILLS)}")
