@@ -67,7 +67,7 @@ def train(
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
     training_budget(minutes, steps)
-    output_dir(out, "--out")
+    output_dir(out, "--out", [dataset, imagenet_weights])
     result = train_on_dataset(
         dataset, PRESETS[config], out, threads,
         on_open=lambda windows: console.print(f"dataset {dataset}: {windows} windows; run directory {out}"),
@@ -117,7 +117,7 @@ def export(
     if export_format == "onnx":
         from toddlerbot.dp.onnx_export import export_onnx
 
-        output_dir(out, "--out")
+        output_dir(out, "--out", [checkpoint])
         paths, report = export_onnx(checkpoint, out)
         for name, path in paths.items():
             console.print(f"wrote {path}: {path.stat().st_size / 1e6:.1f} MB; onnxruntime vs torch on random "
@@ -126,7 +126,7 @@ def export(
         return
     from toddlerbot.dp.checkpoint import export_policy
 
-    output_file(out, "--out")
+    output_file(out, "--out", [checkpoint])
     written = export_policy(checkpoint, out)
     console.print(f"wrote {written}: {written.stat().st_size / 1e6:.1f} MB (from {checkpoint}, "
                   f"{checkpoint.stat().st_size / 1e6:.1f} MB)")
@@ -169,7 +169,7 @@ def evaluate(
     if seconds is not None:
         duration(seconds, "--seconds", MAX_EPISODE_SECONDS)
     if video is not None:
-        output_file(video, "--video")
+        output_file(video, "--video", [checkpoint])
     checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task)
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{task} episodes", total=episodes)

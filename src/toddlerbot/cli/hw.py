@@ -63,9 +63,10 @@ def emulate(
     from toddlerbot.hardware.serve import serve_until_stopped, write_true_calibration
 
     parsed = Faults.parse(faults or [])
+    robot = RobotOptions.of(spec_path, variant, motor_params)
     if write_calibration is not None:
-        output_file(write_calibration, "--write-calibration")
-    bus = EmulatedBus(RobotOptions.of(spec_path, variant, motor_params).description(), hil=hil, faults=parsed,
+        output_file(write_calibration, "--write-calibration", robot.files)
+    bus = EmulatedBus(robot.description(), hil=hil, faults=parsed,
                       fast_sync_read=not no_fast_sync_read, offsets_seed=offsets_seed)
     if write_calibration is not None:
         write_true_calibration(bus, write_calibration)
@@ -118,8 +119,8 @@ def calibrate(
     from toddlerbot.hardware.driver import DynamixelBus, motors_of
 
     description = RobotOptions.of(spec_path, variant).description()
-    existing = load_calibration(output) if output.exists() else None
-    output_file(output, "--output")
+    existing = load_calibration(output) if output.exists() else None  # updated in place: its other groups are kept
+    output_file(output, "--output", [spec_path])
     cal = existing
     for g in group or list(GROUPS):
         ids = {m.id for m in group_motors(description, g)}
@@ -170,9 +171,10 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
     try:
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
-        _check_run(policy, seconds, control_dt, latency_ms, log)
-        robot = _real_robot(RobotOptions.of(spec_path, variant, motor_params), port, calibration, control_dt, baud,
-                            latency_ms, tracked=mocap != "none")
+        options = RobotOptions.of(spec_path, variant, motor_params)
+        _check_run(policy, seconds, control_dt, latency_ms, log, [calibration, motion, weights, checkpoint,
+                                                                  *options.files])
+        robot = _real_robot(options, port, calibration, control_dt, baud, latency_ms, tracked=mocap != "none")
         pol = _hw_policy(robot, policy, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
                                          "camera": camera, "threads": threads,
                                          **symmetric_option(policy, asymmetric)}, stack)
@@ -189,14 +191,15 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
     _report_run(policy, result, pol, log)
 
 
-def _check_run(policy: str, seconds: float, control_dt: float, latency_ms: float, log: Path | None) -> None:
+def _check_run(policy: str, seconds: float, control_dt: float, latency_ms: float, log: Path | None,
+               inputs: list) -> None:
     check_run_policy(policy)
     duration(seconds, "--seconds")
     # longer periods would leave the motors' 0.5 s Bus Watchdog waiting for the next goal
     duration(control_dt, "--dt", MAX_CONTROL_DT)
     duration(latency_ms, "--latency-ms", 1000.0, "milliseconds")  # the driver's bound on the latency timer
     if log is not None:
-        output_file(log, "--log")
+        output_file(log, "--log", inputs)
 
 
 def _real_robot(options: RobotOptions, port: str, calibration: Path, control_dt: float, baud: int,

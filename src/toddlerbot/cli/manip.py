@@ -122,7 +122,7 @@ def decode(
 
     if out.suffix != ".npz":
         raise ToddlerbotError(f"--out {out}: expected a file name ending in .npz")
-    output_file(out, "--out")
+    output_file(out, "--out", [root])
     dataset = load_dataset(root)
     written = save_decoded(dataset, out)
     console.print(f"wrote {written}: {dataset.n_episodes} episodes, {len(dataset)} frames, "
@@ -173,7 +173,7 @@ def view(
     if save is not None:
         if save.suffix != ".rrd":
             raise ToddlerbotError(f"--save {save}: expected a file name ending in .rrd")
-        output_file(save, "--save")
+        output_file(save, "--save", [root])
     dataset = load_dataset(root)
     episodes = choose_episodes(dataset, episode)
     recording = recording_for(dataset)

@@ -41,11 +41,12 @@ def edit(
     from toddlerbot.motion_editor.app import check_save_path, open_editor
     from toddlerbot.motion_editor.opening import open_keyframes
 
-    description = RobotOptions.of(motor_params=motor_params).description()
+    robot = RobotOptions.of(motor_params=motor_params)
+    description = robot.description()
     keyframes, save_to = open_keyframes(motion, description, out)
-    if out is not None:
+    if out is not None:  # the opened motion itself may be saved over: that is what an editor does
         check_save_path(str(out))
-        output_file(out, "--out")
+        output_file(out, "--out", robot.files)
     _check_host(host)
     _serve(open_editor(description, keyframes, save_to, host, port), host, port)
 

@@ -50,6 +50,16 @@ def output_dir(path: Path, option: str, inputs: Inputs = (), default: bool = Fal
     return path
 
 
+def source_checkout(option: str) -> Path:
+    """The root of the source checkout the package runs from (``pip install -e`` of a git clone), or one line:
+    ``option`` writes into the package, which only a maintainer does, from a checkout whose change git shows."""
+    root = PACKAGE_DIR.parents[1]
+    if PACKAGE_DIR.parent.name != "src" or not (root / "pyproject.toml").is_file() or not (root / ".git").exists():
+        raise ToddlerbotError(f"{option} writes into the package at {PACKAGE_DIR}, which is not in a source checkout "
+                              "(a git clone installed with pip install -e); write elsewhere with --out")
+    return root
+
+
 def not_an_input(path: Path, option: str, inputs: Inputs) -> Path:
     """`path` unless it is one of `inputs` or lies inside an input folder (for inputs known only once the first
     input is read, e.g. the logs a manifest names)."""

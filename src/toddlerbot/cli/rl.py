@@ -18,7 +18,7 @@ from toddlerbot.cli.options import (
     training_budget,
 )
 from toddlerbot.cli.output import console
-from toddlerbot.cli.output_paths import output_dir, output_file
+from toddlerbot.cli.output_paths import output_dir, output_file, source_checkout
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig
@@ -193,22 +193,30 @@ def _train_with_progress(plan, minutes: float | None, epochs: int | None, sinks)
 @app.command()
 def export(
     run: Annotated[Path, typer.Argument(help="Training run directory, or an exported .npz (for --format onnx).")],
-    out: Annotated[Path | None, typer.Option(help="File to write (default for npz: the shipped walk_rl.npz, or "
-                                                  "walk_rl_<variant>.npz for a variant's run; for onnx: the "
+    out: Annotated[Path | None, typer.Option(help="File to write (default: RUN/policy.npz, or for onnx the "
                                                   "source's name with .onnx, or RUN/policy.onnx).")] = None,
     export_format: Annotated[Literal[EXPORT_FORMATS], typer.Option(
         "--format", help="npz (numpy inference) or onnx (onnxruntime; checked against the numpy policy).")] = "npz",
     checkpoint: Annotated[str | None, typer.Option(help="A checkpoint file name of the run (default: the latest; "
                                                         "'warm_start': the DAgger warm start).")] = None,
+    ship: Annotated[bool, typer.Option(help="Maintainers, in a source checkout: write the package's shipped policy "
+                                            "(walk_rl.npz, or walk_rl_<variant>.npz for a variant's run) that every "
+                                            "walk-rl run loads by default (docs/rl.md, \"Shipping a policy\").")]
+    = False,
 ) -> None:
     """Write the run's latest checkpoint as a policy file for the `walk-rl` runtime policy: numpy-only .npz, or
     .onnx (graph: raw observation -> action; metadata in the model) verified against the numpy policy."""
+    from toddlerbot.rl.run_files import run_inputs
+
+    inputs = run_inputs(run) if run.is_dir() else [run]
     if export_format == "onnx":
         from toddlerbot.rl.onnx_export import export_onnx, require_onnx
 
+        if ship:
+            raise ToddlerbotError("--ship writes the shipped .npz policy; drop --format onnx")
         if out is None:
             out = run / "policy.onnx" if run.is_dir() else run.with_suffix(".onnx")
-        output_file(out, "--out")
+        output_file(out, "--out", inputs)
         require_onnx()
         if run.is_dir():
             _require_jax()
@@ -224,8 +232,13 @@ def export(
     from toddlerbot.rl.export import export_run
     from toddlerbot.rl.train import load_config
 
-    out = default_weights(load_config(run)[0].variant) if out is None else out
-    output_file(out, "--out")
+    if ship:
+        if out is not None:
+            raise ToddlerbotError("--ship writes the package's shipped policy; drop --out")
+        out = default_weights(load_config(run)[0].variant)
+        source_checkout("--ship")
+    out = run / "policy.npz" if out is None else out
+    output_file(out, "--out", inputs, into_package=ship)
 
     path = export_run(run, out, checkpoint=checkpoint)
     console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")

@@ -20,6 +20,7 @@ from toddlerbot.dp.ema import EMA
 from toddlerbot.dp.policy import ACTION, STATE, DiffusionPolicy
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write
+from toddlerbot.yaml_input import sized_file
 
 FORMAT = "toddlerbot-dp/1"
 
@@ -77,9 +78,15 @@ def save_checkpoint(path: str | Path, state: TrainingState) -> Path:
     return atomic_write(path, lambda tmp: torch.save(body, tmp))
 
 
+MAX_CHECKPOINT_BYTES = 4 << 30
+"""Largest checkpoint read, bytes: the appendix's 300 M-parameter policy is 1.2 GB of float32 weights, 3.6 GB with
+its Adam moments (the shipped ones are 6 MB)."""
+
+
 def _read(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
+    sized_file(path, "diffusion-policy checkpoint", CheckpointError, MAX_CHECKPOINT_BYTES)
     try:
         body = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # truncated zip, pickled objects, not a torch file

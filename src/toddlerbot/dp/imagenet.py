@@ -20,6 +20,7 @@ import torch
 
 from toddlerbot.dp.encoders import ResNet18Encoder
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.yaml_input import sized_file
 
 DROPPED_SUFFIXES = ("running_mean", "running_var", "num_batches_tracked")
 
@@ -34,13 +35,18 @@ def torchvision_key(name: str) -> str:
     return ".".join("bn" + p[4:] if p.startswith("norm") else p for p in parts)
 
 
+MAX_STATE_DICT_BYTES = 200_000_000
+"""Largest ResNet-18 state dict read, bytes (torchvision's is 46.8 MB)."""
+
+
 def load_imagenet_weights(encoder: ResNet18Encoder, path: str | Path) -> dict[str, list[str]]:
     """Copy a torchvision ResNet-18 state dict into ``encoder``'s trunk; returns ``{"loaded", "dropped"}`` names."""
     path = Path(path)
+    if not path.exists():
+        raise PretrainedWeightsError(f"{path}: no such file (ImageNet ResNet-18 state dict expected)")
+    sized_file(path, "ResNet-18 state dict", PretrainedWeightsError, MAX_STATE_DICT_BYTES)
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError as exc:
-        raise PretrainedWeightsError(f"{path}: no such file (ImageNet ResNet-18 state dict expected)") from exc
     except Exception as exc:  # torch raises several types for corrupt or pickled-object files
         raise PretrainedWeightsError(f"{path}: not a weights-only torch state dict ({type(exc).__name__}: "
                                      f"{str(exc).splitlines()[0]})") from exc

@@ -84,6 +84,18 @@ class RewardConfig:
     """rad; torso roll/pitch beyond this are penalised linearly."""
 
 
+MAX_PUSH_VELOCITY = 3.0
+"""m/s; fastest training kick: ten times the robustness benchmark's 0.3 m/s, and faster than the 1-2 m/s kicks that
+knock the robot over."""
+MAX_PUSH_INTERVAL_S = 600.0
+"""s; longest time between training pushes (an episode is 20 s: anything longer means no push)."""
+MAX_HAND_FORCE_N = 30.0
+"""N; largest training pull on the hands: about the 3.4 kg robot's weight (33 N), beyond which it is lifted off
+its feet rather than walking with a load (the shipped gripper policy trains with 1.5 N)."""
+MAX_LOSS_WEIGHT = 10_000.0
+"""Largest weight of a reward term or of the mirror loss: 20 times the largest of appendix Table 6 (500)."""
+
+
 @dataclass(frozen=True)
 class RandomizationConfig:
     """Domain randomisation ranges (uniform); scales multiply the model's nominal value."""
@@ -130,14 +142,14 @@ class RandomizationConfig:
     def __post_init__(self) -> None:
         if not 0.0 <= self.upper_body_pose <= 1.0:
             raise ValueError(f"upper_body_pose {self.upper_body_pose}: expected a fraction of the range in [0, 1]")
-        if not 0.0 <= self.push_velocity_min <= self.push_velocity < float("inf"):
+        if not 0.0 <= self.push_velocity_min <= self.push_velocity <= MAX_PUSH_VELOCITY:
             raise ValueError(f"push velocities {self.push_velocity_min}..{self.push_velocity}: expected "
-                             f"0 <= smallest <= largest, finite, m/s")
-        if not 0.0 < self.push_interval_s[0] <= self.push_interval_s[1] < float("inf"):
+                             f"0 <= smallest <= largest <= {MAX_PUSH_VELOCITY:g} m/s")
+        if not 0.0 < self.push_interval_s[0] <= self.push_interval_s[1] <= MAX_PUSH_INTERVAL_S:
             raise ValueError(f"push interval {self.push_interval_s[0]}..{self.push_interval_s[1]}: expected "
-                             f"0 < shortest <= longest, finite, s")
-        if not 0.0 <= self.hand_force < float("inf"):
-            raise ValueError(f"hand_force {self.hand_force}: expected a finite force >= 0 N")
+                             f"0 < shortest <= longest <= {MAX_PUSH_INTERVAL_S:g} s")
+        if not 0.0 <= self.hand_force <= MAX_HAND_FORCE_N:
+            raise ValueError(f"hand_force {self.hand_force}: expected a force in [0, {MAX_HAND_FORCE_N:g}] N")
         if not 0.0 <= self.imu_age_s[0] <= self.imu_age_s[1] < float("inf"):
             raise ValueError(f"IMU age {self.imu_age_s[0]}..{self.imu_age_s[1]}: expected 0 <= youngest <= oldest, s")
 
@@ -255,8 +267,8 @@ class PPOConfig:
     action against the mirror image of its action on the mirrored observation); 0 trains without it."""
 
     def __post_init__(self) -> None:
-        if not self.mirror_loss >= 0:
-            raise ValueError(f"mirror_loss {self.mirror_loss}: expected a weight >= 0")
+        if not 0 <= self.mirror_loss <= MAX_LOSS_WEIGHT:
+            raise ValueError(f"mirror_loss {self.mirror_loss}: expected a weight in [0, {MAX_LOSS_WEIGHT:g}]")
         if (self.batch_size * self.num_minibatches) % self.num_envs:
             raise ValueError(f"batch_size * num_minibatches ({self.batch_size * self.num_minibatches}) must be a "
                              f"multiple of num_envs ({self.num_envs})")

@@ -13,6 +13,17 @@ from toddlerbot.files import atomic_savez
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION, LEG_GROUP
 from toddlerbot.rl.config import EnvConfig, PPOConfig
 from toddlerbot.rl.reference import leg_motor_indices
+from toddlerbot.rl.run_files import (
+    ACTION_SPACE,
+    IMITATION_RECORD,
+    MOTOR_PARAMS_RECORD,
+    REFERENCE_RECORD,
+    WARM_START,
+    payload_entry,
+    read_json_lines,
+    read_payload,
+    read_run_text,
+)
 from toddlerbot.robot.description import RobotDescription
 
 
@@ -86,7 +97,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
     warm = _imitation_record(run_dir)
     if checkpoint == "warm_start":
         params, normalizer, steps, history = _warm_start_params(run_dir, env_cfg, ppo_cfg, description)
-        name, warm = train.WARM_START, []
+        name, warm = WARM_START, []
     else:
         if not paths:
             raise ToddlerbotError(f"{run_dir}: no checkpoint {checkpoint or ''} to export")
@@ -116,48 +127,37 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "push_interval_stages": [[stage["from_env_steps"], *stage["push_interval_s"]] for stage in stages],
             "imu_age_s": stages[-1]["imu_age_s"],
             "imu_age_stages": [[stage["from_env_steps"], *stage["imu_age_s"]] for stage in stages],
-            "motor_params": json.loads(record.read_text()) if record.is_file() else []}
+            "motor_params": json.loads(read_run_text(record, "motor record")) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None
     return write_policy(out, arrays, env_cfg, meta, description, action_space)
 
 
-ACTION_SPACE = "action_space.npz"
-"""File in a run directory: the gait reference the run's env used (`GaitReference.arrays`) and its P-gain factors
-(``kp_stance_scale``, ``kp_swing_scale``), written at the start so that the export carries exactly them."""
-
-
 def _warm_start_params(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription):
     """(actor parameters, normaliser, env steps, records) of the run's DAgger warm start."""
-    from flax import serialization
 
     from toddlerbot.rl import train
 
-    path = run_dir / train.WARM_START
+    path = run_dir / WARM_START
     if not path.is_file():
         raise ToddlerbotError(f"{run_dir}: no warm start to export")
-    state, _ = _template(env_cfg, ppo_cfg, description, _critic_width_warm(path))
-    payload = serialization.msgpack_restore(path.read_bytes())
+    payload = read_payload(path, "warm start")
+    width = _critic_width(path, payload, ("warm", "normalizer", "mean", "privileged_state"), "warm start")
+    state, _ = _template(env_cfg, ppo_cfg, description, width)
     template = {"policy": state.params.policy, "value": state.params.value, "normalizer": state.normalizer_params,
                 "env_steps": np.zeros((), np.int64)}
-    arrays = serialization.from_state_dict(template, payload["warm"])
-    records = json.loads(payload["history"])
+    arrays, records = train.restore_warm_start(path, payload, template)
     return arrays["policy"], arrays["normalizer"], int(arrays["env_steps"]), records
 
 
 def _imitation_record(run_dir: Path) -> list[dict]:
-    path = run_dir / "imitation.jsonl"
-    return [json.loads(line) for line in path.read_text().splitlines() if line] if path.is_file() else []
-
-
-MOTOR_PARAMS_RECORD = "motor_params.json"
-"""File in a run directory recording the fitted actuator parameters it trained on (`motor_params_record`)."""
+    return read_json_lines(run_dir / IMITATION_RECORD, "DAgger record")
 
 
 def run_reference_source(run_dir: Path) -> str | None:
     """The reference source ("zmp" or "standing") a run recorded, if any."""
-    path = Path(run_dir) / "reference.txt"
-    return path.read_text().strip() if path.is_file() else None
+    path = Path(run_dir) / REFERENCE_RECORD
+    return read_run_text(path, "reference record").strip() if path.is_file() else None
 
 
 def _actor_width(env_cfg: EnvConfig, description: RobotDescription) -> int:
@@ -170,7 +170,8 @@ def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, descr
     from toddlerbot.rl import train
 
     # the critic's input width is read back from the checkpoint
-    template, _ = _template(env_cfg, ppo_cfg, description, _critic_width(path))
+    width = _critic_width(path, read_payload(path), ("state", "normalizer_params", "mean", "privileged_state"))
+    template, _ = _template(env_cfg, ppo_cfg, description, width)
     state, _, history = train.load_checkpoint(path, template)
     return state, history
 
@@ -185,15 +186,9 @@ def _template(env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescript
     return train._initial_state(networks, train.make_optimizer(ppo_cfg), obs_size, jax.random.PRNGKey(0)), networks
 
 
-def _critic_width(path: Path) -> int:
-    from flax import serialization
-
-    payload = serialization.msgpack_restore(path.read_bytes())
-    return int(np.shape(payload["state"]["normalizer_params"]["mean"]["privileged_state"])[0])
-
-
-def _critic_width_warm(path: Path) -> int:
-    from flax import serialization
-
-    payload = serialization.msgpack_restore(path.read_bytes())
-    return int(np.shape(payload["warm"]["normalizer"]["mean"]["privileged_state"])[0])
+def _critic_width(path: Path, payload: dict, keys: tuple[str, ...], what: str = "checkpoint") -> int:
+    """The critic's input width: the length of its normaliser's mean in the checkpoint (or warm start)."""
+    shape = np.shape(payload_entry(path, payload, keys, what))
+    if len(shape) != 1:
+        raise ToddlerbotError(f"{path}: not a {what} of a walking run ({'/'.join(keys)} has shape {shape})")
+    return int(shape[0])

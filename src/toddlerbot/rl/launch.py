@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
 from toddlerbot.rl import config
+from toddlerbot.rl.run_files import CONFIG, SMOKE_MARKER
 
 if TYPE_CHECKING:
     from toddlerbot.rl.train import WarmStartSource
 
-SMOKE_MARKER = "smoke"
 """File in a `--smoke` run: a resumed smoke run sets the smoke XLA flags again."""
 
 
@@ -77,7 +77,7 @@ def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
     """Continue the run in `run_dir` from its last checkpoint. `STAGE_OPTIONS` and `--timesteps` start its next
     stage (a curriculum: say harder or more frequent pushes from here on); options that would change anything else
     are refused."""
-    if not (run_dir / "config.json").is_file():
+    if not (run_dir / CONFIG).is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     if any(getattr(request, field) != getattr(TrainRequest(), field) for field in KEPT_ON_RESUME):
         raise ToddlerbotError(f"{'/'.join(KEPT_ON_RESUME.values())}: a resumed run keeps the settings it started "
@@ -199,8 +199,9 @@ def reward_weights(weights: dict[str, float], request: TrainRequest) -> dict[str
         if name not in weights:
             raise ToddlerbotError(f"--reward-weight {item}: unknown reward term {name!r}; expected one of "
                                   f"{', '.join(sorted(weights))}")
-        if not math.isfinite(value) or value < 0:
-            raise ToddlerbotError(f"--reward-weight {item}: expected NAME=WEIGHT with a finite weight >= 0")
+        if not 0 <= value <= config.MAX_LOSS_WEIGHT:  # False for NaN
+            raise ToddlerbotError(f"--reward-weight {item}: expected NAME=WEIGHT with a weight in "
+                                  f"[0, {config.MAX_LOSS_WEIGHT:g}]")
         weights[name] = value
     return weights
 

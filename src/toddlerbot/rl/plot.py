@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib
@@ -11,6 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from toddlerbot.files import save_figure
+from toddlerbot.rl.run_files import IMITATION_RECORD, METRICS_RECORD, read_json_lines
 
 CURVES = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
           ("lin_vel_error", "|v_xy - command| (m/s)"), ("ang_vel_error", "|yaw rate - command| (rad/s)"),
@@ -21,11 +21,8 @@ the warm start's iterations, dashed)."""
 
 def run_records(run_dir: Path) -> tuple[list[dict], list[dict]]:
     """(warm-start records, PPO epoch records) of a run directory."""
-    def read(name: str) -> list[dict]:
-        path = Path(run_dir) / name
-        return [json.loads(line) for line in path.read_text().splitlines() if line] if path.is_file() else []
-
-    return read("imitation.jsonl"), read("metrics.jsonl")
+    return (read_json_lines(Path(run_dir) / IMITATION_RECORD, "DAgger record"),
+            read_json_lines(Path(run_dir) / METRICS_RECORD, "metrics record"))
 
 
 def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path) -> Path:

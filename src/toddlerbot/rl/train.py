@@ -50,11 +50,26 @@ from toddlerbot.rl.config import (
     RewardConfig,
 )
 from toddlerbot.rl.env import TRACKING_METRICS, WalkEnv
-from toddlerbot.rl.export import ACTION_SPACE, MOTOR_PARAMS_RECORD, motor_params_record
+from toddlerbot.rl.export import motor_params_record
 from toddlerbot.rl.imitation import WarmStart
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.rewards import TERMS
+from toddlerbot.rl.run_files import (
+    ACTION_SPACE,
+    CHECKPOINTS,
+    CONFIG,
+    IMITATION_RECORD,
+    MAX_CHECKPOINT_BYTES,
+    METRICS_RECORD,
+    MOTOR_PARAMS_RECORD,
+    REFERENCE_RECORD,
+    WARM_START,
+    read_json_lines,
+    read_payload,
+    read_run_text,
+)
 from toddlerbot.rl.wrappers import wrap_for_training
+from toddlerbot.yaml_input import read_bytes
 
 AXIS = "devices"
 Progress = Callable[[int, int, dict[str, float]], None]
@@ -266,7 +281,7 @@ def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig,
                 imitation_cfg: ImitationConfig | None = None, stages: list[dict] | None = None) -> None:
     """config.json; ``stages`` (see `training_stages`) where a resumed run changed its push band or budget."""
     raw = {"env": asdict(env_cfg), "ppo": asdict(ppo_cfg), "imitation": asdict(imitation_cfg or ImitationConfig())}
-    atomic_write_text(run_dir / "config.json", json.dumps(raw | ({"stages": stages} if stages else {}), indent=1))
+    atomic_write_text(run_dir / CONFIG, json.dumps(raw | ({"stages": stages} if stages else {}), indent=1))
 
 
 def training_stage(from_env_steps: int, env_cfg: EnvConfig, ppo_cfg: PPOConfig) -> dict:
@@ -282,7 +297,7 @@ def training_stages(run_dir: Path) -> list[dict]:
     """The run's stages, oldest first: one unless `rl train --resume` changed the pushes, the IMU age or the budget.
     Stages recorded before a resume could change the push interval ran the configuration's; those recorded before
     the IMU age existed, fresh readings."""
-    raw = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
+    raw = json.loads(read_run_text(run_dir / CONFIG, "training configuration"))
     env_cfg, ppo_cfg = load_config(run_dir)
     if "stages" in raw:
         interval = list(env_cfg.randomization.push_interval_s)
@@ -297,17 +312,17 @@ def stages_until(stages: list[dict], env_steps: int) -> list[dict]:
 
 def load_imitation_config(run_dir: Path) -> ImitationConfig:
     """The run's warm-start configuration (none for runs that predate it)."""
-    raw = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
+    raw = json.loads(read_run_text(run_dir / CONFIG, "training configuration"))
     return ImitationConfig(**raw.get("imitation", {}))
 
 
 def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
-    path = run_dir / "config.json"
+    path = run_dir / CONFIG
     if not path.is_file():
         raise ToddlerbotError(f"{path}: no training run here (config.json missing)")
     tuples = lambda d: {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}  # noqa: E731
     try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
+        raw = json.loads(read_run_text(path, "training configuration"))
         env = dict(raw["env"])
         env_cfg = EnvConfig(
             **{k: v for k, v in tuples(env).items() if k not in ("obs", "command", "reward", "randomization")},
@@ -329,7 +344,7 @@ def _reward_config(saved: dict) -> RewardConfig:
 
 # checkpoints ----------------------------------------------------------------------------------------------------
 def checkpoint_paths(run_dir: Path) -> list[Path]:
-    return sorted((run_dir / "checkpoints").glob("step_*.msgpack"))
+    return sorted((run_dir / CHECKPOINTS).glob("step_*.msgpack"))
 
 
 def checkpoint_env_steps(path: Path) -> int:
@@ -339,7 +354,7 @@ def checkpoint_env_steps(path: Path) -> int:
 
 def save_checkpoint(run_dir: Path, state: TrainingState, key: jax.Array, history: list[dict]) -> Path:
     """Write the full training state atomically (temporary file, then rename)."""
-    folder = run_dir / "checkpoints"
+    folder = run_dir / CHECKPOINTS
     folder.mkdir(parents=True, exist_ok=True)
     payload = {"state": serialization.to_state_dict(jax.device_get(state)), "key": np.asarray(jax.device_get(key)),
                "history": json.dumps(history)}
@@ -348,12 +363,10 @@ def save_checkpoint(run_dir: Path, state: TrainingState, key: jax.Array, history
 
 
 def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState, jax.Array, list[dict]]:
+    payload = read_payload(path)
     try:
-        payload = serialization.msgpack_restore(path.read_bytes())
         state = serialization.from_state_dict(template, payload["state"])
         key, history = jnp.asarray(payload["key"]), json.loads(payload["history"])
-    except OSError as exc:
-        raise ToddlerbotError(f"{path}: cannot read checkpoint ({exc.strerror or exc})") from None
     except Exception as exc:  # msgpack, flax and json raise many types for empty, truncated or foreign bytes
         reason = " ".join(str(exc).split()) or f"{type(exc).__name__}: empty or truncated"
         raise ToddlerbotError(f"{path}: not a checkpoint of this configuration ({reason})") from None
@@ -400,14 +413,14 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     if not resume:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, env.cfg, ppo_cfg, imitation_cfg)
-        atomic_write_text(run_dir / "reference.txt", env.reference_source + "\n")
+        atomic_write_text(run_dir / REFERENCE_RECORD, env.reference_source + "\n")
         atomic_savez(run_dir / ACTION_SPACE, {**env.reference.arrays(), "kp_stance_scale": env.gain_scales[0],
                                               "kp_swing_scale": env.gain_scales[1]})
         if env.cfg.motor_params:
             record = motor_params_record(env.cfg.motor_params)
             atomic_write_text(run_dir / MOTOR_PARAMS_RECORD, json.dumps(record, indent=1))
-    config = json.loads((run_dir / "config.json").read_text(encoding="utf-8"))
-    with MetricsLogger.open(run_dir, {"ppo": "metrics.jsonl", "dagger": "imitation.jsonl"}, dashboards,
+    config = json.loads((run_dir / CONFIG).read_text(encoding="utf-8"))
+    with MetricsLogger.open(run_dir, {"ppo": METRICS_RECORD, "dagger": IMITATION_RECORD}, dashboards,
                             job_type="rl-train", config=config) as metrics:
         return _train(run_dir, env, cfg, resume, progress, max_epochs, time_limit_s, imitation_cfg,
                       imitation_progress, metrics, t_start)
@@ -467,7 +480,6 @@ def _train(run_dir: Path, env: WalkEnv, cfg: PPOConfig, resume: bool, progress: 
     return ts, history
 
 
-WARM_START = "warm_start.msgpack"
 """File in a run directory holding the DAgger warm start (actor, critic, normaliser, its records)."""
 
 
@@ -500,13 +512,11 @@ def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts:
     template = {"policy": ts.params.policy, "value": ts.params.value, "normalizer": ts.normalizer_params,
                 "env_steps": np.zeros((), np.int64)}
     if path.is_file():
-        payload = serialization.msgpack_restore(path.read_bytes())
-        arrays = serialization.from_state_dict(template, payload["warm"])
-        warm = WarmStart(arrays["policy"], arrays["value"], arrays["normalizer"], int(arrays["env_steps"]),
-                         json.loads(payload["history"]))
+        arrays, history = restore_warm_start(path, read_payload(path, "warm start"), template)
+        warm = WarmStart(arrays["policy"], arrays["value"], arrays["normalizer"], int(arrays["env_steps"]), history)
         return warm, warm.history[-1]["walltime"] if warm.history else 0.0
     deadline = None if time_limit_s is None else t_start + time_limit_s
-    log = run_dir / "imitation.jsonl"
+    log = run_dir / IMITATION_RECORD
     log.unlink(missing_ok=True)  # an interrupted warm start starts over
 
     def record(m: dict) -> None:
@@ -521,6 +531,16 @@ def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts:
     state = serialization.to_state_dict(jax.device_get(arrays))
     atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state, "history": json.dumps(warm.history)}))
     return warm, 0.0  # made in this call: its time is part of this call's wall time
+
+
+def restore_warm_start(path: Path, payload: dict, template: dict) -> tuple[dict, list[dict]]:
+    """(the warm start's arrays in `template`'s structure, its DAgger records) from its file's `payload`
+    (`read_payload`), or one line naming the file."""
+    try:
+        return serialization.from_state_dict(template, payload["warm"]), json.loads(payload["history"])
+    except Exception as exc:  # flax and json raise many types for a foreign structure
+        raise ToddlerbotError(f"{path}: not a warm start of this configuration "
+                              f"({' '.join(str(exc).split())[:200] or type(exc).__name__})") from None
 
 
 @dataclass(frozen=True)
@@ -549,17 +569,17 @@ def warm_start_source(run_dir: Path) -> WarmStartSource:
 def adopt_warm_start(source_dir: Path, run_dir: Path) -> None:
     """Copy the warm start and its records into ``run_dir``: `train` then starts PPO from it."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(run_dir / WARM_START, (source_dir / WARM_START).read_bytes())
-    records = source_dir / "imitation.jsonl"
+    atomic_write_bytes(run_dir / WARM_START, read_bytes(source_dir / WARM_START, "warm start", ToddlerbotError,
+                                                        MAX_CHECKPOINT_BYTES))
+    records = source_dir / IMITATION_RECORD
     if records.is_file():
-        atomic_write_text(run_dir / "imitation.jsonl", records.read_text(encoding="utf-8"))
+        atomic_write_text(run_dir / IMITATION_RECORD, read_run_text(records, "DAgger record"))
 
 
 def _warm_start_env_steps(run_dir: Path) -> int:
     """Environment steps of the run's warm start (its last record in ``imitation.jsonl``; 0 without one)."""
-    path = run_dir / "imitation.jsonl"
-    lines = [line for line in path.read_text(encoding="utf-8").splitlines() if line] if path.is_file() else []
-    return int(json.loads(lines[-1])["env_steps"]) if lines else 0
+    records = read_json_lines(run_dir / IMITATION_RECORD, "DAgger record")
+    return int(records[-1]["env_steps"]) if records else 0
 
 
 def _from_warm_start(ts: TrainingState, warm: WarmStart, ppo: PPO) -> TrainingState:

@@ -28,7 +28,7 @@ import mujoco
 import numpy as np
 
 from toddlerbot.dp import have_torch
-from toddlerbot.dp.shipped import is_shipped
+from toddlerbot.dp.shipped import check_named_checkpoint
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
@@ -65,9 +65,12 @@ class GraspParams:
     correction_gain: float = CORRECTION_GAIN
     max_correction: float = MAX_CORRECTION
     checkpoint: str | None = None
-    """Task whose shipped diffusion-policy checkpoint grasps instead of the script, when one is shipped."""
+    """A diffusion-policy checkpoint that grasps instead of the script: a shipped one's task name (``wagon``) or a
+    ``.pt`` file (the script grasps where torch or a head camera is missing, and says so)."""
 
     def __post_init__(self) -> None:
+        if self.checkpoint is not None:
+            check_named_checkpoint(self.checkpoint)
         if not 1 <= self.arm_kp_scale <= MAX_ARM_KP_SCALE:
             raise ValueError(f"arm_kp_scale: expected a number in [1, {MAX_ARM_KP_SCALE:g}], got {self.arm_kp_scale}")
 
@@ -84,6 +87,7 @@ class DPParams:
     one inference 30-50 times slower than one."""
 
     def __post_init__(self) -> None:
+        check_named_checkpoint(self.checkpoint)
         if self.threads < 1:
             raise ValueError(f"threads: expected a positive number of threads, got {self.threads}")
 
@@ -342,15 +346,14 @@ class PoseSkill(Skill):
 
 
 def grasp_skill(env: SkillEnv, p: GraspParams) -> Skill:
-    """The shipped diffusion policy of the task ``checkpoint`` names, where there is one, a head camera to feed it
-    and torch to run it; else the scripted grasp (its report says why)."""
-    shipped = p.checkpoint is not None and is_shipped(p.checkpoint)
-    if shipped and env.head_image is not None and have_torch():
+    """The diffusion policy ``checkpoint`` names, where a head camera feeds it and torch runs it; else the
+    scripted grasp (its report says why)."""
+    if p.checkpoint is not None and env.head_image is not None and have_torch():
         # at the scripted grasp's gains: the wagon task demonstrates and trains the policy at them
-        return DPSkill(env, DPParams(p.checkpoint), grasp_gains(env.robot.description, p))  # type: ignore[arg-type]
-    why = ("no checkpoint named" if p.checkpoint is None else f"no checkpoint for task {p.checkpoint}" if not shipped
-           else f"no head camera for {p.checkpoint}.pt" if env.head_image is None
-           else f"no torch for {p.checkpoint}.pt: pip install 'toddlerbot[dp]'")
+        return DPSkill(env, DPParams(p.checkpoint), grasp_gains(env.robot.description, p))
+    file = p.checkpoint if p.checkpoint is None or p.checkpoint.endswith(".pt") else f"{p.checkpoint}.pt"
+    why = ("no checkpoint named" if p.checkpoint is None else f"no head camera for {file}" if env.head_image is None
+           else f"no torch for {file}: pip install 'toddlerbot[dp]'")
     return ScriptedGrasp(env, p, why)
 
 
