@@ -22,8 +22,9 @@ def test_a_weight_is_set_by_name_and_the_others_keep_table_6():
 
 @pytest.mark.parametrize(("item", "message"), [
     ("path_xz=5", r"^--reward-weight path_xz=5: unknown reward term 'path_xz'; expected one of .*path_xy"),
-    ("path_xy=-1", r"^--reward-weight path_xy=-1: expected NAME=WEIGHT with a finite weight >= 0$"),
-    ("path_xy=nan", r"^--reward-weight path_xy=nan: expected NAME=WEIGHT with a finite weight >= 0$"),
+    ("path_xy=-1", r"^--reward-weight path_xy=-1: expected NAME=WEIGHT with a weight in \[0, 10000\]$"),
+    ("path_xy=nan", r"^--reward-weight path_xy=nan: expected NAME=WEIGHT with a weight in \[0, 10000\]$"),
+    ("path_xy=1e9", r"^--reward-weight path_xy=1e9: expected NAME=WEIGHT with a weight in \[0, 10000\]$"),
     ("path_xy", r"^--reward-weight path_xy: expected NAME=WEIGHT"),
     ("path_xy=five", r"^--reward-weight path_xy=five: expected NAME=WEIGHT"),
 ])
