@@ -4,6 +4,7 @@ and the compiled loop steps the robot exactly as the same code run interpreted (
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -91,3 +92,67 @@ def test_stale_cache_folders_are_pruned_to_the_most_recently_used(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["state00", "state01", "state02", "state11"]
     assert len(deleted) == 8
     assert prune_stale_caches(str(tmp_path / "missing" / "x")) == []
+
+
+_ARENA_TOO_SMALL = """
+import sys
+{hide}
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+description = RobotDescription.load()
+spec = description.mjspec("floating", True)
+spec.memory = 100_000  # enough to compile, too little for the contacts of the first steps on the floor
+robot = MuJoCoRobot(description, model=spec.compile())
+for _ in range(50):
+    robot.step(description.home_motor_pos)
+print("still running")
+"""
+
+
+@pytest.mark.parametrize("hide_numba", [False, True], ids=["compiled", "interpreted"])
+def test_a_fatal_mujoco_error_in_the_substep_loop_is_one_line_and_exit_code_2(hide_numba):
+    """MuJoCo cannot go on after an error and no exception passes through compiled code: the process ends as the
+    command line ends on an error, one line naming MuJoCo's message, not MuJoCo's exit code 1 (a fall's)."""
+    hide = "sys.modules['numba'] = None" if hide_numba else ""
+    out = subprocess.run([sys.executable, "-c", _ARENA_TOO_SMALL.format(hide=hide)], capture_output=True, text=True,
+                         timeout=300)
+    errors = [line for line in out.stderr.splitlines() if line.startswith("error:")]
+    assert out.returncode == native.FATAL_EXIT_CODE == 2 and "still running" not in out.stdout
+    assert len(errors) == 1 and "Traceback" not in out.stderr, out.stderr
+    assert errors[0].startswith("error: MuJoCo stopped the simulation: mj_stackAlloc: out of memory")
+    assert "narena = 100000" in errors[0]  # MuJoCo's figures and hint, on the same line
+
+
+_STAND = """
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+robot = MuJoCoRobot(RobotDescription.load())
+for _ in range(5):
+    robot.step(robot.description.home_motor_pos)
+print("height", round(robot.torso_height(), 4))
+"""
+
+
+def test_a_corrupt_compiled_code_cache_is_moved_aside_and_rebuilt(tmp_path):
+    """An interrupted first compile or a full disk leaves truncated index and code files: every simulator command
+    used to fail with numba's UnpicklingError until the user deleted the cache by hand."""
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+    run = lambda: subprocess.run([sys.executable, "-c", _STAND], capture_output=True, text=True, env=env,  # noqa: E731
+                                 timeout=300)
+    first = run()
+    assert first.returncode == 0, first.stderr
+    cached = sorted((tmp_path / "toddlerbot" / "numba").rglob("*.nb[ic]"))
+    assert len(cached) >= 2  # index and code of the substep loop (and of the drive it calls)
+    for path in cached:
+        path.write_bytes(path.read_bytes()[:20])
+    second = run()
+    assert second.returncode == 0, second.stderr
+    assert second.stdout == first.stdout  # the same standing robot from the rebuilt code
+    warnings = [line for line in second.stderr.splitlines() if "compiled-code cache" in line]
+    assert len(warnings) == 1 and warnings[0].startswith("warning: ") and "moved it to" in warnings[0]
+    folders = [p.name for p in (tmp_path / "toddlerbot" / "numba").iterdir()]
+    assert len(folders) == 2 and sum(".corrupt-" in name for name in folders) == 1
+    third = run()
+    assert third.returncode == 0 and "compiled-code cache" not in third.stderr  # the rebuilt cache loads

@@ -20,7 +20,7 @@ import numpy as np
 
 from toddlerbot.actuation.model import friction_excess
 from toddlerbot.sim.motor_drive import MotorDrive, drive_torque, parameters_of
-from toddlerbot.sim.native import compile_now, compiled, mj_step
+from toddlerbot.sim.native import HAVE_NUMBA, compile_now, compiled, mj_step
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,8 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     no other thread steps)."""
     if n_substeps < 1:
         raise ValueError(f"n_substeps must be >= 1, got {n_substeps}")
+    if HAVE_NUMBA and not _substeps.signatures:  # first call in the process: compiled or loaded, a bad cache redone
+        compile_substeps(models[0], datas[0], motors, drive)
     targets = np.asarray(targets, dtype=float)
     torques = np.empty(targets.shape)
     dofs = motors.dof

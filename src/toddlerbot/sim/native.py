@@ -15,18 +15,25 @@ caches); compiled with numba, the whole substep loop runs in machine code and ca
   evaluates it motor by motor on floats (no array temporaries: a quarter of the time), so numba is taught the
   float forms of ``np.clip`` and ``np.where`` it lacks (numpy's semantics, signed zeros included).
 * `mj_step`: ``mj_step(model_address, data_address)`` in the MuJoCo library the ``mujoco`` package loaded.
-  Unlike ``mujoco.mj_step`` it turns no MuJoCo error into a Python exception: a fatal MuJoCo error (which a
-  compiled, well-sized model does not raise while stepping) ends the process with MuJoCo's own message.
+  Unlike ``mujoco.mj_step`` it turns no MuJoCo error into a Python exception (no exception can pass through
+  compiled code, and MuJoCo cannot go on after an error): a fatal MuJoCo error (which a compiled, well-sized model
+  does not raise while stepping; an arena too small for the contacts does) ends the process as the command line
+  ends on any error that stops a command, with one line naming MuJoCo's message and exit code 2
+  (`fatal_mujoco_error`, MuJoCo's error handler for the calls made here; the bindings keep their own).
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import gc
 import glob
 import hashlib
+import logging
 import os
 import shutil
+import sys
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 
@@ -40,6 +47,7 @@ except ImportError:  # the same code runs interpreted
 
 HAVE_NUMBA = numba is not None
 """Whether the substep loop runs compiled."""
+log = logging.getLogger(__name__)
 
 
 def _cache_folder() -> str:
@@ -104,11 +112,28 @@ def compile_now(function: Callable, *args) -> None:
     replies or a 50 Hz wall-clock loop cannot absorb."""
     global _settled
     before = len(getattr(function, "signatures", ()))
-    function(*args)
+    try:
+        function(*args)
+    except Exception as exc:
+        if not (HAVE_NUMBA and _from_numba_cache(exc)):
+            raise
+        folder = _cache_folder()
+        aside = f"{folder}.corrupt-{os.getpid()}"
+        with contextlib.suppress(FileNotFoundError):  # another process may have moved it first
+            os.replace(folder, aside)  # kept for a look; pruned as a stale folder later
+        log.warning("warning: the compiled-code cache %s could not be read (%s: an interrupted first compile or a full "
+                    "disk?); moved it to %s and compiling afresh", folder, type(exc).__name__, aside)
+        function(*args)
     if HAVE_NUMBA and (not _settled or len(function.signatures) > before):
         gc.collect()
         gc.freeze()
         _settled = True
+
+
+def _from_numba_cache(exc: BaseException) -> bool:
+    """Whether `exc` was raised while numba read its disk cache (truncated or foreign index or code files)."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    return any(Path(frame.filename).match("*/numba/core/caching.py") for frame in frames)
 
 
 def compilable(function: Callable) -> Callable:
@@ -150,16 +175,34 @@ def _mujoco_library_path() -> str:
     raise ImportError(f"no MuJoCo shared library (libmujoco.so*, libmujoco*.dylib or mujoco.dll) in {folder}")
 
 
+FATAL_EXIT_CODE = 2
+"""Exit code of a process that MuJoCo stopped (the command line's for an error that stopped a command)."""
+
+
+@ctypes.CFUNCTYPE(None, ctypes.c_char_p)
+def fatal_mujoco_error(message: bytes) -> None:
+    """MuJoCo's error handler outside its Python bindings (which install their own around each call): one line on
+    stderr, then the process ends with `FATAL_EXIT_CODE` (MuJoCo's default would exit with 1, the command line's
+    code for a run that failed its own check, such as a fall)."""
+    lines = [line.strip() for line in message.decode("utf-8", "replace").splitlines() if line.strip()]
+    sys.stderr.write(f"error: MuJoCo stopped the simulation: {'; '.join(lines)}\n")
+    sys.stderr.flush()
+    os._exit(FATAL_EXIT_CODE)
+
+
 def _mj_step() -> Callable[[int, int], None]:
     """``mj_step(model_address, data_address)``: a symbol numba links to (so compiled code can be cached), or a
-    ctypes function for interpreted code. Addresses are passed as integers, as pointers are."""
+    ctypes function for interpreted code. Addresses are passed as integers, as pointers are. Installs
+    `fatal_mujoco_error` as the library's error handler."""
     path = _mujoco_library_path()
+    library = ctypes.CDLL(path)  # the library the bindings loaded: dlopen returns the same one
+    ctypes.c_void_p.in_dll(library, "mju_user_error").value = ctypes.cast(fatal_mujoco_error, ctypes.c_void_p).value
     if HAVE_NUMBA:
         import llvmlite.binding
 
         llvmlite.binding.load_library_permanently(path)
         return numba.types.ExternalFunction("mj_step", numba.types.void(numba.types.intp, numba.types.intp))
-    step = ctypes.CDLL(path).mj_step
+    step = library.mj_step
     step.argtypes, step.restype = [ctypes.c_ssize_t, ctypes.c_ssize_t], None
     return step
 
