@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_support import one_line_error, run_main
 from toddlerbot.actuation.catalogue import DEFAULT_CATALOGUE, load_catalogue
 from toddlerbot.errors import SpecError, ToddlerbotError
 from toddlerbot.policies.motions import MotionError, load_motion
@@ -232,7 +233,8 @@ CLI_CASES = [
     ("dp_eval_video_dir", "dp eval --video {dir}", "--video {dir}: is a directory"),
     ("eval_plot_dir", "eval tracking --plot {dir}", "--plot {dir}: is a directory"),
     ("sysid_fit_dir", "sysid fit {file} -o {dir}", "--output {dir}: is a directory"),
-    ("sim_log_proc", "sim run --policy stand --log /proc/self/run.npz", "--log /proc/self/run.npz: cannot write there ("),
+    ("sim_log_proc", "sim run --policy stand --log /proc/self/run.npz",
+     "--log /proc/self/run.npz: cannot write there ("),
     ("sim_log_missing_folder", "sim run --policy stand --log {dir}/nonexistent/sub/run.npz",
      "--log {dir}/nonexistent/sub/run.npz: folder {dir}/nonexistent/sub does not exist; create it first"),
     ("sim_summary_proc", "sim run --policy stand --summary-json /proc/version",
@@ -308,27 +310,14 @@ def cli_files(tmp_path_factory):
     return {k: str(v) for k, v in files.items()}
 
 
-def _main(args: list[str], capsys, monkeypatch) -> tuple[int, str, str]:
-    import sys
-
-    from toddlerbot.cli import main as cli_main
-
-    monkeypatch.setattr(sys, "argv", ["toddlerbot", *args])
-    with pytest.raises(SystemExit) as exit_:
-        cli_main.main()
-    out, err = capsys.readouterr()
-    return exit_.value.code, out, err
-
-
 @pytest.mark.parametrize(("name", "command", "expected"), CLI_CASES, ids=[c[0] for c in CLI_CASES])
 def test_hostile_command_lines_get_one_line_errors_and_exit_2(name, command, expected, cli_files, capsys,
                                                               monkeypatch):
     if name.startswith("dp_"):
         pytest.importorskip("torch")
-    code, out, err = _main(command.format(**cli_files).split(), capsys, monkeypatch)
-    lines = err.strip().splitlines()
-    assert code == 2 and len(lines) == 1 and "Traceback" not in out + err, err
-    assert lines[0].startswith("error: ") and expected.format(**cli_files) in lines[0], lines[0]
+    code, out, err = run_main(monkeypatch, capsys, *command.format(**cli_files).split())
+    line = one_line_error(code, err)
+    assert "Traceback" not in out and expected.format(**cli_files) in line, line
     assert not (Path(cli_files["dir"]) / "run").exists()  # nothing created by a refused training run
 
 
@@ -343,7 +332,7 @@ def test_real_use_stays_within_the_ranges(cli_files, capsys, monkeypatch):
     from toddlerbot.policies import make_policy
     from toddlerbot.robot.description import RobotDescription
 
-    code, out, _ = _main(["design", "report", "--height", "1.8", "--mass", "70", "--json"], capsys, monkeypatch)
+    code, out, _ = run_main(monkeypatch, capsys, "design", "report", "--height", "1.8", "--mass", "70", "--json")
     assert code == 0
     report = json.loads(out, parse_constant=lambda token: pytest.fail(f"non-JSON token {token}"))
     assert report["height_m"] == 1.8 and report["mass_kg"] == 70.0
