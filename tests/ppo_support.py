@@ -60,3 +60,26 @@ def unroll_batch(ppo, ts):
                                         unroll_length=CFG.unroll_length, extra_fields=("truncation",)))(
         env_state, key=jax.random.PRNGKey(3))
     return jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), data)
+
+
+def small_run(folder):
+    """A training run directory (config + one checkpoint of a small network, some action means beyond +-1) as
+    `rl train` leaves it, made in a second instead of a training's minutes."""
+    from toddlerbot.policies.rl_inference import ObsConfig
+    from toddlerbot.rl import train
+    from toddlerbot.rl.config import EnvConfig
+    from toddlerbot.rl.export import _template
+    from toddlerbot.robot.description import RobotDescription
+
+    run = folder / "run"
+    env_cfg = EnvConfig(obs=ObsConfig(history=2, gait_period=0.72), residual=False)
+    ppo_cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=(32, 16), value_hidden=(16,))
+    run.mkdir()
+    train.save_config(run, env_cfg, ppo_cfg)
+    state, _ = _template(env_cfg, ppo_cfg, RobotDescription.load(), 7)
+    policy = state.params.policy
+    head = policy["params"]["Dense_0"]
+    policy["params"]["Dense_0"] = {**head, "kernel": head["kernel"] * 6.0}
+    state = state.replace(params=state.params.replace(policy=policy), env_steps=jnp.asarray(4096))
+    train.save_checkpoint(run, state, jax.random.PRNGKey(0), [{"env_steps": 4096, "walltime": 1.0}])
+    return run

@@ -105,3 +105,68 @@ def test_num_envs_scales_the_batch_and_keeps_rollouts_per_update():
     assert (smoke.batch_size, smoke.env_steps_per_update) == (3, 2 * 3 * 5)
     with pytest.raises(ValueError, match="100 envs: expected a positive multiple of 32"):
         config.with_num_envs(config.FULL, 100)
+
+
+def test_rl_export_writes_beside_the_run_and_never_into_the_package(tmp_path, monkeypatch, capsys):
+    from cli_support import one_line_error, run_main
+    from ppo_support import small_run
+    from toddlerbot.policies.rl_inference import RLPolicyFile
+    from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS
+
+    run = small_run(tmp_path)
+    shipped = DEFAULT_WEIGHTS.read_bytes()
+    code, out, err = run_main(monkeypatch, capsys, "rl", "export", run)
+    assert code == 0, err
+    assert f"exported {run / 'policy.npz'}" in out and RLPolicyFile(run / "policy.npz").meta["ppo_env_steps"] == 4096
+    assert DEFAULT_WEIGHTS.read_bytes() == shipped  # a user's experiment never replaces the default
+    checkpoint = train.checkpoint_paths(run)[0]
+    for target, why in ((checkpoint, "would overwrite this command's input"),
+                        (run / "config.json", "would overwrite this command's input"),
+                        (DEFAULT_WEIGHTS, "is inside the installed toddlerbot package")):
+        before = target.read_bytes()
+        code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, "--out", target)
+        assert why in one_line_error(code, err)
+        assert target.read_bytes() == before
+    code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, "--ship", "--out", tmp_path / "x.npz")
+    assert one_line_error(code, err) == "error: --ship writes the package's shipped policy; drop --out"
+
+
+def test_rl_export_ship_writes_the_shipped_policy_only_from_a_source_checkout(tmp_path, monkeypatch, capsys):
+    from cli_support import one_line_error, run_main
+    from ppo_support import small_run
+    from toddlerbot.cli import output_paths, rl
+    from toddlerbot.policies.rl_inference import RLPolicyFile
+
+    run = small_run(tmp_path)
+    installed = tmp_path / "site-packages" / "toddlerbot"  # a wheel install: no checkout around it
+    (installed / "policies" / "weights").mkdir(parents=True)
+    monkeypatch.setattr(output_paths, "PACKAGE_DIR", installed)
+    monkeypatch.setattr(rl, "default_weights", lambda variant: installed / "policies" / "weights" / "walk_rl.npz")
+    code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, "--ship")
+    assert "--ship writes into the package at" in one_line_error(code, err) and "not in a source checkout" in err
+    assert not (installed / "policies" / "weights" / "walk_rl.npz").exists()
+    checkout = tmp_path / "clone"  # src layout, pyproject and .git: pip install -e of a git clone
+    package = checkout / "src" / "toddlerbot"
+    (package / "policies" / "weights").mkdir(parents=True)
+    (checkout / ".git").mkdir()
+    (checkout / "pyproject.toml").write_text("[project]\nname = 'toddlerbot'\n")
+    monkeypatch.setattr(output_paths, "PACKAGE_DIR", package)
+    monkeypatch.setattr(rl, "default_weights", lambda variant: package / "policies" / "weights" / "walk_rl.npz")
+    code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, "--ship")
+    assert code == 0, err
+    assert RLPolicyFile(package / "policies" / "weights" / "walk_rl.npz").meta["ppo_env_steps"] == 4096
+
+
+@pytest.mark.parametrize("damage", ["truncated", "random"])
+def test_rl_export_of_a_damaged_checkpoint_is_one_line_in_both_formats(tmp_path, monkeypatch, capsys, damage):
+    from cli_support import one_line_error, run_main
+    from ppo_support import small_run
+
+    run = small_run(tmp_path)
+    checkpoint = train.checkpoint_paths(run)[0]
+    good = checkpoint.read_bytes()
+    checkpoint.write_bytes(good[: len(good) // 3] if damage == "truncated" else np.random.default_rng(0).bytes(4096))
+    for extra in ([], ["--format", "onnx"]):
+        code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, *extra)
+        assert one_line_error(code, err).startswith(f"error: {checkpoint}: not a checkpoint")
+    assert not (run / "policy.npz").exists() and not (run / "policy.onnx").exists()
