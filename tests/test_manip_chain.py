@@ -553,3 +553,26 @@ def test_without_torch_the_chains_grasp_falls_back_to_the_script_and_says_why(mo
     runner = ChainRunner(load_chain("wagon", GROUPS), robot, model, SceneProbe(model, robot.data),
                          lambda: np.zeros((96, 96, 3), np.uint8))
     assert runner.skills[0].by == "scripted (no torch for wagon.pt: pip install 'toddlerbot[dp]')"
+
+
+@pytest.mark.parametrize(("shipped", "kind", "named", "expected"), [
+    ("wagon", "scripted_grasp", "../../../../etc/passwd",
+     "checkpoint: no checkpoint is shipped for '../../../../etc/passwd'; expected one of pick, wagon or a .pt file"),
+    ("wagon", "scripted_grasp", "missing.pt", "checkpoint: 'missing.pt' is not a file"),
+    ("pick", "dp", "../../../../etc/passwd", "checkpoint: no checkpoint is shipped for '../../../../etc/passwd'"),
+])
+def test_a_named_checkpoint_that_cannot_be_loaded_is_an_error_not_a_fallback(tmp_path, monkeypatch, capsys,
+                                                                           shipped, kind, named, expected):
+    """The grasp once fell back to its script quietly, and the chain exited 0."""
+    from cli_support import one_line_error, run_main
+    from toddlerbot.skills.spec import SHIPPED_DIR, ChainFileError
+
+    text = (SHIPPED_DIR / f"{shipped}.yaml").read_text()
+    original = f"checkpoint: {shipped}"
+    assert text.count(original) == 1 and f"kind: {kind}" in text
+    path = _chain_file(tmp_path, text.replace(original, f"checkpoint: {named}"))
+    with pytest.raises(ChainFileError) as err:
+        load_chain(path, GROUPS)
+    assert expected in str(err.value) and str(err.value).startswith(str(path))
+    code, _, stderr = run_main(monkeypatch, capsys, "chain", "run", path)
+    assert expected in one_line_error(code, stderr)
