@@ -30,6 +30,7 @@ from typing import Any, Protocol
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
+from toddlerbot.yaml_input import read_text
 
 TENSORBOARD_DIR = "tensorboard"
 """Folder of a run directory holding its TensorBoard event files (one file per training call)."""
@@ -156,7 +157,7 @@ class WandbSink:
         wandb = import_wandb()
         run_dir = Path(run_dir)
         id_file = run_dir / WANDB_RUN_ID
-        run_id = id_file.read_text(encoding="utf-8").strip() if id_file.is_file() else ""
+        run_id = read_text(id_file, "W&B run id", max_bytes=1000).strip() if id_file.is_file() else ""
         if not run_id:
             run_id = secrets.token_hex(6)
             atomic_write_text(id_file, run_id + "\n")

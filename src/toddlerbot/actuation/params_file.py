@@ -15,6 +15,7 @@ from toddlerbot.actuation.catalogue import Catalogue, default_catalogue, motor_p
 from toddlerbot.actuation.motor_params import MotorParams
 from toddlerbot.actuation.parameters import APPENDIX
 from toddlerbot.errors import ParamsError, SpecError
+from toddlerbot.yaml_input import read_text
 
 MAX_PARAMS_BYTES = 1 << 20
 """A params.json is a few hundred bytes; anything over 1 MiB is not one."""
@@ -24,14 +25,9 @@ def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[s
     """(catalogue motor name, parameters) of a params.json; raise `ParamsError` naming the file."""
     path = Path(path)
     catalogue = catalogue or default_catalogue()
+    text = read_text(path, "params.json", ParamsError, MAX_PARAMS_BYTES, "UTF-8 JSON")
     try:
-        if path.stat().st_size > MAX_PARAMS_BYTES:
-            raise ParamsError(f"{path}: {path.stat().st_size} bytes is too large for a params.json (max 1 MiB)")
-        raw = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ParamsError(f"{path}: cannot read parameters ({exc.strerror or exc})") from None
-    except UnicodeDecodeError:
-        raise ParamsError(f"{path}: not a text file (expected UTF-8 JSON)") from None
+        raw = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON: {exc}") from None
     if not isinstance(raw, dict) or not isinstance(raw.get("actuator"), dict) or "motor" not in raw:

@@ -25,6 +25,7 @@ from toddlerbot.datasets.lerobot_writer import (
     TASKS_FILE,
     VIDEO_FILE,
 )
+from toddlerbot.yaml_input import read_text
 
 DATA_COLUMNS = ("observation.state", "action", "timestamp", "frame_index", "episode_index", "index", "task_index")
 
@@ -77,12 +78,16 @@ def load_dataset(root: str | Path, decode_video: bool = True) -> Dataset:
                    tasks, stats)
 
 
+MAX_METADATA_BYTES = 10_000_000
+"""Largest JSON metadata file of a dataset read, bytes (meta/info.json of a 10,000-episode set is about 5 kB)."""
+
+
 def _read_json(root: Path, rel: str) -> dict:
     path = root / rel
+    if not path.exists():
+        raise DatasetError(f"{path}: missing")
     try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise DatasetError(f"{path}: missing") from None
+        return json.loads(read_text(path, "dataset metadata file", DatasetError, MAX_METADATA_BYTES))
     except json.JSONDecodeError as exc:
         raise DatasetError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
 

@@ -42,6 +42,7 @@ from toddlerbot.dp.imagenet import load_imagenet_weights
 from toddlerbot.dp.plot import plot_loss_curve
 from toddlerbot.files import atomic_write_text
 from toddlerbot.metrics import Dashboards, MetricsLogger
+from toddlerbot.yaml_input import read_text
 
 CHECKPOINT = "checkpoint.pt"
 VAL_SEED = 12345
@@ -121,7 +122,7 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
     train_set, val_set, split = split_by_episode(dataset, config.val_fraction, config.seed)
     split_file = run_dir / "split.json"
     if resume:
-        saved = json.loads(split_file.read_text()) if split_file.is_file() else None
+        saved = json.loads(read_text(split_file, "episode split", DatasetError)) if split_file.is_file() else None
         if saved != split:
             raise DatasetError(f"{split_file}: the dataset's episodes differ from the run being resumed")
         return state, train_set, val_set, split

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from toddlerbot.actuation.params_file import MAX_PARAMS_BYTES
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION, LEG_GROUP
@@ -25,6 +26,7 @@ from toddlerbot.rl.run_files import (
     read_run_text,
 )
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.yaml_input import read_bytes
 
 
 def policy_arrays(policy_params: dict, normalizer_params, normalize: bool, obs_size: int) -> dict[str, np.ndarray]:
@@ -75,7 +77,7 @@ def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
     the record survives the file)."""
     record = []
     for name in paths:
-        raw = Path(name).read_bytes()
+        raw = read_bytes(Path(name), "params.json", ToddlerbotError, MAX_PARAMS_BYTES)
         record.append({"file": name, "sha256": hashlib.sha256(raw).hexdigest(), "params": json.loads(raw)})
     return record
 

@@ -419,7 +419,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         if env.cfg.motor_params:
             record = motor_params_record(env.cfg.motor_params)
             atomic_write_text(run_dir / MOTOR_PARAMS_RECORD, json.dumps(record, indent=1))
-    config = json.loads((run_dir / CONFIG).read_text(encoding="utf-8"))
+    config = json.loads(read_run_text(run_dir / CONFIG, "training configuration"))
     with MetricsLogger.open(run_dir, {"ppo": METRICS_RECORD, "dagger": IMITATION_RECORD}, dashboards,
                             job_type="rl-train", config=config) as metrics:
         return _train(run_dir, env, cfg, resume, progress, max_epochs, time_limit_s, imitation_cfg,
