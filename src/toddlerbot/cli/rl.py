@@ -206,17 +206,10 @@ def export(
 ) -> None:
     """Write the run's latest checkpoint as a policy file for the `walk-rl` runtime policy: numpy-only .npz, or
     .onnx (graph: raw observation -> action; metadata in the model) verified against the numpy policy."""
-    from toddlerbot.rl.run_files import run_inputs
-
-    inputs = run_inputs(run) if run.is_dir() else [run]
+    out = _export_target(run, out, export_format, ship)
     if export_format == "onnx":
         from toddlerbot.rl.onnx_export import export_onnx, require_onnx
 
-        if ship:
-            raise ToddlerbotError("--ship writes the shipped .npz policy; drop --format onnx")
-        if out is None:
-            out = run / "policy.onnx" if run.is_dir() else run.with_suffix(".onnx")
-        output_file(out, "--out", inputs)
         require_onnx()
         if run.is_dir():
             _require_jax()
@@ -225,20 +218,32 @@ def export(
                       f"difference: {report['random']:.2g} on {report['n_random']} random observations, "
                       f"{report['recorded']:.2g} on {report['n_recorded']} recorded in the simulator", soft_wrap=True)
         return
+    _require_jax()
+    from toddlerbot.rl.export import export_run
+
+    path = export_run(run, out, checkpoint=checkpoint)
+    console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")
+
+
+def _export_target(run: Path, out: Path | None, export_format: str, ship: bool) -> Path:
+    """The file `rl export` writes, checked (never the run's own files; into the package only with --ship, from a
+    source checkout): by default beside the run (RUN/policy.npz), or the .npz's name with .onnx."""
+    from toddlerbot.rl.run_files import run_inputs
+
+    inputs = run_inputs(run) if run.is_dir() else [run]
+    if export_format == "onnx":
+        if ship:
+            raise ToddlerbotError("--ship writes the shipped .npz policy; drop --format onnx")
+        return output_file(out or (run / "policy.onnx" if run.is_dir() else run.with_suffix(".onnx")), "--out",
+                           inputs)
     if not run.is_dir():
         raise ToddlerbotError(f"{run}: not a training run directory (an .npz is already the numpy export; "
                               "--format onnx converts it)")
-    _require_jax()
-    from toddlerbot.rl.export import export_run
-    from toddlerbot.rl.train import load_config
-
     if ship:
+        from toddlerbot.rl.train import load_config
+
         if out is not None:
             raise ToddlerbotError("--ship writes the package's shipped policy; drop --out")
         out = default_weights(load_config(run)[0].variant)
         source_checkout("--ship")
-    out = run / "policy.npz" if out is None else out
-    output_file(out, "--out", inputs, into_package=ship)
-
-    path = export_run(run, out, checkpoint=checkpoint)
-    console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")
+    return output_file(out or run / "policy.npz", "--out", inputs, into_package=ship)
