@@ -273,8 +273,35 @@ CLI_CASES = [
     ("rl_train_epochs_zero", "rl train --epochs 0", "--epochs 0: expected a whole number >= 1"),
     ("teleop_leader_rate_nan", "teleop leader --port /dev/ttyNOPE --calibration {cal} --rate nan",
      "--rate nan: expected a number of Hz in [0.1, 1000]"),
+    ("chain_seed_negative", "chain run wagon --seed -1",
+     "toddlerbot chain run: Invalid value for '--seed': Input should be greater than or equal to 0"),
+    ("sim_seed_too_large", "sim run --policy stand --task pick --seed 4294967296",
+     "Invalid value for '--seed': Input should be less than or equal to 4294967295"),
+    ("rl_train_hand_force_1e308", "rl train --smoke --hand-force 1e308 --out {dir}/run",
+     "--hand-force: hand_force 1e+308: expected a force in [0, 30] N"),
+    ("rl_train_push_velocity_1e9", "rl train --smoke --push-velocity 0 1e9 --out {dir}/run",
+     "expected 0 <= smallest <= largest <= 3 m/s"),
+    ("rl_train_num_envs_1e9", "rl train --smoke --num-envs 1000000000 --out {dir}/run",
+     "1000000000 envs: expected 1-65,536"),
+    ("rl_train_timesteps_1e14", "rl train --smoke --timesteps 100000000000000 --out {dir}/run",
+     "100000000000000 env steps: expected 1-2,147,483,647 (a 32-bit step counter)"),
+    ("rl_train_solver_iterations_1e6", "rl train --smoke --solver-iterations 1000000 --out {dir}/run",
+     "solver iterations 1000000/8: expected 1-100"),
+    ("rl_train_imitation_iterations_1e8", "rl train --smoke --imitation-iterations 100000000 --out {dir}/run",
+     "--imitation-iterations 100000000: ImitationConfig: iterations 0-1000"),
+    ("sysid_excite_duration_1e9", "sysid excite -o {dir}/run --duration 1e9",
+     "--duration 1e+09: expected a duration in (0, 3600] seconds"),
+    ("sysid_excite_kp_negative", "sysid excite -o {dir}/run --kp -5",
+     "--kp -5: expected a number of firmware units in [0, 16383]"),
     # input files: not UTF-8, endless, absurd values
     ("command_file_binary", "sim run --policy stand --command-file {binary}", "{binary}: not UTF-8 text (byte 2)"),
+    ("sysid_manifest_binary", "sysid fit {binary} -o {dir}/params.json", "{binary}: not UTF-8 text (byte 2)"),
+    ("sysid_manifest_dev_zero", "sysid fit /dev/zero -o {dir}/params.json",
+     "/dev/zero: more than 1000000 bytes is too large for a manifest (at most 1000000 bytes)"),
+    ("params_dev_zero", "model info --motor-params /dev/zero",
+     "/dev/zero: more than 1048576 bytes is too large for a params.json"),
+    ("chain_file_passwd", "chain run {passwd}",
+     "{passwd}: the file: expected a mapping, got 'user0:x:0:0:User:/home/u0"),
     ("command_file_dev_zero", "sim run --policy stand --command-file /dev/zero",
      "/dev/zero: more than 1000000 bytes is too large for a command file (at most 1000000 bytes)"),
     ("spec_mass_1e308", "model info --spec {huge_mass}", "bodies[0] (torso).mass: Input should be less than or equal"),
@@ -298,7 +325,7 @@ def cli_files(tmp_path_factory):
     root = tmp_path_factory.mktemp("cli")
     files = {"dir": root / "a_dir", "file": root / "a_file", "cal": root / "cal.yaml", "binary": root / "cmd.txt",
              "huge_mass": root / "huge_mass.yaml", "huge_timestep": root / "huge_timestep.yaml",
-             "params": root / "params.json"}
+             "params": root / "params.json", "passwd": root / "passwd"}
     files["dir"].mkdir()
     files["file"].write_text("x")
     save_calibration(Calibration("tb", "toddlerbot_v1", {n: 2048 for n in RobotDescription.load().motor_names}),
@@ -307,6 +334,7 @@ def cli_files(tmp_path_factory):
     files["huge_mass"].write_text(SPEC_TEXT.replace("mass: 1.08507", "mass: 1.0e+308", 1))
     files["huge_timestep"].write_text(SPEC_TEXT.replace("timestep: 0.001", "timestep: 1.0e+300", 1))
     files["params"].write_text(PARAMS_1E300)
+    files["passwd"].write_text("".join(f"user{i}:x:{i}:{i}:User:/home/u{i}:/bin/sh\n" for i in range(200)))
     return {k: str(v) for k, v in files.items()}
 
 
@@ -318,6 +346,7 @@ def test_hostile_command_lines_get_one_line_errors_and_exit_2(name, command, exp
     code, out, err = run_main(monkeypatch, capsys, *command.format(**cli_files).split())
     line = one_line_error(code, err)
     assert "Traceback" not in out and expected.format(**cli_files) in line, line
+    assert len(line) < 400  # a file is named and quoted by at most about 60 characters, never printed whole
     assert not (Path(cli_files["dir"]) / "run").exists()  # nothing created by a refused training run
 
 

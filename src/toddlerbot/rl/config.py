@@ -92,6 +92,14 @@ MAX_PUSH_INTERVAL_S = 600.0
 MAX_HAND_FORCE_N = 30.0
 """N; largest training pull on the hands: about the 3.4 kg robot's weight (33 N), beyond which it is lifted off
 its feet rather than walking with a load (the shipped gripper policy trains with 1.5 N)."""
+MAX_SOLVER_ITERATIONS = 100
+"""Most Newton and line-search iterations of the training model (MuJoCo's own default is 100; the recipe's 4/8)."""
+MAX_NUM_ENVS = 65_536
+"""Most parallel environments: 8 times the one-GPU configuration's 8,192."""
+MAX_TIMESTEPS = 2**31 - 1
+"""Most PPO env steps of a run: its step counter is a 32-bit integer (JAX's default); 7 times Table 5's 3e8."""
+MAX_IMITATION_ITERATIONS = 1000
+"""Most DAgger iterations of a warm start (the CPU recipe makes 12)."""
 MAX_LOSS_WEIGHT = 10_000.0
 """Largest weight of a reward term or of the mirror loss: 20 times the largest of appendix Table 6 (500)."""
 
@@ -202,8 +210,10 @@ class EnvConfig:
     randomize: bool = True
 
     def __post_init__(self) -> None:
-        if self.solver_iterations < 1 or self.solver_ls_iterations < 1:
-            raise ValueError(f"solver iterations {self.solver_iterations}/{self.solver_ls_iterations}: expected >= 1")
+        if not (1 <= self.solver_iterations <= MAX_SOLVER_ITERATIONS
+                and 1 <= self.solver_ls_iterations <= MAX_SOLVER_ITERATIONS):
+            raise ValueError(f"solver iterations {self.solver_iterations}/{self.solver_ls_iterations}: expected "
+                             f"1-{MAX_SOLVER_ITERATIONS}")
         if self.contacts not in CONTACT_SETS:
             raise ValueError(f"contacts {self.contacts!r}: expected one of {', '.join(CONTACT_SETS)}")
         if self.backend not in ("auto", *PHYSICS_BACKENDS):
@@ -267,6 +277,10 @@ class PPOConfig:
     action against the mirror image of its action on the mirrored observation); 0 trains without it."""
 
     def __post_init__(self) -> None:
+        if not 1 <= self.num_timesteps <= MAX_TIMESTEPS:
+            raise ValueError(f"{self.num_timesteps} env steps: expected 1-{MAX_TIMESTEPS:,} (a 32-bit step counter)")
+        if not 1 <= self.num_envs <= MAX_NUM_ENVS:
+            raise ValueError(f"{self.num_envs} envs: expected 1-{MAX_NUM_ENVS:,}")
         if not 0 <= self.mirror_loss <= MAX_LOSS_WEIGHT:
             raise ValueError(f"mirror_loss {self.mirror_loss}: expected a weight in [0, {MAX_LOSS_WEIGHT:g}]")
         if (self.batch_size * self.num_minibatches) % self.num_envs:
@@ -296,8 +310,10 @@ class ImitationConfig:
     learning_rate: float = 1e-3
 
     def __post_init__(self) -> None:
-        if min(self.num_envs, self.steps, self.bc_steps, self.batch_size) < 1 or self.iterations < 0:
-            raise ValueError("ImitationConfig: iterations >= 0 and positive envs, steps, bc_steps, batch_size")
+        if min(self.num_envs, self.steps, self.bc_steps, self.batch_size) < 1 or \
+                not 0 <= self.iterations <= MAX_IMITATION_ITERATIONS:
+            raise ValueError(f"ImitationConfig: iterations 0-{MAX_IMITATION_ITERATIONS} and positive envs, steps, "
+                             "bc_steps, batch_size")
 
 
 def with_num_envs(cfg: PPOConfig, num_envs: int) -> PPOConfig:

@@ -119,7 +119,10 @@ def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
     if source:
         ppo_cfg, imitation_cfg = source.policy_of(ppo_cfg), source.imitation
     if request.imitation_iterations is not None:
-        imitation_cfg = replace(imitation_cfg, iterations=request.imitation_iterations)
+        try:
+            imitation_cfg = replace(imitation_cfg, iterations=request.imitation_iterations)
+        except ValueError as exc:
+            raise ToddlerbotError(f"--imitation-iterations {request.imitation_iterations}: {exc}") from None
     ppo_cfg = _ppo_overrides(ppo_cfg, request)
     if source:
         adopt_warm_start(source.run_dir, run_dir)
