@@ -120,4 +120,4 @@ def test_cli_rejects_zero_solver_iterations_in_one_line(tmp_path):
     result = CliRunner().invoke(app, ["rl", "train", "--smoke", "--out", str(tmp_path / "run"),
                                       "--solver-iterations", "0"])
     assert result.exit_code != 0
-    assert "solver iterations 0/8: expected >= 1" in str(result.exception)
+    assert "solver iterations 0/8: expected 1-100" in str(result.exception)
