@@ -58,7 +58,7 @@ def teleop(ctx: typer.Context, backend: BackendOption = "sim", input_kind: Input
     from toddlerbot.teleop.recording import EpisodeRecorder
     from toddlerbot.teleop.session import TeleopSession
 
-    _check_outputs(out, seconds)
+    _check_outputs(out, seconds, [mapping, calibration])
     setup, walker = _real(port, calibration, imu, policy) if backend == "real" else _sim(task, seed, policy)
     robot = setup.robot
     recorder = None if out is None else EpisodeRecorder(f"teleop {task}", ManipulationSpace.of(robot.description),
@@ -73,11 +73,11 @@ def teleop(ctx: typer.Context, backend: BackendOption = "sim", input_kind: Input
         recorder.write(out, console.print)  # type: ignore[arg-type]
 
 
-def _check_outputs(out: Path | None, seconds: float) -> None:
+def _check_outputs(out: Path | None, seconds: float, inputs: list) -> None:
     if out is not None and out.is_dir() and any(out.iterdir()):
         raise ToddlerbotError(f"{out} exists and is not empty")
     if out is not None:
-        output_dir(out, "--out")
+        output_dir(out, "--out", inputs)
     if seconds:  # 0: until Esc or Ctrl-C
         duration(seconds, "--seconds", MAX_TELEOP_SECONDS)
 
