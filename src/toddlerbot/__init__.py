@@ -1,3 +1,3 @@
 """ToddlerBot: an open-source software stack for the ToddlerBot humanoid."""
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
