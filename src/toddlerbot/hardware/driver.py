@@ -8,6 +8,8 @@ position for all motors, and one Sync Write of goal positions.
 
 Safety policy (docs/hardware.md, "Safety"):
 
+* one process per port: opening takes an exclusive lock on the device (`port_lock`), and a second opener is
+  refused with `PortInUseError` naming the holder's PID before it sends a byte;
 * every single-motor transaction is retried `retries` times, then a `BusError` names the motor and the error;
 * a motor whose state answer is missing in a cycle keeps its last reading; after `max_missed_cycles`
   consecutive silent cycles the read raises `BusError` naming it (the caller stops and torque goes off);
@@ -40,6 +42,7 @@ from toddlerbot import interrupts
 from toddlerbot.actuation.catalogue import MotorModel
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.hardware import control_table as ct
+from toddlerbot.hardware.port_lock import PortInUseError, PortLock
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import MotorSpec
 
@@ -223,6 +226,7 @@ class DynamixelBus:
         if latency_ms is not None and not (math.isfinite(latency_ms) and 0 < latency_ms <= 1000):
             raise ValueError(f"latency_ms must lie in (0, 1000] ms, got {latency_ms}")
         self.port = _port_handler(port, latency_ms)
+        self._lock = PortLock(port)
         self.ph = sdk.PacketHandler(2.0)
         self.fast_sync_read = True
         self.torque_enabled = False
@@ -240,12 +244,19 @@ class DynamixelBus:
 
     # ---- lifecycle -------------------------------------------------------------------------------------
     def open(self) -> DynamixelBus:
-        """Open the port and install the stop-signal handlers (main thread only)."""
+        """Lock the port for this process (`PortInUseError` naming the holder's PID, before any byte is sent),
+        open it and install the stop-signal handlers (main thread only)."""
         try:
+            self._lock.acquire()
             ok = self.port.openPort() and self.port.setBaudRate(self.baudrate)
-        except Exception as exc:  # pyserial raises SerialException/OSError for a missing device
+        except BaseException as exc:
+            self._lock.release()
+            if isinstance(exc, PortInUseError) or not isinstance(exc, Exception):
+                raise
+            # a missing device or no permission: OSError, or pyserial's SerialException
             raise HardwareError(f"cannot open serial port {self.port_name}: {exc}") from None
         if not ok:
+            self._lock.release()
             raise HardwareError(f"cannot open serial port {self.port_name} at {self.baudrate} baud")
         self.is_open = True
         self._install_signals()
@@ -268,6 +279,7 @@ class DynamixelBus:
                 self.port.closePort()
             self.is_open = False
         finally:
+            self._lock.release()
             _deferring -= 1
             self._restore_signals()
         signals: list[int] = []
