@@ -108,7 +108,7 @@ ImuOption = Annotated[str, typer.Option("--imu", help="The IMU: bno08x (the robo
 def open_robot_imu(kind: str, port: str, balancing: str | None):
     """The IMU for a robot on ``port``; ``balancing`` names what balances from it (a walking policy, a chain
     with a walk), which ``none`` is refused for (one line)."""
-    from toddlerbot.hardware.imu import open_imu
+    from toddlerbot.hardware.imu_kinds import open_imu
 
     if kind == "none" and balancing is not None:
         raise ToddlerbotError(f"{balancing} balances from the IMU: --imu none would run it blind (it falls within "

@@ -21,9 +21,6 @@ REPORT_INTERVAL_S = 0.01
 """Interval `Bno08xImu` asks the sensor to report at, s (100 Hz). The Adafruit driver's default is 50 ms (20 Hz):
 with the IMU held for 50 ms, walk-zmp falls after 3.0 s of the tracking schedule in the simulator, while with 10 ms
 it walks it as with a fresh reading every control step (docs/hardware.md, "IMU")."""
-IMU_KINDS = ("bno08x", "emulator", "none")
-"""`--imu` choices: the robot's BNO08x, the hardware-in-the-loop emulator's simulated IMU, or none (an upright,
-still stand-in: only for policies that do not balance)."""
 
 
 @dataclass(frozen=True)
@@ -99,16 +96,3 @@ class Bno08xImu(Imu):
             ang_vel=to_site.apply(np.asarray(self.device.gyro, dtype=float)),
             lin_acc=to_site.apply(np.asarray(self.device.acceleration, dtype=float)),
         )
-
-
-def open_imu(kind: str, bus_port: str) -> Imu:
-    """The IMU of `IMU_KINDS` for a robot on ``bus_port`` (the emulator's IMU is found from its bus port)."""
-    if kind == "bno08x":
-        return Bno08xImu()
-    if kind == "emulator":
-        from toddlerbot.hardware.imu_stream import StreamImu, imu_socket_path
-
-        return StreamImu(imu_socket_path(bus_port))
-    if kind == "none":
-        return StaticImu()
-    raise ToddlerbotError(f"--imu {kind!r}: expected one of {', '.join(IMU_KINDS)}")

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 
 import numpy as np
 
-from toddlerbot.actuation.params_file import MAX_PARAMS_BYTES
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION, LEG_GROUP
@@ -26,7 +24,6 @@ from toddlerbot.rl.run_files import (
     read_run_text,
 )
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.yaml_input import read_bytes
 
 
 def policy_arrays(policy_params: dict, normalizer_params, normalize: bool, obs_size: int) -> dict[str, np.ndarray]:
@@ -70,16 +67,6 @@ def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, 
         leg_motors=np.array(description.group_names(LEG_GROUP)),
         obs_config=np.array(env_cfg.obs.to_json()), meta=np.array(json.dumps(meta)),
     ))
-
-
-def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
-    """What a run trained on: each params.json's path, SHA-256 and content (kept in the run and the export, so
-    the record survives the file)."""
-    record = []
-    for name in paths:
-        raw = read_bytes(Path(name), "params.json", ToddlerbotError, MAX_PARAMS_BYTES)
-        record.append({"file": name, "sha256": hashlib.sha256(raw).hexdigest(), "params": json.loads(raw)})
-    return record
 
 
 def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None,

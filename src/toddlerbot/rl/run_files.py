@@ -4,10 +4,12 @@ msgpack, flax or json."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 from typing import Any
 
+from toddlerbot.actuation.params_file import MAX_PARAMS_BYTES
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.yaml_input import read_bytes, read_text
 
@@ -19,7 +21,7 @@ ACTION_SPACE = "action_space.npz"
 """The gait reference the run's env used (`GaitReference.arrays`) and its P-gain factors (``kp_stance_scale``,
 ``kp_swing_scale``), written at the start so that the export carries exactly them."""
 MOTOR_PARAMS_RECORD = "motor_params.json"
-"""The fitted actuator parameters the run trained on (`rl.export.motor_params_record`)."""
+"""The fitted actuator parameters the run trained on (`motor_params_record`)."""
 IMITATION_RECORD = "imitation.jsonl"
 METRICS_RECORD = "metrics.jsonl"
 REFERENCE_RECORD = "reference.txt"
@@ -27,6 +29,16 @@ SMOKE_MARKER = "smoke"
 RUN_INPUTS = (CONFIG, CHECKPOINTS, WARM_START, ACTION_SPACE, MOTOR_PARAMS_RECORD, IMITATION_RECORD, METRICS_RECORD,
               REFERENCE_RECORD, SMOKE_MARKER)
 """What a run folder holds that training and export read: an export never writes over one of them."""
+
+
+def motor_params_record(paths: tuple[str, ...]) -> list[dict]:
+    """What a run trained on: each params.json's path, SHA-256 and content (kept in the run and the export, so
+    the record survives the file)."""
+    record = []
+    for name in paths:
+        raw = read_bytes(Path(name), "params.json", ToddlerbotError, MAX_PARAMS_BYTES)
+        record.append({"file": name, "sha256": hashlib.sha256(raw).hexdigest(), "params": json.loads(raw)})
+    return record
 
 
 def run_inputs(run_dir: Path) -> list[Path]:

@@ -50,7 +50,6 @@ from toddlerbot.rl.config import (
     RewardConfig,
 )
 from toddlerbot.rl.env import TRACKING_METRICS, WalkEnv
-from toddlerbot.rl.export import motor_params_record
 from toddlerbot.rl.imitation import WarmStart
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.rewards import TERMS
@@ -64,6 +63,7 @@ from toddlerbot.rl.run_files import (
     MOTOR_PARAMS_RECORD,
     REFERENCE_RECORD,
     WARM_START,
+    motor_params_record,
     read_json_lines,
     read_payload,
     read_run_text,
