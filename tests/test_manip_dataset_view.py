@@ -117,3 +117,63 @@ def test_one_episode_and_bad_input(dataset_root, tmp_path, capsys):
         taken = busy.getsockname()[1]
         code, _, err = _run(["manip", "dataset", "view", str(dataset_root), "--web", "--port", str(taken - 1)], capsys)
     assert code == 2 and re.search(rf"port ({taken - 1}|{taken}) is not free", err), err
+
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+class _Recording:
+    def connect_grpc(self, url):
+        self.url = url
+
+
+@pytest.mark.parametrize(("user", "viewer_ci"), [({}, "1"), ({"CI": "true"}, "true"),
+                                                 ({"FORCE_RERUN_ANALYTICS": "1"}, "1")])
+def test_the_viewer_we_start_has_analytics_off_unless_the_user_said(monkeypatch, user, viewer_ci):
+    import os
+    import subprocess
+
+    from toddlerbot.datasets import view
+
+    for name in ("CI", "FORCE_RERUN_ANALYTICS"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in user.items():
+        monkeypatch.setenv(name, value)
+    port = _free_port()
+    monkeypatch.setattr(view, "VIEWER_PORT", port)
+    started = []
+    monkeypatch.setattr(subprocess, "Popen", lambda args, **kwargs: started.append((args, kwargs)))
+    recording = _Recording()
+    view.spawn_viewer(recording)
+    (args, kwargs), = started
+    assert args[1:] == ["-m", "rerun_cli", f"--port={port}", "--expect-data-soon"]
+    assert kwargs["env"]["CI"] == viewer_ci and kwargs["env"]["RERUN_APP_ONLY"] == "true"
+    assert kwargs["env"].get("FORCE_RERUN_ANALYTICS") == user.get("FORCE_RERUN_ANALYTICS")  # an opt-in passes on
+    assert kwargs["start_new_session"]  # a Ctrl-C in the terminal leaves the viewer open
+    assert os.environ.get("CI") == user.get("CI")  # our own environment is left as it was
+    assert recording.url == f"rerun+http://127.0.0.1:{port}/proxy"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the viewer must fail to open a window (no display)")
+def test_the_real_viewer_queues_no_analytics(tmp_path):
+    """Rerun's viewer, started as `manip dataset view` starts it, with a fresh home folder and no display: it starts
+    (and stops at the missing display) without writing an analytics session file, the queue it uploads from."""
+    import os
+    import subprocess
+
+    env = {name: value for name, value in os.environ.items()
+           if name not in ("CI", "FORCE_RERUN_ANALYTICS", "DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")}
+    env |= {"HOME": str(tmp_path), "XDG_CONFIG_HOME": str(tmp_path / "config"), "XDG_DATA_HOME": str(tmp_path / "data")}
+    script = ("from toddlerbot.datasets import view\n"  # streaming to the viewer is not under test: no recording
+              "class Recording:\n    def connect_grpc(self, url): pass\n"
+              f"view.VIEWER_PORT = {_free_port()}\nview.spawn_viewer(Recording())")
+    # returns once the viewer, which shares our stderr, has exited
+    result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=60)
+    assert "DISPLAY" in result.stderr, result.stderr  # the viewer ran: winit found no display
+    assert not list(tmp_path.rglob("analytics/*.json"))

@@ -210,7 +210,9 @@ def _open_viewer(recording, save: Path | None, serve_web: bool, port: int) -> st
         recording.save(save)
         return None
     if not serve_web:
-        recording.spawn()
+        from toddlerbot.datasets.view import spawn_viewer
+
+        spawn_viewer(recording)
         return None
     _check_free(port, port + 1)
     uri = recording.serve_grpc(grpc_port=port + 1)

@@ -11,11 +11,17 @@ Entities (timeline ``time``: seconds from the first shown frame, episodes back t
 Success is read from the raw episode a row range came from (``raw/episode_NNNNNN.npz``, field ``success``), the
 only place the writer keeps it. The layout (camera and episode log on the left, one plot per joint with state and
 action together on the right) is sent as a blueprint, so the viewer opens arranged.
+
+The native viewer we spawn has Rerun's usage analytics off (`spawn_viewer`): no network at run time.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
+import socket
+import subprocess
+import sys
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +33,13 @@ from toddlerbot.datasets.lerobot_writer import RAW_DIR
 
 APP_ID = "toddlerbot_dataset"
 STATE_COLOR, ACTION_COLOR = (40, 120, 220), (230, 120, 30)
+ANALYTICS_OFF = {"CI": "1"}
+"""Added to the environment of the viewer we start. rerun-sdk 0.41 reads no variable that only switches analytics
+off: the viewer's pipeline (re_analytics, native/pipeline.rs) stays off while ``CI`` is set, unless
+``FORCE_RERUN_ANALYTICS`` is truthy (checked first: the user's explicit opt-in still wins); `rerun analytics
+disable` is the user's own persistent opt-out. A ``CI`` the user set is kept as it is."""
+VIEWER_PORT = 9876
+"""Rerun's default viewer port."""
 
 
 def episode_success(root: Path, episode: int) -> bool | None:
@@ -112,3 +125,22 @@ def log_dataset(dataset: Dataset, episodes: Sequence[int], recording: rr.Recordi
 
 def recording_for(dataset: Dataset) -> rr.RecordingStream:
     return rr.RecordingStream(APP_ID, recording_id=str(dataset.root.resolve()))
+
+
+def viewer_environment(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
+    """The environment of a viewer we start: `environ` plus analytics off where the user has not said, and
+    ``RERUN_APP_ONLY`` as rerun's own spawn sets it (no first-run analytics notice)."""
+    return {**environ, "RERUN_APP_ONLY": "true", **{k: v for k, v in ANALYTICS_OFF.items() if k not in environ}}
+
+
+def spawn_viewer(recording: rr.RecordingStream) -> None:
+    """Stream `recording` to Rerun's native viewer on `VIEWER_PORT`, starting one (its own session, so a Ctrl-C
+    here leaves it open) unless something listens there already, as ``RecordingStream.spawn`` does. Its analytics
+    are off: rerun's spawn cannot do that, as it first runs ``rerun --version`` without its extra environment
+    (that process starts the analytics pipeline too) and warns when our own process has ``CI`` set."""
+    with socket.socket() as probe:
+        running = probe.connect_ex(("127.0.0.1", VIEWER_PORT)) == 0
+    if not running:
+        subprocess.Popen([sys.executable, "-m", "rerun_cli", f"--port={VIEWER_PORT}", "--expect-data-soon"],
+                         env=viewer_environment(), stdin=subprocess.DEVNULL, start_new_session=True)
+    recording.connect_grpc(f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy")
