@@ -18,8 +18,9 @@ import platform
 import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.skills.sim_run import SimChainResult, StartPerturbation, run_in_sim
+from toddlerbot.skills.sim_run import SimChainResult, run_in_sim
 from toddlerbot.skills.spec import load_chain
+from toddlerbot.tasks.base import StartPerturbation
 
 
 def main() -> None:

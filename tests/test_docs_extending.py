@@ -1,8 +1,8 @@
 """docs/extending.md stays correct: its Python blocks run, in order, in one namespace (they assert their own
 figures: the catalogue entry loads, a fitted params.json reaches the description, the example policy nods the
 head by the commanded amount, the example variant adds exactly its mass and is registered for `--variant`, the
-example task is touched by the pick demonstrator, the example skill turns the head by the commanded amount in a
-chain), and its policy, installed as it says, runs from the command line."""
+example task's demonstrator reaches its marker, the example skill turns the head by the commanded amount in a
+chain), and its policy and its task, installed as it says, run from the command line."""
 
 import os
 import re
@@ -51,7 +51,7 @@ def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, r
     from toddlerbot.skills import SKILLS
 
     assert "look" in SKILLS  # registered by the guide, for chain files
-    assert namespace["progress"].succeeded and namespace["touch"].grasp_distance() < 0.02
+    assert namespace["progress"].succeeded and namespace["reach"].distance() < 0.02
 
 
 def _block(language: str, containing: str) -> str:
@@ -60,23 +60,30 @@ def _block(language: str, containing: str) -> str:
     return block
 
 
-def test_a_policy_installed_as_the_guide_says_runs_from_the_command_line(tmp_path):
-    """The guide's policy module and its pyproject entry point, installed as pip installs them (the module beside a
-    dist-info folder whose entry_points.txt lists the group), make `sim run --policy nod` nod the head."""
-    (tmp_path / "my_policies.py").write_text(_block("python", "class NodPolicy"))
-    groups = tomllib.loads(_block("toml", "toddlerbot.policies"))["project"]["entry-points"]
-    dist_info = tmp_path / "my_policies-0.1.dist-info"
+def _installed(tmp_path: Path, module: str, containing: str, group: str):
+    """The guide's block `containing` as `module`.py with the guide's pyproject entry points of `group`, installed
+    as pip installs them (the module beside a dist-info folder whose entry_points.txt lists the group): a function
+    running ``toddlerbot ARGS`` in a process that sees them."""
+    (tmp_path / f"{module}.py").write_text(_block("python", containing))
+    groups = tomllib.loads(_block("toml", group))["project"]["entry-points"]
+    dist_info = tmp_path / f"{module}-0.1.dist-info"
     dist_info.mkdir()
-    (dist_info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-policies\nVersion: 0.1\n")
+    (dist_info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
     (dist_info / "entry_points.txt").write_text("".join(
-        f"[{group}]\n" + "".join(f"{name} = {value}\n" for name, value in points.items())
-        for group, points in groups.items()))
+        f"[{name}]\n" + "".join(f"{point} = {value}\n" for point, value in points.items())
+        for name, points in groups.items()))
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")])}
 
     def toddlerbot(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run([sys.executable, "-m", "toddlerbot.cli.main", *args], cwd=tmp_path, env=env,
                               capture_output=True, text=True, timeout=300)
 
+    return toddlerbot
+
+
+def test_a_policy_installed_as_the_guide_says_runs_from_the_command_line(tmp_path):
+    """The guide's policy module and its pyproject entry point make `sim run --policy nod` nod the head."""
+    toddlerbot = _installed(tmp_path, "my_policies", "class NodPolicy", "toddlerbot.policies")
     run = toddlerbot("sim", "run", "--policy", "nod", "--seconds", "2", "--log", "nod.npz")
     assert run.returncode == 0, run.stdout + run.stderr
     log = RunLog.load(tmp_path / "nod.npz")
@@ -85,3 +92,31 @@ def test_a_policy_installed_as_the_guide_says_runs_from_the_command_line(tmp_pat
     unknown = toddlerbot("sim", "run", "--policy", "fly")
     assert unknown.returncode == 2
     assert "expected one of stand, replay, walk-zmp, walk-rl, dp, nod" in " ".join(unknown.stderr.split())
+
+
+def test_a_task_added_as_the_guide_says_is_one_file_and_one_registration_that_every_command_knows(tmp_path):
+    """The guide's task file and its one entry point: its demonstrator succeeds over seeds (`manip demo-rate`), a
+    chain in its scene starts where the task says and runs (`chain run`), `sim run --task` and teleoperation put the
+    robot in its scene (the torso mounted: no walking), and unknown names are refused naming it."""
+    import json
+
+    toddlerbot = _installed(tmp_path, "my_tasks", "class ReachTask", "toddlerbot.tasks")
+    rate = toddlerbot("manip", "demo-rate", "--task", "reach", "--episodes", "3", "--seed", "10", "--json")
+    assert rate.returncode == 0, rate.stderr
+    assert json.loads(rate.stdout)["success_rate"] == 1.0
+    (tmp_path / "hold.yaml").write_text("name: hold_still\nscene: reach\nskills:\n"
+                                        "  - {name: hold, kind: hold, hold: [arm], until: {after: 0.5}}\n")
+    chain = toddlerbot("chain", "run", "hold.yaml", "--seed", "4", "--json")
+    assert chain.returncode == 0, chain.stderr
+    outcome = json.loads(chain.stdout)
+    assert outcome["success"] and outcome["sim_seconds"] == 0.5 and outcome["driven_by"] == {"hold": "hold"}
+    run = toddlerbot("sim", "run", "--task", "reach", "--policy", "stand", "--seconds", "0.5")
+    assert run.returncode == 0 and "reach: not succeeded" in run.stdout, run.stdout + run.stderr
+    teleop = subprocess.run([sys.executable, "-c", "from toddlerbot.teleop.launch import sim_robot\n"
+                             "setup = sim_robot('reach', 2)\nprint(type(setup.robot).__name__, setup.walks, "
+                             "setup.head_image().shape)"], cwd=tmp_path, capture_output=True, text=True,
+                            env={**os.environ, "PYTHONPATH": str(tmp_path)}, timeout=300)
+    assert teleop.stdout.split() == ["TaskRobot", "False", "(96,", "96,", "3)"], teleop.stderr
+    unknown = toddlerbot("manip", "demo-rate", "--task", "kitchen")
+    known = " ".join(unknown.stderr.split()).partition("expected one of ")[2]
+    assert unknown.returncode == 2 and set(known.split(", ")) == {"pick", "wagon", "reach"}

@@ -326,10 +326,12 @@ def test_a_chain_that_cannot_start_in_teleop_is_one_log_line_and_teleop_goes_on(
     from toddlerbot.teleop.gamepad import TeleopCommand
     from toddlerbot.teleop.session import TeleopSession
 
-    chain = load_chain(_chain_file(tmp_path, """\
+    broken = tmp_path / "broken.pt"  # named and present, so the chain file is read; torch cannot load it
+    broken.write_bytes(b"not a torch checkpoint")
+    chain = load_chain(_chain_file(tmp_path, f"""\
         scene: pick
         button: r1
-        skills: [{name: reach, kind: dp, checkpoint: no_such_task, until: {after: 1}}]
+        skills: [{{name: reach, kind: dp, checkpoint: {broken}, until: {{after: 1}}}}]
         """), GROUPS)
 
     class R1:
@@ -347,7 +349,7 @@ def test_a_chain_that_cannot_start_in_teleop_is_one_log_line_and_teleop_goes_on(
     assert len(watch.steps) == 3
     for _, targets, teleop_targets in watch.steps:  # held: refused once, not retried every step; teleop's go out
         np.testing.assert_allclose(targets[arms], teleop_targets[arms], atol=1e-9)
-    assert len(logs) == 1 and logs[0].startswith("chain c: cannot start: ") and "no_such_task" in logs[0]
+    assert len(logs) == 1 and logs[0].startswith("chain c: cannot start: ") and "broken.pt" in logs[0]
     assert "\n" not in logs[0]
 
 

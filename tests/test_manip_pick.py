@@ -5,13 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import GroundTruth, Robot
 from toddlerbot.runtime.runner import run_policy
+from toddlerbot.tasks.base import TaskRobot
 from toddlerbot.tasks.camera import resize_and_crop
 from toddlerbot.tasks.demonstrator import ScriptedPicker
 from toddlerbot.tasks.ik import ArmIK, top_down_rotation
-from toddlerbot.tasks.pick import PickTask, SuccessTracker, TaskRobot
+from toddlerbot.tasks.pick import PickTask, SuccessTracker
 from toddlerbot.tasks.scenes import grasp_site, scene_model
 from toddlerbot.tasks.space import follower_gains
 
@@ -28,6 +30,8 @@ def test_scenes_compile_only_for_the_gripper_variant():
         assert model.nu == 32 and model.key("home").qpos.shape == (model.nq,)
     with pytest.raises(ValueError, match="needs the gripper variant"):
         scene_model(RobotDescription.load(), "pick")
+    with pytest.raises(ToddlerbotError, match=r"^unknown task 'kitchen'; expected one of pick, wagon"):
+        scene_model(gripper, "kitchen")  # refused, never defaulted to a scene
 
 
 def test_torso_mount_holds_and_cube_rests_on_the_table(task):

@@ -139,7 +139,7 @@ def _robot_and_policy(description, base: str, policy: str, task: str | None, see
         robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
         return robot, make_policy(policy, robot, **options), None
     from toddlerbot.tasks import make_task
-    from toddlerbot.tasks.pick import TaskRobot
+    from toddlerbot.tasks.base import TaskRobot
 
     if abs(control_dt - CONTROL_DT) > 1e-12:
         raise ToddlerbotError(f"--task runs at the task's {1 / CONTROL_DT:g} Hz control rate; drop --control-hz")

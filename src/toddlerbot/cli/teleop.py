@@ -12,8 +12,7 @@ from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, seed_opt
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.tasks.scenes import SCENES
-from toddlerbot.teleop.launch import MAX_TELEOP_SECONDS
+from toddlerbot.teleop.launch import MAX_TELEOP_SECONDS, teleop_tasks
 
 app = typer.Typer(help="Teleoperation: game controller (Table 4), keyboard, leader-follower arms; record episodes.",
                   invoke_without_command=True)
@@ -23,8 +22,18 @@ BackendOption = Annotated[Literal["sim", "real"], typer.Option("--backend", help
 InputOption = Annotated[Literal["joystick", "keyboard", "leader"], typer.Option(
     "--input", help="joystick, keyboard, or leader (arms from the leader link; walking from a controller if one is "
                     "connected, else keys).")]
-TaskOption = Annotated[Literal[("walk", *SCENES)], typer.Option(  # the teleop tasks of teleop.launch.SIM_TASKS
-    "--task", help="Sim scene: walk (floor), pick (table and cube, torso mounted), wagon.")]
+
+
+def _teleop_task(name: str) -> str:
+    """`name` if teleop knows it (registered tasks are found at run time, so no fixed choice list)."""
+    if name not in teleop_tasks():
+        raise typer.BadParameter(f"{name!r} is not one of {', '.join(teleop_tasks())}", param_hint="--task")
+    return name
+
+
+TaskOption = Annotated[str, typer.Option(
+    "--task", callback=_teleop_task, help="Sim scene: walk (the floor) or a registered task's (pick: table and cube, "
+                                          "torso mounted; wagon).")]
 OutOption = Annotated[Path | None, typer.Option("-o", "--out", help="Record episodes (Menu marks start and end) into "
                                                                     "this dataset directory.")]
 PolicyOption = Annotated[str, typer.Option("--policy", help="Walking policy (a registered one that follows velocity "

@@ -29,7 +29,7 @@ from toddlerbot.policies.base import Policy
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.tasks import make_task
-from toddlerbot.tasks.pick import PickTask, TaskRobot
+from toddlerbot.tasks.base import Task, TaskRobot
 
 if TYPE_CHECKING:  # PyAV (the manip extra) is needed only to write a video
     from toddlerbot.tasks.video import SideBySideVideo
@@ -73,7 +73,7 @@ class EvalResult:
                 "failed_seeds": [e.seed for e in self.episodes if not e.success]}
 
 
-def check_fits(config: DPConfig, task: PickTask) -> None:
+def check_fits(config: DPConfig, task: Task) -> None:
     """The checkpoint's state and action must be the task's arm and gripper motors, in the same order."""
     names = task.space.names
     if (config.state_dim, config.action_dim) != (len(names), len(names)):
@@ -88,7 +88,7 @@ class EpisodeOutcome(RunObserver):
     """Stops the run once the task has succeeded; keeps the simulated time at the end and how far the policy's
     targets for the recorded motors moved from the task's start pose."""
 
-    def __init__(self, task: PickTask) -> None:
+    def __init__(self, task: Task) -> None:
         self.task = task
         self.indices = task.space.indices
         self.start = task.ready_pose[self.indices]
@@ -112,7 +112,7 @@ class PolicyTickVideo(RunObserver):
     """Side-by-side video frames of the states the policy's ticks saw (the first step and every ``every``-th
     after); none after the run's last step: the run ends after ``steps`` steps or once the task has succeeded."""
 
-    def __init__(self, task: PickTask, video: SideBySideVideo, every: int, steps: int) -> None:
+    def __init__(self, task: Task, video: SideBySideVideo, every: int, steps: int) -> None:
         self.task, self.video, self.every, self.steps = task, video, every, steps
 
     def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
@@ -124,7 +124,7 @@ class PolicyTickVideo(RunObserver):
             self.video.add(self.task.head_image())
 
 
-def run_episode(task: PickTask, robot: TaskRobot, policy: LiveDPPolicy, seed: int, seconds: float,
+def run_episode(task: Task, robot: TaskRobot, policy: LiveDPPolicy, seed: int, seconds: float,
                 video: SideBySideVideo | None = None) -> EpisodeResult:
     """One closed-loop episode from the task's start for ``seed`` (``robot`` is the task's, the one ``policy``
     drives), at most ``seconds`` (simulated); stops early once the task has succeeded."""
@@ -141,7 +141,7 @@ def run_episode(task: PickTask, robot: TaskRobot, policy: LiveDPPolicy, seed: in
 
 
 def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float | None = None,
-             task: PickTask | str = "pick", video_path: str | Path | None = None,
+             task: Task | str = "pick", video_path: str | Path | None = None,
              on_episode: Callable[[EpisodeResult], None] | None = None, device: str = "cpu") -> EvalResult:
     """Success rate of ``checkpoint`` on ``task`` (a task or its name) over seeds ``seed .. seed + episodes - 1``,
     at most ``seconds`` each (default: the task's `episode_seconds`); the network runs on ``device`` (``cpu`` or

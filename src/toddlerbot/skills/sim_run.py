@@ -1,5 +1,5 @@
-"""`toddlerbot chain run` in simulation: the chain's scene, perturbed by the seed (the wagon shifted; in the pick
-scene the pick task's start for the seed, as `dp eval` resets it), the chain run by `runtime.run_policy` to its end;
+"""`toddlerbot chain run` in simulation: the chain's scene at its task's start for the seed (the wagon shifted; the
+pick task's start as `dp eval` resets it: `Task.chain_start`), the chain run by `runtime.run_policy` to its end;
 the outcome is the chain's own success predicates plus what each skill was driven by, the switch times,
 displacements and lifts, how firmly each hand held its bar through the last skill (the margin of a `grasped`
 success) and each dp skill's policy status."""
@@ -14,37 +14,19 @@ import mujoco
 import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.robot.interface import Observation
+from toddlerbot.robot.interface import Robot
 from toddlerbot.runtime.runner import RunObserver, run_policy
-from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.skills.runner import ChainRunner, time_limit
 from toddlerbot.skills.sim_observers import ChainVideo, GripMargin, GripObserver
 from toddlerbot.skills.spec import ChainSpec
-from toddlerbot.tasks.pick import PickTask, TaskRobot
+from toddlerbot.tasks import make_task
+from toddlerbot.tasks.base import StartPerturbation
 from toddlerbot.tasks.predicates import GraspedParams, LiftedParams, MovedParams
 from toddlerbot.tasks.probe import SceneProbe
-from toddlerbot.tasks.scenes import SIDES, scene_model, shift_wagon
+from toddlerbot.tasks.scenes import SIDES
 
-WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
-"""Seeded shift of the wagon from its layout position: (x range, y range), m."""
 UNBOUNDED_SKILL_S = 60.0
 """Simulated time allowed to a skill with neither `after` nor `timeout` (a button it will never see in sim)."""
-
-
-def wagon_shift(rng: np.random.Generator) -> np.ndarray:
-    """The seed's shift of the wagon (x, y), m: the first draws of the seed's generator (the wagon task draws it
-    the same way, so `manip demo --task wagon` and `chain run wagon` place the wagon alike for a seed)."""
-    return np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
-
-
-@dataclass(frozen=True)
-class StartPerturbation:
-    """Beyond the seed's wagon shift: how far the start state is off the layout, to measure a chain's margin."""
-
-    pose_offset: float = 0.0
-    """Each motor starts up to this far off the home pose (uniform, drawn from the seed), rad."""
-    wagon_shift: tuple[float, float] = (0.0, 0.0)
-    """Added to the seed's wagon shift (x, y), m."""
 
 
 @dataclass
@@ -100,48 +82,11 @@ class SimChainResult:
         return lines
 
 
-class SceneRobot(MuJoCoRobot):
-    """The chain's scene with the seed's start: every `reset` puts the motors at their offsets and, in the wagon
-    scene, the wagon at its shift."""
-
-    def __init__(self, description: RobotDescription, model: mujoco.MjModel, motor_offset: np.ndarray,
-                 wagon_shift: np.ndarray | None) -> None:
-        self.wagon_shift = wagon_shift  # before the base class's first reset
-        super().__init__(description, model=model)
-        self.initial_motor_offset = motor_offset
-
-    def reset(self) -> Observation:
-        obs = super().reset()  # the robot senses the same wherever the wagon stands
-        if self.wagon_shift is not None:
-            shift_wagon(self.model, self.data, self.wagon_shift)
-            mujoco.mj_forward(self.model, self.data)
-        return obs
-
-
-class PickStart(TaskRobot):
-    """The pick task's robot starting at `start_pose` (the task's ready pose, perhaps perturbed)."""
-
-    def __init__(self, task: PickTask, seed: int, start_pose: np.ndarray) -> None:
-        super().__init__(task, seed)
-        self.start_pose = start_pose
-
-    def reset(self) -> Observation:
-        return self.task.reset(self.seed, self.start_pose)
-
-
 def scene_robot(chain: ChainSpec, seed: int, description: RobotDescription,
-                perturbation: StartPerturbation = StartPerturbation()) -> tuple[SceneRobot | PickStart, np.ndarray]:
-    """(robot, start targets): the chain's scene robot, which `run_policy`'s reset puts at the seed's start."""
-    rng = np.random.default_rng(seed)
-    shift = wagon_shift(rng)
-    offset = rng.uniform(-1, 1, len(description.motor_names)) * perturbation.pose_offset
-    if chain.scene == "pick":  # the pick task's start, as `dp eval` resets it: cube placed for the seed, arm ready
-        task = PickTask(description)
-        start = task.ready_pose + offset
-        return PickStart(task, seed, start), start
-    shifted = shift + perturbation.wagon_shift if chain.scene == "wagon" else None
-    robot = SceneRobot(description, scene_model(description, chain.scene), offset, shifted)
-    return robot, description.home_motor_pos + offset
+                perturbation: StartPerturbation = StartPerturbation()) -> tuple[Robot, np.ndarray]:
+    """(robot, start targets): the start of the task whose scene the chain names, for the seed (`Task.chain_start`),
+    which `run_policy`'s reset puts in place."""
+    return make_task(chain.scene, description).chain_start(seed, perturbation)
 
 
 def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
@@ -197,7 +142,7 @@ def _is_bar(model: mujoco.MjModel, geom: str) -> bool:
     return i >= 0 and int(model.geom_type[i]) in bars
 
 
-def _head_camera(robot: MuJoCoRobot):
+def _head_camera(robot: Robot):
     from toddlerbot.tasks.camera import HeadCamera
 
     return HeadCamera(robot.model, robot.data, robot.description.handles.head_camera or "head_camera")

@@ -1,7 +1,7 @@
 """The chain file: YAML, validated into frozen dataclasses with one-line errors naming file, skill and field.
 
     name: wagon                      # chain name (defaults to the file's stem)
-    scene: wagon                     # sim scene it runs in (`toddlerbot.tasks.scenes.SCENES`)
+    scene: wagon                     # the task whose scene it runs in (a name of `toddlerbot.tasks.TASKS`)
     button: l2                       # optional: teleop button that runs it (l1, r1, l2, r2)
     success: {moved: {body: wagon, at_least: 0.5}, grasped: {target: wagon_handle}}   # optional, checked at the end
     skills:
@@ -91,15 +91,15 @@ def chain_path(name_or_path: str | Path) -> Path:
 def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> ChainSpec:
     """Read and validate a chain; `groups` are the motor groups `hold` may name (the description's)."""
     from toddlerbot.skills import SKILLS, skill_kind
+    from toddlerbot.tasks import TASKS
     from toddlerbot.tasks.predicates import PREDICATES
-    from toddlerbot.tasks.scenes import SCENES
 
     path = chain_path(name_or_path)
     doc = read_yaml(path, "chain file", ChainFileError, MAX_CHAIN_BYTES)
     src = str(path)
     top = _mapping(doc, src, "the file")
     _only(top, ("name", "scene", "button", "success", "skills"), src, "the file")
-    scene = _choice(top.get("scene"), SCENES, src, "scene")
+    scene = _choice(top.get("scene"), TASKS.names(), src, "scene")
     button = None if top.get("button") is None else _choice(top["button"], BUTTONS, src, "button")
     raw_skills = top.get("skills")
     if not isinstance(raw_skills, list) or not raw_skills:

@@ -17,15 +17,16 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.skills.library import GraspParams, ScriptedGrasp, SkillEnv, grasp_gains
-from toddlerbot.skills.sim_run import wagon_shift
 from toddlerbot.skills.spec import load_chain
-from toddlerbot.tasks.base import Task
+from toddlerbot.tasks.base import StartPerturbation, Task
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.predicates import Context, holds
 from toddlerbot.tasks.probe import SceneProbe
-from toddlerbot.tasks.scenes import scene_model, shift_wagon
+from toddlerbot.tasks.scenes import add_wagon_scene, scene_model, shift_wagon
 from toddlerbot.tasks.space import ManipulationSpace
 
+WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
+"""Seeded shift of the wagon from its layout position: (x range, y range), m."""
 CHAIN = "wagon"
 GRASP_SKILL = "grasp"
 HOLD_S = 0.6
@@ -33,11 +34,18 @@ HOLD_S = 0.6
 (the chain's check fires at the ramp's end, a policy that reopens right after would drop the handle)."""
 
 
+def wagon_shift(rng: np.random.Generator) -> np.ndarray:
+    """The seed's shift of the wagon (x, y), m: the first draws of the seed's generator (the task's reset and a
+    chain's start draw it alike, so `manip demo --task wagon` and `chain run wagon` place the wagon alike)."""
+    return np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
+
+
 class WagonTask(Task):
     """Grasp the wagon handle with both hands (gripper variant, floating robot standing on the floor)."""
 
     name = "wagon"
     instruction = "grasp the wagon handle with both hands"
+    add_scene = staticmethod(add_wagon_scene)
 
     def __init__(self, description: RobotDescription | None = None) -> None:
         description = description or RobotDescription.load(variant="gripper")
@@ -68,6 +76,19 @@ class WagonTask(Task):
     def demonstrator(self) -> ScriptedWagonGrasp:
         """The task's scripted demonstrator (`manip demo --task wagon`)."""
         return ScriptedWagonGrasp(self)
+
+    def teleop_robot(self, seed: int) -> MuJoCoRobot:
+        """The robot in the wagon scene at its home pose, the wagon where the layout puts it, default gains: the
+        operator walks and grasps as the chain would."""
+        return self.robot
+
+    def chain_start(self, seed: int, perturbation: StartPerturbation) -> tuple[WagonStart, np.ndarray]:
+        """The robot at home (offset by the perturbation), the wagon shifted for the seed (and by the
+        perturbation's shift)."""
+        rng = np.random.default_rng(seed)
+        shift = wagon_shift(rng) + perturbation.object_shift
+        offset = perturbation.motor_offset(rng, self.description.n_motors)
+        return WagonStart(self.description, self.model, offset, shift), self.description.home_motor_pos + offset
 
     def reset(self, seed: int) -> Observation:
         """Home pose, wagon shifted for `seed`; returns the first observation."""
@@ -123,3 +144,20 @@ class ScriptedWagonGrasp(Policy):
         targets, _ = self.skill.act(obs, obs.time - self._start_time)
         self._step += 1
         return Action(targets, self.transmission.motor_to_joint(targets), kp=self.task.kp)
+
+
+class WagonStart(MuJoCoRobot):
+    """The wagon scene with a chain's start: every `reset` puts the motors at their offsets and the wagon at its
+    shift."""
+
+    def __init__(self, description: RobotDescription, model: mujoco.MjModel, motor_offset: np.ndarray,
+                 wagon_shift: np.ndarray) -> None:
+        self.wagon_shift = wagon_shift  # before the base class's first reset
+        super().__init__(description, model=model)
+        self.initial_motor_offset = motor_offset
+
+    def reset(self) -> Observation:
+        obs = super().reset()  # the robot senses the same wherever the wagon stands
+        shift_wagon(self.model, self.data, self.wagon_shift)
+        mujoco.mj_forward(self.model, self.data)
+        return obs

@@ -1,7 +1,8 @@
-"""Simulated manipulation tasks (scenes, success checks, head camera, scripted demonstrators, demonstration
-recording), found by name in `TASKS`: ``pick`` (lift a cube, `tasks.pick`) and ``wagon`` (grasp the wagon handle,
-the wagon chain's grasp phase, `skills.wagon`). Factories are imported on first use, so listing names imports
-no task."""
+"""Simulated manipulation tasks, found by name in `TASKS`: each a `tasks.base.Task` subclass that carries its whole
+bundle (scene, reset, success check, head camera, demonstrator, teleop robot, chain start). ``pick`` (lift a cube,
+`tasks.pick`) is registered here; ``wagon`` (grasp the wagon handle, the wagon chain's grasp phase, built on the
+chain's skills in `skills.wagon`) through the package's own entry point (pyproject.toml), so that nothing here
+names a higher layer. Factories are imported on first use, so listing names imports no task."""
 
 from __future__ import annotations
 
@@ -16,9 +17,14 @@ TASKS = Registry("task", entry_point_group="toddlerbot.tasks")
 """Task name -> a `tasks.base.Task` subclass (or factory) taking an optional description; installed packages add
 names through the entry-point group ``toddlerbot.tasks``."""
 TASKS.register("pick", "toddlerbot.tasks.pick:PickTask")
-TASKS.register("wagon", "toddlerbot.skills.wagon:WagonTask")
+
+
+GRIPPER = "gripper"
+"""The robot variant every task is built for (parallel-jaw grippers instead of hands)."""
 
 
 def make_task(name: str, description: RobotDescription | None = None):
-    """The task registered as `name`, on `description` (default: the gripper variant)."""
+    """The task registered as `name`, on `description` as its gripper variant (default: the packaged robot's)."""
+    if description is not None and description.spec.variant != GRIPPER:
+        description = description.with_variant(GRIPPER)
     return TASKS.get(name)(description)

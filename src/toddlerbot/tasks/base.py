@@ -1,27 +1,48 @@
-"""What a manipulation task is: a scene on the gripper robot, reset for a seed, stepped at the task's gains, with a
-success check, a head camera, a progress report for runs and (optionally) a scripted demonstrator."""
+"""What a manipulation task is, as one registration (`toddlerbot.tasks.TASKS`) carries it: its scene (what it adds
+to the gripper robot's MjSpec), a reset for a seed, a step at the task's gains, a success check, a head camera, a
+progress report for runs, (optionally) a scripted demonstrator, the robot teleoperation drives in it and the start
+a skill chain in its scene runs from. `TaskRobot` makes a task's episode a `Robot` for the run loop."""
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import ClassVar
 
+import mujoco
 import numpy as np
 
-from toddlerbot.robot.interface import Observation
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.base import Policy
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step
+from toddlerbot.sim.ground_truth import TorsoGroundTruth
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.space import ManipulationSpace
 
-if TYPE_CHECKING:
-    from toddlerbot.policies.base import Policy
-    from toddlerbot.robot.description import RobotDescription
-    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+@dataclass(frozen=True)
+class StartPerturbation:
+    """How far a chain's start is off the task's start for its seed, to measure a chain's margin."""
+
+    pose_offset: float = 0.0
+    """Each motor starts up to this far off the start pose (uniform, drawn from the seed), rad."""
+    object_shift: tuple[float, float] = (0.0, 0.0)
+    """Added to the seed's shift of the scene's object where the task shifts one (the wagon), (x, y) m."""
+
+    def motor_offset(self, rng: np.random.Generator, n_motors: int) -> np.ndarray:
+        """The motors' start offsets, rad, drawn from the seed's generator."""
+        return rng.uniform(-1, 1, n_motors) * self.pose_offset
 
 
 class Task(ABC):
     """A task of the `TASKS` registry. Subclasses set the attributes below in their constructor (which takes an
-    optional `RobotDescription`) and implement `reset`, `step` and `succeeded`."""
+    optional `RobotDescription`) and implement `add_scene`, `reset`, `step`, `succeeded` and `chain_start`."""
+
+    mounted: ClassVar[bool] = False
+    """Whether the scene holds the torso in place (at a table): then no walking policy drives the robot."""
 
     name: str
     instruction: str
@@ -36,6 +57,12 @@ class Task(ABC):
     kp: np.ndarray
     """Firmware gains the task steps at when a policy sends none."""
     camera: HeadCamera
+
+    @staticmethod
+    @abstractmethod
+    def add_scene(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray) -> np.ndarray:
+        """Add the task's objects (and constraints) to the gripper robot's MjSpec, whose home keyframe is `home`;
+        return the home positions of the joints added, in order (`toddlerbot.tasks.scenes.scene_model`)."""
 
     @abstractmethod
     def reset(self, seed: int) -> Observation:
@@ -61,9 +88,17 @@ class Task(ABC):
 
     def demonstrator(self) -> Policy:
         """The task's scripted demonstrator (`manip demo`); a task without one says so in one line."""
-        from toddlerbot.errors import ToddlerbotError
-
         raise ToddlerbotError(f"task {self.name!r} has no scripted demonstrator; record it by teleoperation")
+
+    def teleop_robot(self, seed: int) -> Robot:
+        """The robot teleoperation drives in the task's scene (`teleop --task`): by default the task's episode for
+        `seed`, at the task's gains."""
+        return TaskRobot(self, seed)
+
+    @abstractmethod
+    def chain_start(self, seed: int, perturbation: StartPerturbation) -> tuple[Robot, np.ndarray]:
+        """(robot, start motor targets) of a skill chain run in the task's scene (`chain run` in sim), which the
+        run loop's reset puts at the seed's start."""
 
 
 class TaskProgress(RunObserver):
@@ -87,3 +122,46 @@ class TaskProgress(RunObserver):
     def describe(self) -> str:
         ended = "not succeeded" if self.succeeded_at is None else f"succeeded at {self.succeeded_at:.2f} s"
         return f"{self.task.name}: {ended}"
+
+
+class TaskRobot(Robot, TorsoGroundTruth):
+    """A task episode's robot for the run loop: `reset` is the task's reset for ``seed``, `step` is the task's step
+    (its gains unless ``kp`` is given; success tracked). The task's simulated robot is `sim`; ground truth and the
+    scene (`model`, `data`, for rendering and probes) are its own."""
+
+    def __init__(self, task: Task, seed: int) -> None:
+        super().__init__(task.description, task.robot.control_dt)
+        self.task, self.seed, self.sim = task, seed, task.robot
+        self.torso_truth = task.robot.torso_truth
+        self.default_kp = task.kp  # what the task steps at when a policy sends no gains
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        return self.sim.model
+
+    @property
+    def data(self) -> mujoco.MjData:
+        return self.sim.data
+
+    def reset(self) -> Observation:
+        obs = self.task.reset(self.seed)
+        self.last_targets = self.sim.last_targets
+        return obs
+
+    def observe(self) -> Observation:
+        return self.sim.observe()
+
+    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
+             ) -> Observation:
+        """The task's step; the simulator's own `step` guards the command (a second guard here would clamp twice,
+        and clamping through a coupled transmission is not exactly idempotent)."""
+        obs = self.task.step(motor_targets, kp, kd)
+        self.last_targets = self.sim.last_targets
+        return obs
+
+    def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
+        raise NotImplementedError("a TaskRobot steps through its task's `step`")
+
+    @property
+    def fallen(self) -> bool:
+        return self.sim.fallen

@@ -13,12 +13,15 @@ follower's angles as they do in teleoperated data.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
+import mujoco
 import numpy as np
 
 from toddlerbot.policies.base import Action, Policy
+from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.tasks.ik import (
     CORRECTION_GAIN,
     MAX_CORRECTION,
@@ -29,8 +32,24 @@ from toddlerbot.tasks.ik import (
 )
 from toddlerbot.tasks.scenes import grasp_site
 
-if TYPE_CHECKING:
-    from toddlerbot.tasks.pick import PickTask
+
+class PickScene(Protocol):
+    """What the picker needs of its task (`toddlerbot.tasks.pick.PickTask`): the arm, gains and poses, the cube."""
+
+    description: RobotDescription
+    model: mujoco.MjModel
+    robot: MuJoCoRobot
+    kp: np.ndarray
+    gripper_motor: int
+    ready_pose: np.ndarray
+    seed: int | None
+
+    @property
+    def arm(self) -> str: ...
+
+    def gripper_range(self) -> tuple[float, float]: ...
+
+    def cube_pose(self) -> tuple[np.ndarray, np.ndarray]: ...
 
 PHASES = ("approach", "descend", "close", "lift", "hold")
 
@@ -67,18 +86,18 @@ def min_jerk(s: float) -> float:
 
 
 class ScriptedPicker(Policy):
-    """Drives `PickTask` (through its `TaskRobot`) from its observations, one control step at a time, at the task's
-    gains; the waypoint noise comes from the seed the task was reset with."""
+    """Drives the pick task (through its `TaskRobot`) from its observations, one control step at a time, at the
+    task's gains; the waypoint noise comes from the seed the task was reset with."""
 
     name = "scripted-pick"
 
-    def __init__(self, task: PickTask, config: DemoConfig | None = None) -> None:
+    def __init__(self, task: PickScene, config: DemoConfig | None = None) -> None:
         super().__init__(task.robot)
         self.task = task
         self.config = config or DemoConfig()
         self._steps = round(self.config.duration / self.control_dt)
         self._step = 0
-        side = task.config.arm
+        side = task.arm
         self.ik = ArmIK(task.description, task.model, side, IKConfig(), site=grasp_site(side))
         self.open, fully_closed = task.gripper_range()
         self.closed = self.open + self.config.grip_fraction * (fully_closed - self.open)

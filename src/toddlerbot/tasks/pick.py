@@ -21,9 +21,8 @@ from toddlerbot.policies.base import Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, Observation, Robot
 from toddlerbot.runtime.runner import Step
-from toddlerbot.sim.ground_truth import TorsoGroundTruth
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-from toddlerbot.tasks.base import Task, TaskProgress
+from toddlerbot.tasks.base import StartPerturbation, Task, TaskProgress, TaskRobot
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.demonstrator import DemoConfig, ScriptedPicker
 from toddlerbot.tasks.ik import ArmIK, top_down_rotation
@@ -31,6 +30,7 @@ from toddlerbot.tasks.scenes import (
     CUBE_BODY,
     CUBE_GEOM,
     TABLE_GEOM,
+    add_pick_scene,
     finger_pads,
     grasp_site,
     place_cube,
@@ -97,6 +97,8 @@ class PickTask(Task):
     instruction = "pick up the red cube"
     episode_seconds = 8.0
     """`dp eval`'s default limit per episode, s (simulated)."""
+    mounted = True
+    add_scene = staticmethod(add_pick_scene)
 
     def __init__(self, description: RobotDescription | None = None, config: PickConfig | None = None) -> None:
         self.config = config or PickConfig()
@@ -131,6 +133,17 @@ class PickTask(Task):
     def demonstrator(self, config: DemoConfig | None = None) -> ScriptedPicker:
         """The task's scripted demonstrator (`manip demo`)."""
         return ScriptedPicker(self, config)
+
+    def chain_start(self, seed: int, perturbation: StartPerturbation) -> tuple[PickStart, np.ndarray]:
+        """The pick task's start, as `dp eval` resets it: the cube placed for the seed, the arm ready (offset by the
+        perturbation)."""
+        start = self.ready_pose + perturbation.motor_offset(np.random.default_rng(seed), self.description.n_motors)
+        return PickStart(self, seed, start), start
+
+    @property
+    def arm(self) -> str:
+        """The arm that picks: ``left`` or ``right``."""
+        return self.config.arm
 
     @property
     def table_top(self) -> float:
@@ -250,44 +263,12 @@ class PickProgress(TaskProgress):
                 f"{'not succeeded' if self.succeeded_at is None else f'succeeded at {self.succeeded_at:.2f} s'}")
 
 
-class TaskRobot(Robot, TorsoGroundTruth):
-    """A task episode's robot for the run loop: `reset` is the task's reset for ``seed`` (a pick: cube placed, arm
-    ready), `step` is the task's step (its gains unless ``kp`` is given; success tracked). The task's simulated
-    robot is `sim`; ground truth and the scene (`model`, `data`, for rendering and probes) are its own."""
+class PickStart(TaskRobot):
+    """The pick task's robot starting at `start_pose` (the task's ready pose, perhaps perturbed): a chain's start."""
 
-    def __init__(self, task: PickTask, seed: int) -> None:  # or any task with reset(seed), step, kp, robot
-        super().__init__(task.description, task.robot.control_dt)
-        self.task, self.seed, self.sim = task, seed, task.robot
-        self.torso_truth = task.robot.torso_truth
-        self.default_kp = task.kp  # what the task steps at when a policy sends no gains
-
-    @property
-    def model(self) -> mujoco.MjModel:
-        return self.sim.model
-
-    @property
-    def data(self) -> mujoco.MjData:
-        return self.sim.data
+    def __init__(self, task: PickTask, seed: int, start_pose: np.ndarray) -> None:
+        super().__init__(task, seed)
+        self.start_pose = start_pose
 
     def reset(self) -> Observation:
-        obs = self.task.reset(self.seed)
-        self.last_targets = self.sim.last_targets
-        return obs
-
-    def observe(self) -> Observation:
-        return self.sim.observe()
-
-    def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
-             ) -> Observation:
-        """The task's step; the simulator's own `step` guards the command (a second guard here would clamp twice,
-        and clamping through a coupled transmission is not exactly idempotent)."""
-        obs = self.task.step(motor_targets, kp, kd)
-        self.last_targets = self.sim.last_targets
-        return obs
-
-    def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
-        raise NotImplementedError("a TaskRobot steps through its task's `step`")
-
-    @property
-    def fallen(self) -> bool:
-        return self.sim.fallen
+        return self.task.reset(self.seed, self.start_pose)

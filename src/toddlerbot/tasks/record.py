@@ -21,9 +21,8 @@ from toddlerbot.policies.base import Policy
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.tasks import make_task
+from toddlerbot.tasks.base import Task, TaskRobot
 from toddlerbot.tasks.camera import CAMERA_EVERY, blank_image
-from toddlerbot.tasks.demonstrator import ScriptedPicker
-from toddlerbot.tasks.pick import PickTask, TaskRobot
 from toddlerbot.tasks.video import SideBySideVideo, write_png
 
 DATASET_FPS = 10
@@ -49,7 +48,7 @@ class DemoRecorder(RunObserver):
     acted on every `CAMERA_EVERY` steps from the first, each also a frame of `video` when one is given. The run
     must end when the policy is done (no image is taken after the last step)."""
 
-    def __init__(self, task: PickTask, render: bool = True, video: SideBySideVideo | None = None) -> None:
+    def __init__(self, task: Task, render: bool = True, video: SideBySideVideo | None = None) -> None:
         self.task, self.render, self.video = task, render, video
 
     def on_start(self, robot: Robot, policy: Policy, obs: Observation) -> None:
@@ -86,7 +85,7 @@ class DemoRecorder(RunObserver):
         )
 
 
-def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = True,
+def run_demo(task: Task, demo: Policy, seed: int, render: bool = True,
              video: SideBySideVideo | None = None) -> RawEpisode:
     """One scripted episode of `task` for `seed` (the demonstrator run until done on the task's robot): 50 Hz
     follower state and commanded targets, head-camera images every `CAMERA_EVERY` steps (if `render`)."""
@@ -96,7 +95,7 @@ def run_demo(task: PickTask, demo: ScriptedPicker, seed: int, render: bool = Tru
     return recorder.episode(seed)
 
 
-def record_demos(out: str | Path, episodes: int, seed: int, task: PickTask | str = "pick",
+def record_demos(out: str | Path, episodes: int, seed: int, task: Task | str = "pick",
                  video_path: str | Path | None = None, overwrite: bool = False,
                  on_episode: Callable[[int, bool], None] | None = None,
                  snapshot_path: str | Path | None = None) -> DemoReport:

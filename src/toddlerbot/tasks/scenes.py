@@ -1,13 +1,16 @@
 """Manipulation scenes for the gripper variant, built by adding to the robot's MjSpec (the builder is untouched).
 
-* ``pick``: the torso is held in place by a weld to the world at its home pose (the legs keep standing on the
-  floor but cannot tip over); a table stands in front of the robot with a 3 cm cube on it. The cube's start
-  pose is set per episode (`place_cube`).
-* ``wagon``: the floating robot on the floor and, in front of it, a four-wheeled wagon whose handle bar sits at
-  hand height, for grasp-then-walk skill chains.
+`scene_model` compiles the scene of a registered task (`toddlerbot.tasks.TASKS`): the task's ``add_scene`` adds its
+objects, then every scene gets the grasp sites and finger pads and a ``workspace`` camera looking at the area in
+front of the robot. The building blocks of the shipped tasks' scenes live here:
+
+* `add_pick_scene` (``pick``): the torso held in place by a weld to the world at its home pose (`mount_torso`: the
+  legs keep standing on the floor but cannot tip over); a table in front of the robot with a 3 cm cube on it. The
+  cube's start pose is set per episode (`place_cube`).
+* `add_wagon_scene` (``wagon``): in front of the floating robot on the floor, a four-wheeled wagon whose handle bar
+  sits at hand height, for grasp-then-walk skill chains (`shift_wagon` moves it).
 
 World frame: x forward from the robot, y to its left, z up, origin on the floor under the torso.
-Both scenes add a ``workspace`` camera looking at the area in front of the robot.
 """
 
 from __future__ import annotations
@@ -20,7 +23,6 @@ import numpy as np
 from toddlerbot.robot.builder import FREEJOINT, build_mjspec
 from toddlerbot.robot.description import RobotDescription
 
-SCENES = ("pick", "wagon")
 CUBE_BODY = "cube"
 CUBE_GEOM = "cube_geom"
 TABLE_GEOM = "table_top"
@@ -89,15 +91,16 @@ class WagonLayout:
 
 
 def scene_model(description: RobotDescription, scene: str) -> mujoco.MjModel:
-    """Compile the named scene for a gripper-variant description."""
-    if scene not in SCENES:
-        raise ValueError(f"unknown scene {scene!r}; expected one of {', '.join(SCENES)}")
+    """Compile the scene of the task registered as `scene` for a gripper-variant description (an unknown name is
+    the registry's one-line error naming the known ones)."""
+    from toddlerbot.tasks import TASKS
+
+    task = TASKS.get(scene)
     if description.spec.variant != "gripper":
         raise ValueError(f"the {scene} scene needs the gripper variant, got variant {description.spec.variant!r}")
     mj = build_mjspec(description.spec, "floating", scene=True, catalogue=description.catalogue)
     home = np.array(mj.key("home").qpos, dtype=float)
-    add = _add_pick if scene == "pick" else _add_wagon
-    extra_qpos = add(mj, description, home)
+    extra_qpos = task.add_scene(mj, description, home)
     mj.key("home").qpos = np.concatenate([home, extra_qpos]).tolist()
     _add_grasp_sites_and_pads(mj, description)
     _add_workspace_camera(mj)
@@ -105,10 +108,17 @@ def scene_model(description: RobotDescription, scene: str) -> mujoco.MjModel:
     return mj.compile()
 
 
-def _add_pick(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray,
-              layout: PickLayout = PickLayout()) -> np.ndarray:
-    # Hold the torso where the home keyframe puts it: relpose = world seen from the torso.
-    model = mj.compile()
+def add_pick_scene(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray,
+                   layout: PickLayout = PickLayout()) -> np.ndarray:
+    """The ``pick`` task's scene: the torso mounted, a table and a cube on it; returns the cube's home qpos."""
+    mount_torso(mj, description, home)
+    return add_table_and_cube(mj, layout)
+
+
+def mount_torso(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray) -> None:
+    """Hold the torso where the home keyframe puts it (a weld to the world): the legs keep standing on the floor
+    but cannot tip over."""
+    model = mj.compile()  # relpose = world seen from the torso
     adr = model.joint(FREEJOINT).qposadr[0]
     torso_pos, torso_quat = home[adr : adr + 3], home[adr + 3 : adr + 7]
     world_in_torso_quat = np.zeros(4)
@@ -123,6 +133,9 @@ def _add_pick(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray
         len(weld.data) - 11
     )
 
+
+def add_table_and_cube(mj: mujoco.MjSpec, layout: PickLayout = PickLayout()) -> np.ndarray:
+    """A table in front of the robot and a cube (free joint) on it; returns the cube's home qpos."""
     (cx, cy), (hx, hy), h = layout.table_center, layout.table_half_size, layout.table_height
     wood = (0.55, 0.4, 0.28, 1.0)
     table = mj.worldbody.add_body(name="table", pos=(cx, cy, 0.0))
@@ -141,8 +154,10 @@ def _add_pick(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray
     return np.array([cx, cy, h + s, 1.0, 0.0, 0.0, 0.0])
 
 
-def _add_wagon(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray,
-               layout: WagonLayout = WagonLayout()) -> np.ndarray:
+def add_wagon_scene(mj: mujoco.MjSpec, description: RobotDescription, home: np.ndarray,
+                    layout: WagonLayout = WagonLayout()) -> np.ndarray:
+    """The ``wagon`` task's scene: a four-wheeled wagon in front of the robot, its handle at hand height; returns
+    the wagon's home qpos (free joint, then the four wheels)."""
     bx, by, bz = layout.body_half_size
     r = layout.wheel_radius
     post_x = -bx - 0.015

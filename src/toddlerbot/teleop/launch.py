@@ -31,35 +31,32 @@ class TeleopRobot:
     """False where the torso is mounted (the pick task's table): no walking policy then."""
 
 
-def _floor(description: RobotDescription, seed: int, scene: str | None = None) -> TeleopRobot:
-    from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-    from toddlerbot.tasks.camera import HeadCamera
-    from toddlerbot.tasks.scenes import scene_model
-
-    robot = MuJoCoRobot(description, model=None if scene is None else scene_model(description, scene))
-    camera = HeadCamera(robot.model, robot.data, description.handles.head_camera or "head_camera")
-    return TeleopRobot(robot, camera.image, walks=True)
+WALK = "walk"
+"""The teleop task without a scene: the robot on the floor. Every other is a registered task's scene."""
 
 
-def _pick(description: RobotDescription, seed: int) -> TeleopRobot:
-    from toddlerbot.tasks.pick import PickTask, TaskRobot
+def teleop_tasks() -> tuple[str, ...]:
+    """What `teleop --task` takes: the floor, then every registered task."""
+    from toddlerbot.tasks import TASKS
 
-    task = PickTask(description)
-    return TeleopRobot(TaskRobot(task, seed), task.head_image, walks=False)  # reset: the cube placed for the seed
-
-
-def _wagon(description: RobotDescription, seed: int) -> TeleopRobot:
-    return _floor(description, seed, "wagon")
-
-
-SIM_TASKS: dict[str, Callable[[RobotDescription, int], TeleopRobot]] = {"walk": _floor, "pick": _pick,
-                                                                        "wagon": _wagon}
-"""--task -> its simulated robot: the floor, the pick task (torso mounted at the table), the wagon scene."""
+    return (WALK, *TASKS.names())
 
 
 def sim_robot(task: str, seed: int, description: RobotDescription | None = None) -> TeleopRobot:
-    """The simulated robot of a teleop task (gripper variant)."""
-    return SIM_TASKS[task](description or RobotDescription.load(variant="gripper"), seed)
+    """The simulated robot of a teleop task (gripper variant): the floor, or the registered task's teleop robot in
+    its scene (`Task.teleop_robot`; a mounted task's torso stays at its table: no walking)."""
+    description = description or RobotDescription.load(variant="gripper")
+    if task == WALK:
+        from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+        from toddlerbot.tasks.camera import HeadCamera
+
+        robot = MuJoCoRobot(description)
+        camera = HeadCamera(robot.model, robot.data, description.handles.head_camera or "head_camera")
+        return TeleopRobot(robot, camera.image, walks=True)
+    from toddlerbot.tasks import make_task
+
+    the_task = make_task(task, description)
+    return TeleopRobot(the_task.teleop_robot(seed), the_task.head_image, walks=not the_task.mounted)
 
 
 def walking_policy(name: str, robot: Robot) -> Policy:
