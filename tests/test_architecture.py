@@ -107,3 +107,56 @@ def test_the_leader_link_without_its_extra_names_the_extra():
                          text=True, timeout=120)
     assert out.stdout.strip() == ("ToddlerbotError the leader-follower link needs pyzmq and msgpack: "
                                   "pip install 'toddlerbot[manip]'"), out.stderr[-2000:]
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Module -> the toddlerbot modules it imports anywhere: at module level, inside functions, and under
+    TYPE_CHECKING (`from toddlerbot.rl import train` names the module ``toddlerbot.rl.train``)."""
+    modules = {_module_name(path): path for path in PACKAGE.rglob("*.py")}
+
+    def resolve(name: str) -> str | None:
+        while name and name not in modules:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    graph: dict[str, set[str]] = {}
+    for module, path in modules.items():
+        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join([*package.split(".")[: len(package.split(".")) - node.level + 1], base]).rstrip(".")
+                names = [f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base for alias in node.names]
+            else:
+                continue
+            targets |= {resolve(n) for n in names if n.startswith("toddlerbot")} - {None, module}
+        graph[module] = targets  # type: ignore[assignment]
+    return graph
+
+
+def test_no_import_circles_between_modules():
+    """No module reaches itself through its imports, lazy and type-checking imports included: a circle makes
+    import order matter and hides which module is the lower one (ARCHITECTURE.md)."""
+    graph = _import_graph()
+    circles = []
+    for start in graph:
+        stack, seen = [(start, (start,))], set()
+        while stack:
+            node, path = stack.pop()
+            for nxt in graph[node]:
+                if nxt == start:
+                    circles.append(" -> ".join((*path, start)))
+                elif nxt not in seen:
+                    seen.add(nxt)
+                    stack.append((nxt, (*path, nxt)))
+    assert not circles, "import circles:\n" + "\n".join(sorted(set(circles))[:10])
+    assert len(graph) > 150 and sum(len(t) for t in graph.values()) > 600  # the whole package was read
