@@ -26,12 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import ActuatorParams
+from toddlerbot.actuation.appendix import ActuatorParams
 from toddlerbot.actuation.dc_motor import DCMotorParams
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
 from toddlerbot.sysid.fit import fit
 from toddlerbot.sysid.manifest import load_manifest, select_gains
-from toddlerbot.sysid.params import FIT_MODELS, save_params
+from toddlerbot.sysid.params import fit_models, save_params
 
 GUESS = ActuatorParams(damping=0.0019, armature=0.0040, frictionloss=0.019, tau_max=0.40, q_dot_tau_max=2.60,
                        q_dot_max=9.50, tau_q_dot_max=0.25, kd_min=0.137, tau_brake=0.91, kp_scale=334.0)
@@ -53,7 +53,7 @@ def _gains(kp: tuple[float, ...]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("manifest", type=Path)
-    parser.add_argument("--model", action="append", choices=tuple(FIT_MODELS))
+    parser.add_argument("--model", action="append", choices=tuple(fit_models()))
     parser.add_argument("--evals", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--fit-kp-scale", action="store_true", help="also fit the DC motor's pwm_per_rad")
@@ -63,7 +63,7 @@ def main() -> None:
     manifest = load_manifest(args.manifest)
     print(f"machine: {platform.machine()} {os.cpu_count()} cores, numpy {np.__version__}, "
           f"load average {os.getloadavg()[0]:.1f}; {len(manifest.runs)} runs of {manifest.motor.name}")
-    for model in args.model or tuple(FIT_MODELS):
+    for model in args.model or tuple(fit_models()):
         for trained, held in SPLITS:
             wall0, cpu0 = time.perf_counter(), time.process_time()
             result = fit(select_gains(manifest, trained), model=model, evals=args.evals, seed=args.seed,

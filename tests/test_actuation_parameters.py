@@ -1,5 +1,6 @@
-"""The actuator-parameter table is the single source of every parameter's name, unit, plausible range, default and
-fit bounds: the model classes, motors.yaml, params.json, the fit vector and docs/sysid.md all follow it."""
+"""Each motor model's parameter table is the single source of every parameter's name, unit, plausible range, default
+and fit bounds: the model classes, motors.yaml, params.json, the fit vector, the perturbations and docs/sysid.md all
+follow it."""
 
 from __future__ import annotations
 
@@ -10,25 +11,34 @@ from pathlib import Path
 import pytest
 import yaml
 
-from toddlerbot.actuation.catalogue import (
-    DEFAULT_CATALOGUE,
-    MOTOR_MODELS,
-    ActuatorParams,
-    default_catalogue,
-    load_catalogue,
-)
+from toddlerbot.actuation.appendix import ActuatorParams
+from toddlerbot.actuation.catalogue import DEFAULT_CATALOGUE, default_catalogue, load_catalogue
 from toddlerbot.actuation.dc_motor import DCMotorParams
-from toddlerbot.actuation.parameters import PARAMETERS, parameters_of
+from toddlerbot.actuation.motor_models import MOTOR_MODELS, all_parameters, motor_model
 from toddlerbot.actuation.params_file import load_params
 from toddlerbot.errors import ParamsError, SpecError
-from toddlerbot.sysid.params import FIT_MODELS, SEARCH, SEARCHED_AS, from_unit, save_params, searched_value, to_unit
+from toddlerbot.sysid.params import (
+    fit_models,
+    from_unit,
+    save_params,
+    search_range,
+    searched_as,
+    searched_value,
+    to_unit,
+)
+
+PARAMETERS = all_parameters()
+
+
+def parameters_of(model: str) -> tuple:
+    return motor_model(model).parameters
 
 DOCS = Path(__file__).parents[1] / "docs" / "sysid.md"
 
 
-@pytest.mark.parametrize("model", list(MOTOR_MODELS))
+@pytest.mark.parametrize("model", ["appendix", "dc_motor"])
 def test_each_models_fields_are_its_table_rows_in_order(model: str) -> None:
-    fields = dataclasses.fields(MOTOR_MODELS[model])
+    fields = dataclasses.fields(motor_model(model))
     assert [f.name for f in fields] == [p.name for p in parameters_of(model)]
     defaults = {f.name: f.default for f in fields if f.default is not dataclasses.MISSING}
     assert defaults == {p.name: p.default for p in parameters_of(model) if p.default is not None}
@@ -36,8 +46,9 @@ def test_each_models_fields_are_its_table_rows_in_order(model: str) -> None:
 
 
 def test_every_row_belongs_to_a_model_and_the_two_models_share_the_passive_terms() -> None:
-    assert set(PARAMETERS) == {f.name for cls in MOTOR_MODELS.values() for f in dataclasses.fields(cls)}
-    shared = [p.name for p in PARAMETERS.values() if set(p.models) == set(MOTOR_MODELS)]
+    classes = [motor_model(name) for name in MOTOR_MODELS.names()]
+    assert set(PARAMETERS) == {f.name for cls in classes for f in dataclasses.fields(cls)}
+    shared = [p.name for p in PARAMETERS.values() if all(p in cls.parameters for cls in classes)]
     assert shared == ["damping", "armature", "frictionloss", "load_friction"]
     assert len(PARAMETERS) == 17
 
@@ -68,11 +79,11 @@ def test_fit_bounds_contain_the_catalogue_values() -> None:
 
 
 def test_the_fit_vector_and_its_bounds_come_from_the_table() -> None:
-    assert SEARCH.keys() == PARAMETERS.keys()
     for name, p in PARAMETERS.items():
-        assert SEARCH[name] == (p.lower, p.upper, p.log, p.unit)
-    assert SEARCHED_AS == {"q_dot_max": " above q_dot_tau_max", "tau_q_dot_max": " x tau_max"}
-    for fm in FIT_MODELS.values():
+        assert search_range(name) == (p.lower, p.upper, p.log, p.unit)
+    assert {name: searched_as(name) for name in PARAMETERS if searched_as(name)} == {
+        "q_dot_max": " above q_dot_tau_max", "tau_q_dot_max": " x tau_max"}
+    for fm in fit_models().values():
         names = (*fm.fitted, fm.gain_parameter, *fm.fixed)
         assert len(set(names)) == len(names), fm.name
         assert set(names) == {p.name for p in parameters_of(fm.params_class.model)}, fm.name
@@ -155,6 +166,7 @@ def test_docs_show_the_table() -> None:
                   else span)
         maximum = f"< {p.maximum:g}" if p.below_maximum else f"{p.maximum:g}"
         default = "-" if p.default is None else f"{p.default:g}"
-        model = "both" if len(p.models) == 2 else p.models[0]
+        having = [m for m in MOTOR_MODELS.names() if p in motor_model(m).parameters]
+        model = "both" if len(having) == 2 else having[0]
         expected = [p.unit, bounds, "log" if p.log else "linear", maximum, default, model, p.doc]
         assert rows[name] == expected, name

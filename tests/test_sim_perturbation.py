@@ -13,7 +13,7 @@ from toddlerbot.policies.walk_zmp import WalkZMPPolicy
 from toddlerbot.runtime.robustness import DirectedKick, KickSchedule, directed_kick_trial, kick_grid, reach_commands
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-from toddlerbot.sim.perturbation import SCALED_MOTOR_PARAMS, Perturbation, perturbed_robot
+from toddlerbot.sim.perturbation import Perturbation, perturbed_robot
 
 
 def test_sampled_perturbations_stay_in_their_ranges_and_repeat_per_seed(description):
@@ -22,7 +22,8 @@ def test_sampled_perturbations_stay_in_their_ranges_and_repeat_per_seed(descript
     assert len(a.joint_offset) == description.n_motors and max(map(abs, a.joint_offset)) <= 0.01
     assert 0.9 <= a.torso_mass_scale <= 1.1 and 0.5 <= a.friction <= 1.0
     models = {m.model for m in description.motors}
-    assert {(m, p) for m, p, _ in a.motor_scale} == {(m, p) for m in models for p in SCALED_MOTOR_PARAMS}
+    appendix = ("damping", "armature", "frictionloss", "tau_max", "q_dot_max", "kd_min", "tau_brake")  # `perturbed`
+    assert {(m, p) for m, p, _ in a.motor_scale} == {(m, p) for m in models for p in appendix}
     assert all(0.9 <= f <= 1.1 for _, _, f in a.motor_scale)
 
 

@@ -134,9 +134,9 @@ def test_params_files_of_either_model(tmp_path: Path) -> None:
 
 
 def test_the_simulator_applies_a_dc_motor_file(tmp_path: Path) -> None:
+    from toddlerbot.actuation.dc_motor import DCMotorParams
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-    from toddlerbot.sysid.params import dc_motor_like
 
     xc330 = default_catalogue()["XC330"]
     nominal = RobotDescription.load()
@@ -151,7 +151,7 @@ def test_the_simulator_applies_a_dc_motor_file(tmp_path: Path) -> None:
     xc = np.array([m.model == "XC330-T288" for m in nominal.motors])
     start = nominal.home_motor_pos
     appendix, _ = run(xc330.actuator)
-    like = dc_motor_like(xc330.actuator)
+    like = DCMotorParams.like(xc330.actuator)
     dc, _ = run(like)
     loaded, robot = run(like.replace(load_friction=0.5))
     # the DC motor moves the XC330s to their targets as the appendix model does, not identically

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from toddlerbot.actuation.catalogue import ActuatorParams, default_catalogue
+from toddlerbot.actuation.appendix import ActuatorParams
+from toddlerbot.actuation.catalogue import default_catalogue
 from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.main import app
 from toddlerbot.sysid.errors import SysIDError
@@ -101,7 +102,7 @@ def test_bounds_are_reported() -> None:
     u = np.full(len(names), 0.5)
     u[names.index("kp_scale")], u[names.index("stiction")] = 0.995, 0.004
     assert at_bounds(u, names) == {"kp_scale": "upper", "stiction": "lower"}
-    with pytest.raises(SysIDError, match="unknown model 'richest'; expected one of dc_motor, appendix, extended"):
+    with pytest.raises(SysIDError, match="unknown model 'richest'; expected one of appendix, extended, dc_motor"):
         parameter_names(False, "richest")
 
 

@@ -1,8 +1,7 @@
 """The Dynamixel motor catalogue: datasheet figures and actuator-model parameters per motor model.
 
-Each model's ``actuator`` entry names its actuator model (``model: appendix``, the default, or ``dc_motor``) and
-that model's parameters (`ActuatorParams`, `toddlerbot.actuation.dc_motor.DCMotorParams`); `MOTOR_MODELS` maps
-the names to the classes.
+Each model's ``actuator`` entry names its actuator model (``model: appendix``, the default, ``dc_motor`` or any other
+of `toddlerbot.actuation.motor_models.MOTOR_MODELS`) and that model's parameters.
 """
 
 from __future__ import annotations
@@ -13,14 +12,11 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 from pathlib import Path
-from typing import ClassVar
 
 import yaml
 
-from toddlerbot.actuation.dc_motor import DCMotorParams
-from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.actuation.motor_models import DEFAULT_MOTOR_MODEL, MOTOR_MODELS, motor_model
 from toddlerbot.actuation.motor_params import MotorParams
-from toddlerbot.actuation.parameters import APPENDIX, check_parameters, parameter_class
 from toddlerbot.errors import SpecError
 from toddlerbot.yaml_input import read_yaml
 
@@ -29,52 +25,15 @@ MOTOR_RANGES = {"stall_torque_nm": (1e-3, 1000.0), "mass_kg": (1e-3, 100.0), "ra
 """Plausible (low, high) of a motor model's datasheet figures, N*m, kg, V."""
 
 
-class _AppendixModel:
-    """Parameters of the appendix's actuator model (Eq. 8-10), in joint units of the motor's output shaft: the
-    ``appendix`` rows of `toddlerbot.actuation.parameters.PARAMETERS` (the extended friction terms default to the
-    9-parameter model)."""
-
-    model: ClassVar[str] = APPENDIX
-
-    def __post_init__(self) -> None:
-        check_parameters(self)
-        if self.q_dot_max <= self.q_dot_tau_max:
-            raise ValueError(f"q_dot_max ({self.q_dot_max}) must exceed q_dot_tau_max ({self.q_dot_tau_max})")
-
-    def replace(self, **changes: float) -> ActuatorParams:
-        return dataclasses.replace(self, **changes)
-
-    def array_fields(self, kp_dynamixel: float, kd_dynamixel: float) -> dict[str, float]:
-        """This motor's `toddlerbot.actuation.model.ActuatorArrays` entries at these firmware gains."""
-        return self.fields_to_arrays(dataclasses.asdict(self), kp_dynamixel, kd_dynamixel)
-
-    @staticmethod
-    def fields_to_arrays(f: Mapping, kp_dynamixel, kd_dynamixel) -> dict:
-        """`ActuatorArrays` entries from field values (floats, or arrays of candidates in a fit; constants stay
-        scalars and broadcast): the parameters of the same name, physical gains from kp_scale, no back-EMF after
-        the limit, a linear PWM."""
-        same = {name: f[name] for name in ActuatorArrays._fields if name in f}
-        return {**same, "kp": kp_dynamixel / f["kp_scale"], "kd": kd_dynamixel / f["kp_scale"],
-                "back_emf_damping": 0.0, "pwm_exponent": 1.0}
-
-
-ActuatorParams = parameter_class("ActuatorParams", _AppendixModel)
-
-
-MOTOR_MODELS: dict[str, type[ActuatorParams] | type[DCMotorParams]] = {
-    ActuatorParams.model: ActuatorParams, DCMotorParams.model: DCMotorParams,
-}
-"""Actuator models by the name a catalogue entry or params.json gives in ``model``."""
-
-
 def motor_params(fields: Mapping, source: str) -> MotorParams:
     """Parameters from a mapping of field values with an optional ``model`` name (default ``appendix``);
     raise ValueError naming an unknown model, a missing or an unknown field."""
     fields = dict(fields)
-    name = fields.pop("model", ActuatorParams.model)
+    name = fields.pop("model", DEFAULT_MOTOR_MODEL)
     if not isinstance(name, str) or name not in MOTOR_MODELS:
-        raise ValueError(f"{source}: unknown actuator model {name!r}; expected one of {', '.join(MOTOR_MODELS)}")
-    cls = MOTOR_MODELS[name]
+        raise ValueError(f"{source}: unknown actuator model {name!r}; expected one of "
+                         f"{', '.join(MOTOR_MODELS.names())}")
+    cls = motor_model(name)
     known = [f.name for f in dataclasses.fields(cls)]
     unknown = sorted(set(fields) - set(known))
     if unknown:  # first: a misspelt field is also a missing one

@@ -20,14 +20,39 @@ from collections.abc import Mapping
 from typing import ClassVar
 
 from toddlerbot.actuation.model import ActuatorArrays
-from toddlerbot.actuation.parameters import DC_MOTOR, check_parameters, parameter_class
+from toddlerbot.actuation.motor_models import Fit
+from toddlerbot.actuation.parameters import (
+    LOAD_FRICTION,
+    PASSIVE,
+    ParameterDef,
+    check_parameters,
+    parameter_class,
+)
 
 
 class _DCMotorModel:
-    """Parameters of the DC-motor model, in joint units of the motor's output shaft: the ``dc_motor`` rows of
-    `toddlerbot.actuation.parameters.PARAMETERS`."""
+    """Parameters of the DC-motor model, in joint units of the motor's output shaft."""
 
-    model: ClassVar[str] = DC_MOTOR
+    model: ClassVar[str] = "dc_motor"
+    parameters: ClassVar[tuple[ParameterDef, ...]] = (
+        *PASSIVE,
+        ParameterDef("stall_torque", "N*m", 0.05, 10.0, True, 1000.0,
+                     "torque at full PWM duty and rest, at the rated voltage (k_t V / R)", positive=True,
+                     perturbed=True),
+        ParameterDef("no_load_speed", "rad/s", 1.0, 100.0, True, 1000.0,
+                     "speed at which the back-EMF cancels the full rated supply (V / k_e)", positive=True,
+                     perturbed=True),
+        ParameterDef("pwm_per_rad", "duty per rad per firmware kp", 2e-4, 0.05, True, 10.0,
+                     "PWM duty (1 = 100 %) per rad of error per unit of firmware kp (fitted with --fit-kp-scale)",
+                     positive=True),
+        ParameterDef("pwm_exponent", "1", 0.5, 1.5, False, 3.0, "the drive torque grows as duty^pwm_exponent",
+                     default=1.0, positive=True),
+        LOAD_FRICTION,
+    )
+    fits: ClassVar[dict[str, Fit]] = {
+        "dc_motor": Fit(("stall_torque", "no_load_speed", "pwm_exponent", "load_friction", "frictionloss", "damping",
+                         "armature"), "pwm_per_rad"),
+    }
 
     def __post_init__(self) -> None:
         check_parameters(self)
@@ -77,6 +102,19 @@ class _DCMotorModel:
 
     def replace(self, **changes: float) -> DCMotorParams:
         return dataclasses.replace(self, **changes)
+
+    @classmethod
+    def like(cls, p) -> DCMotorParams:
+        """The DC motor closest to an appendix-model motor (`toddlerbot.actuation.appendix`): its torque from rest
+        and physical gain, the no-load speed where its torque-speed line (through the two breakpoints of Eq. 9)
+        reaches zero, its passive terms."""
+        if p.model != "appendix":
+            raise ValueError(f"a dc_motor fit starts from dc_motor or appendix parameters, not {p.model}; "
+                             "give --start")
+        slope = (p.tau_max - p.tau_q_dot_max) / (p.q_dot_max - p.q_dot_tau_max)
+        no_load = p.q_dot_tau_max + p.tau_max / slope if slope > 0 else p.q_dot_max
+        return cls(damping=p.damping, armature=p.armature, frictionloss=p.frictionloss, stall_torque=p.tau_max,
+                   no_load_speed=no_load, pwm_per_rad=1.0 / (p.kp_scale * p.tau_max), load_friction=p.load_friction)
 
 
 DCMotorParams = parameter_class("DCMotorParams", _DCMotorModel)

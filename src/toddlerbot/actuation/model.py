@@ -39,9 +39,9 @@ from toddlerbot.actuation.motor_params import MotorParams
 
 
 class ActuatorArrays(NamedTuple):
-    """The torque law's coefficients for n motors, each an array of shape (n,). An entry named like a parameter of
-    `toddlerbot.actuation.parameters.PARAMETERS` has its unit and, for the appendix model, its value (each model's
-    ``fields_to_arrays`` fills them)."""
+    """The torque law's coefficients for n motors, each an array of shape (n,). An entry named like a parameter of a
+    motor model's table (`toddlerbot.actuation.motor_models`) has its unit and, for the appendix model, its value
+    (each model's ``fields_to_arrays`` fills them)."""
 
     kp: np.ndarray
     """Physical position gain, N*m/rad."""

@@ -11,7 +11,7 @@ class MotorParams(Protocol):
     the passive terms and the three envelope figures; the actuator model uses `array_fields`."""
 
     model: str
-    # the passive terms both models have (units and meaning: `toddlerbot.actuation.parameters.PARAMETERS`)
+    # the passive terms every model has (units and meaning: `toddlerbot.actuation.parameters.PASSIVE`)
     damping: float
     armature: float
     frictionloss: float

@@ -12,8 +12,8 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from toddlerbot.actuation.catalogue import Catalogue, default_catalogue, motor_params, params_dict
+from toddlerbot.actuation.motor_models import DEFAULT_MOTOR_MODEL
 from toddlerbot.actuation.motor_params import MotorParams
-from toddlerbot.actuation.parameters import APPENDIX
 from toddlerbot.errors import ParamsError, SpecError
 from toddlerbot.yaml_input import read_text
 
@@ -39,7 +39,7 @@ def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[s
     fields = raw["actuator"]
     base = catalogue[name].actuator
     # a partial file of the model the catalogue has for the motor keeps the catalogue's other fields
-    kept = params_dict(base) if fields.get("model", APPENDIX) == base.model else {}
+    kept = params_dict(base) if fields.get("model", DEFAULT_MOTOR_MODEL) == base.model else {}
     try:
         params = motor_params({**kept, **fields}, "actuator")
     except (TypeError, ValueError) as exc:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated
 
 import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -25,7 +25,7 @@ from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.fit_run import fit_provenance, params_for
 from toddlerbot.sysid.logs import read_columns
 from toddlerbot.sysid.manifest import Manifest, load_manifest, select_gains
-from toddlerbot.sysid.params import DEFAULT_MODEL, FIT_MODELS, SEARCH, SEARCHED_AS, save_params
+from toddlerbot.sysid.params import DEFAULT_MODEL, fit_models, save_params, search_range, searched_as
 from toddlerbot.sysid.rigs import parse_rig
 from toddlerbot.sysid.synthetic import synthesize, write_runs
 from toddlerbot.sysid.testbed import armature_from_spindown, fit_friction
@@ -48,10 +48,18 @@ def _runs(manifest: Path, kp: list[float] | None) -> Manifest:
     return select_gains(m, kp) if kp else m
 
 
-FitModelOption = Annotated[Literal[tuple(FIT_MODELS)], typer.Option(
-    "--model", help="dc_motor (PWM duty, stall torque, back-EMF, load-dependent friction: the one that holds across "
-                    "gains on real servos), appendix (the 9 parameters of section 8.9) or extended (plus stiction, "
-                    "Stribeck velocity and load-dependent friction).")]
+def _fit_model(name: str) -> str:
+    """`name` if a registered motor model fits it (models are registered at run time: no fixed choice list)."""
+    if name not in fit_models():
+        raise typer.BadParameter(f"{name!r} is not one of {', '.join(fit_models())}", param_hint="--model")
+    return name
+
+
+FitModelOption = Annotated[str, typer.Option(
+    "--model", callback=_fit_model,
+    help="A registered motor model's fit: dc_motor (PWM duty, stall torque, back-EMF, load-dependent friction: the "
+         "one that holds across gains on real servos), appendix (the 9 parameters of section 8.9) or extended (plus "
+         "stiction, Stribeck velocity and load-dependent friction).")]
 FitKpScaleOption = Annotated[bool, typer.Option(
     "--fit-kp-scale", help="Also fit the firmware-to-physical gain conversion (dc_motor: pwm_per_rad; appendix, "
                            "extended: kp_scale).")]
@@ -105,9 +113,9 @@ def _print_fit(result) -> None:
                       f"{u.relative:.0%}" if u else "-", f"{other} ({r:+.2f})" if u else "")
     console.print(table)
     for name, side in result.at_bounds.items():
-        lo, hi, _, unit = SEARCH[name]
+        lo, hi, _, unit = search_range(name)
         console.print(f"[yellow]warning:[/] {name} = {getattr(result.params, name):.4g} ended at its {side} search "
-                      f"bound ({lo:g} .. {hi:g}{SEARCHED_AS.get(name, '')} {unit}): not identified by these runs")
+                      f"bound ({lo:g} .. {hi:g}{searched_as(name)} {unit}): not identified by these runs")
     for name, reason in result.fixed.items():
         console.print(f"fixed: {name} = {getattr(result.params, name):.4g} ({reason})")
 

@@ -19,8 +19,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from toddlerbot.actuation.catalogue import ActuatorParams, Catalogue, MotorModel, default_catalogue
+from toddlerbot.actuation.catalogue import Catalogue, MotorModel, default_catalogue
 from toddlerbot.actuation.model import ActuatorArrays, actuator_arrays
+from toddlerbot.actuation.motor_params import MotorParams
 from toddlerbot.actuation.params_file import catalogue_with_params
 from toddlerbot.registry import Registry
 from toddlerbot.robot.builder import IMU_SITE, Base, compile_robot, home_joint_pos
@@ -109,7 +110,7 @@ class RobotDescription:
         return tuple(self.catalogue[m.model] for m in self.motors)
 
     @cached_property
-    def actuator_params(self) -> tuple[ActuatorParams, ...]:
+    def actuator_params(self) -> tuple[MotorParams, ...]:
         return tuple(model.actuator for model in self.motor_models)
 
     def actuator_arrays(self, kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> ActuatorArrays:

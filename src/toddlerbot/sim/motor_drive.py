@@ -20,13 +20,20 @@ for _function in (actuator_model.acceleration_limit, actuator_model.pd_torque, a
     compilable(_function)
 
 
-@compilable
-def parameters_of(columns: np.ndarray) -> ActuatorArrays:
-    """`ActuatorArrays` from one robot's (fields, n_motors) parameter array (arrays), or one motor's (fields,)
-    column (floats), in field order (compiled code cannot splat an array into a NamedTuple, so the fields are
-    spelled out; a new field makes this fail loudly)."""
-    c = columns
-    return ActuatorArrays(c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12])
+def _unpacking(fields: tuple[str, ...]):
+    """`parameters_of` written out for `fields`: compiled code cannot splat an array into a NamedTuple, so the
+    function that indexes each row is generated from the one list of the torque law's coefficients."""
+    rows = ", ".join(f"columns[{i}]" for i in range(len(fields)))
+    namespace = {"ActuatorArrays": ActuatorArrays}
+    exec(compile(f"def parameters_of(columns):\n    return ActuatorArrays({rows})\n", f"<{__name__}>", "exec"),
+         namespace)
+    unpack = namespace["parameters_of"]
+    unpack.__doc__ = ("`ActuatorArrays` from one robot's (fields, n_motors) parameter array (arrays), or one motor's "
+                      "(fields,) column (floats), in field order.")
+    return unpack
+
+
+parameters_of = compilable(_unpacking(ActuatorArrays._fields))
 
 
 @compilable

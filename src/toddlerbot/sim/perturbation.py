@@ -19,8 +19,12 @@ from toddlerbot.actuation.catalogue import Catalogue
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
-SCALED_MOTOR_PARAMS = ("damping", "armature", "frictionloss", "tau_max", "q_dot_max", "kd_min", "tau_brake")
-"""Actuator parameters `Perturbation.motor_scale` multiplies (one factor per motor model and parameter)."""
+
+def scaled_parameters(params: object) -> tuple[str, ...]:
+    """The actuator parameters `Perturbation.motor_scale` multiplies for a motor of these parameters: its model's
+    table rows marked ``perturbed`` (appendix: damping, armature, frictionloss, tau_max, q_dot_max, kd_min,
+    tau_brake)."""
+    return tuple(p.name for p in type(params).parameters if p.perturbed)
 
 
 @dataclass(frozen=True)
@@ -44,7 +48,7 @@ class Perturbation:
     friction: float | None = None
     """Sliding friction of the floor and every robot geom (MuJoCo takes the larger of a pair); None: the model's."""
     motor_scale: tuple[tuple[str, str, float], ...] = ()
-    """(motor model, parameter, factor) entries applied to the catalogue (`SCALED_MOTOR_PARAMS`)."""
+    """(motor model, parameter, factor) entries applied to the catalogue (`scaled_parameters`)."""
     kick_speed: float = 0.0
     """Horizontal velocity change of each kick, m/s, in a uniformly random direction (0: no kicks)."""
     kick_timing: KickTiming = KickTiming()
@@ -58,10 +62,10 @@ class Perturbation:
         offsets = rng.uniform(-joint_offset, joint_offset, description.n_motors)
         scale = float(rng.uniform(1 - mass, 1 + mass))
         mu = float(rng.uniform(*friction))
-        models = sorted({m.model for m in description.motors})
-        factors = rng.uniform(1 - motor, 1 + motor, (len(models), len(SCALED_MOTOR_PARAMS)))
-        motor_scale = tuple((model, param, float(factors[i, j])) for i, model in enumerate(models)
-                            for j, param in enumerate(SCALED_MOTOR_PARAMS))
+        motor_scale = tuple(
+            (model, param, float(factor)) for model in sorted({m.model for m in description.motors})
+            for params in [scaled_parameters(description.catalogue[model].actuator)]
+            for param, factor in zip(params, rng.uniform(1 - motor, 1 + motor, len(params)), strict=True))
         return cls(seed=seed, joint_offset=tuple(float(x) for x in offsets), torso_mass_scale=scale, friction=mu,
                    motor_scale=motor_scale, kick_speed=kick_speed)
 

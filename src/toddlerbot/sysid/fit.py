@@ -11,7 +11,7 @@ values reach the same parameters with it (1.93 deg on kp 400 from both) and diff
 2.38 deg).
 
 CMA-ES (the ``cma`` package) searches the unit cube mapped onto the parameters' fit bounds
-(`toddlerbot.actuation.parameters.PARAMETERS`; log-scaled for the positive, multi-decade parameters), the first run
+(each motor model's parameter table; log-scaled for the positive, multi-decade parameters), the first run
 starting from the catalogue's values for the motor (converted to the fitted model where the catalogue has the other
 one, `toddlerbot.sysid.params.start_params`). Each generation
 is evaluated as one vectorised simulation of all candidates x all runs. A run that stagnates (its best loss improves
@@ -83,7 +83,7 @@ def fit(
     sigma0: float = 0.25, restarts: int = 4, dt: float = DT, start: MotorParams | None = None,
     progress: Callable[[int, float], None] | None = None,
 ) -> FitResult:
-    """Fit ``model``'s parameters (`toddlerbot.sysid.params.FIT_MODELS`: ``dc_motor``, ``appendix``, whose 9
+    """Fit ``model``'s parameters (`toddlerbot.sysid.params.fit_models`: ``dc_motor``, ``appendix``, whose 9
     parameters ``extended`` adds stiction, Stribeck velocity and load friction to; plus the gain conversion if
     asked) to the manifest's runs.
 

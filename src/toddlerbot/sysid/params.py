@@ -1,5 +1,6 @@
-"""What a fit searches: the fitted models, the unit cube over the parameters' fit bounds (from
-`toddlerbot.actuation.parameters.PARAMETERS`), candidate matrices, ``params.json``.
+"""What a fit searches: the fitted models (each registered motor model's fits), the unit cube over the parameters'
+fit bounds (from the models' parameter tables, `toddlerbot.actuation.motor_models.all_parameters`), candidate
+matrices, ``params.json``.
 
 A ``params.json`` (written by ``toddlerbot sysid fit``) holds ``{"motor": <catalogue name>, "actuator": {"model":
 name, every field of that model}, "fitted": [names], "fit": {...provenance, uncertainty...}}``.
@@ -18,17 +19,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from toddlerbot.actuation.catalogue import ActuatorParams, params_dict
-from toddlerbot.actuation.dc_motor import DCMotorParams
+from toddlerbot.actuation.catalogue import params_dict
 from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.actuation.motor_models import all_parameters, fits
 from toddlerbot.actuation.motor_params import MotorParams
-from toddlerbot.actuation.parameters import PARAMETERS
 from toddlerbot.files import atomic_write_text
 from toddlerbot.sysid.errors import SysIDError
 
 
 class SearchRange(NamedTuple):
-    """Where the fit looks for one parameter (of `PARAMETERS`)."""
+    """Where the fit looks for one parameter."""
 
     low: float
     high: float
@@ -37,13 +37,18 @@ class SearchRange(NamedTuple):
     unit: str
 
 
-SEARCH: dict[str, SearchRange] = {p.name: SearchRange(p.lower, p.upper, p.log, p.unit) for p in PARAMETERS.values()}
-"""Search range of every parameter: its fit bounds in `PARAMETERS` (q_dot_max and tau_q_dot_max: of the span /
-fraction they are searched as, see `SEARCHED_AS`)."""
+def search_range(name: str) -> SearchRange:
+    """Where the fit looks for parameter ``name``: its fit bounds in its model's table (q_dot_max and
+    tau_q_dot_max: of the span / fraction they are searched as, see `searched_as`)."""
+    p = all_parameters()[name]
+    return SearchRange(p.lower, p.upper, p.log, p.unit)
 
-SEARCHED_AS = {p.name: f" above {p.span_above}" if p.span_above else f" x {p.fraction_of}"
-               for p in PARAMETERS.values() if p.span_above or p.fraction_of}
-"""How the ranges of the parameters not searched directly apply."""
+
+def searched_as(name: str) -> str:
+    """How parameter ``name``'s search range applies: ``" above q_dot_tau_max"``, ``" x tau_max"``, or ``""`` (to
+    its value)."""
+    p = all_parameters()[name]
+    return f" above {p.span_above}" if p.span_above else f" x {p.fraction_of}" if p.fraction_of else ""
 
 BOUND_MARGIN = 0.01
 """A fitted parameter within this share of its searched range (the unit cube, log-scaled where the search is) of
@@ -52,43 +57,35 @@ a bound is reported as at that bound."""
 
 @dataclass(frozen=True)
 class FitModel:
-    """One model `sysid fit --model` can fit: its parameter class and what is fitted, what is not and why."""
+    """One model `sysid fit --model` can fit: its parameter class and what is fitted, what is not and why (a
+    registered motor model's `toddlerbot.actuation.motor_models.Fit`)."""
 
     name: str
-    params_class: type[ActuatorParams] | type[DCMotorParams]
+    params_class: type
     fitted: tuple[str, ...]
-    """Always fitted."""
+    """Always fitted, in the CMA-ES vector's order."""
     gain_parameter: str
     """The firmware-to-physical gain conversion, fitted with ``--fit-kp-scale`` (else kept from the start)."""
     fixed: dict[str, str]
     """Parameters of the class the fit leaves as they start, with the reason."""
 
 
-# which parameters each model fits and in what order (the CMA-ES vector's: reordering changes a seeded fit); their
-# bounds, scales and units are the table's
-APPENDIX = ("damping", "frictionloss", "armature", "tau_max", "q_dot_tau_max", "tau_q_dot_max", "q_dot_max",
-            "kd_min", "tau_brake")
-FIT_MODELS: dict[str, FitModel] = {
-    "dc_motor": FitModel(
-        "dc_motor", DCMotorParams,
-        ("stall_torque", "no_load_speed", "pwm_exponent", "load_friction", "frictionloss", "damping", "armature"),
-        "pwm_per_rad", {}),
-    "appendix": FitModel(
-        "appendix", ActuatorParams, APPENDIX, "kp_scale",
-        {"stiction": "the 9-parameter model of the appendix has none", "stribeck_velocity": "no stiction",
-         "load_friction": "the 9-parameter model of the appendix has none"}),
-    "extended": FitModel(
-        "extended", ActuatorParams, (*APPENDIX, "stiction", "stribeck_velocity", "load_friction"), "kp_scale", {}),
-}
-"""The fitted models; the first is `sysid fit`'s default (docs/sysid.md: the one that holds on real servos)."""
-DEFAULT_MODEL = next(iter(FIT_MODELS))
+def fit_models() -> dict[str, FitModel]:
+    """What `sysid fit --model` takes: every registered motor model's fits."""
+    return {name: FitModel(name, cls, fit.fitted, fit.gain_parameter, dict(fit.fixed))
+            for name, (cls, fit) in fits().items()}
+
+
+DEFAULT_MODEL = "dc_motor"
+"""`sysid fit`'s default (docs/sysid.md: the one that holds on real servos)."""
 
 
 def fit_model(name: str) -> FitModel:
     """The `FitModel` called ``name``; raise `SysIDError` naming the known ones."""
-    if name not in FIT_MODELS:
-        raise SysIDError(f"unknown model {name!r}; expected one of {', '.join(FIT_MODELS)}")
-    return FIT_MODELS[name]
+    models = fit_models()
+    if name not in models:
+        raise SysIDError(f"unknown model {name!r}; expected one of {', '.join(models)}")
+    return models[name]
 
 
 def parameter_names(fit_kp_scale: bool, model: str = DEFAULT_MODEL) -> tuple[str, ...]:
@@ -99,31 +96,14 @@ def parameter_names(fit_kp_scale: bool, model: str = DEFAULT_MODEL) -> tuple[str
 
 def start_params(model: str, params: MotorParams) -> MotorParams:
     """The start of a ``model`` fit from a motor's parameters (its catalogue entry or ``--start``): the same
-    parameters where the model matches, else the same motor in the other model's terms (`dc_motor_like`,
-    `appendix_like`)."""
+    parameters where the model matches, else the same motor in the fitted model's terms (its ``like``)."""
     cls = fit_model(model).params_class
     if isinstance(params, cls):
         return params
-    return dc_motor_like(params) if cls is DCMotorParams else appendix_like(params)
-
-
-def dc_motor_like(p: ActuatorParams) -> DCMotorParams:
-    """The DC motor closest to an appendix-model motor: its torque from rest and physical gain, the no-load speed
-    where its torque-speed line (through the two breakpoints of Eq. 9) reaches zero, its passive terms."""
-    slope = (p.tau_max - p.tau_q_dot_max) / (p.q_dot_max - p.q_dot_tau_max)
-    no_load = p.q_dot_tau_max + p.tau_max / slope if slope > 0 else p.q_dot_max
-    return DCMotorParams(damping=p.damping, armature=p.armature, frictionloss=p.frictionloss,
-                         stall_torque=p.tau_max, no_load_speed=no_load, pwm_per_rad=1.0 / (p.kp_scale * p.tau_max),
-                         load_friction=p.load_friction)
-
-
-def appendix_like(p: DCMotorParams) -> ActuatorParams:
-    """The appendix-model motor closest to a DC motor: its stall torque falling linearly to zero at the no-load
-    speed (Eq. 9 with the knee at rest), braking at the stall torque, its gain, no kd_min."""
-    return ActuatorParams(damping=p.damping, armature=p.armature, frictionloss=p.frictionloss,
-                          tau_max=p.stall_torque, q_dot_tau_max=0.0, q_dot_max=p.no_load_speed, tau_q_dot_max=0.0,
-                          kd_min=p.back_emf_damping, tau_brake=p.stall_torque, kp_scale=p.kp_scale,
-                          load_friction=p.load_friction)
+    try:
+        return cls.like(params)
+    except ValueError as exc:
+        raise SysIDError(f"--model {model}: {exc}") from None
 
 
 def at_bounds(u: np.ndarray, names: Sequence[str]) -> dict[str, str]:
@@ -141,7 +121,7 @@ def at_bounds(u: np.ndarray, names: Sequence[str]) -> dict[str, str]:
 def searched_value(name: str, params: MotorParams) -> float:
     """The value the optimiser sees for ``name``: its value, or its span or fraction (`ParameterDef.span_above`,
     `ParameterDef.fraction_of`)."""
-    p = PARAMETERS[name]
+    p = all_parameters()[name]
     if p.span_above:
         return getattr(params, name) - getattr(params, p.span_above)
     if p.fraction_of:
@@ -153,7 +133,7 @@ def to_unit(params: MotorParams, names: Sequence[str]) -> np.ndarray:
     """Parameters -> point of the unit cube the optimiser searches (clipped into the ranges)."""
     u = []
     for name in names:
-        lo, hi, log, _ = SEARCH[name]
+        lo, hi, log, _ = search_range(name)
         value = min(max(searched_value(name, params), lo), hi)
         u.append(np.log(value / lo) / np.log(hi / lo) if log else (value - lo) / (hi - lo))
     return np.clip(np.array(u), 0.0, 1.0)
@@ -163,7 +143,7 @@ def to_unit(params: MotorParams, names: Sequence[str]) -> np.ndarray:
 class Candidates:
     """P parameter sets of one model, field by field: what a fit's generation simulates at once."""
 
-    params_class: type[ActuatorParams] | type[DCMotorParams]
+    params_class: type
     fields: dict[str, np.ndarray]
     """Every field of the class, each an array of shape (P,)."""
 
@@ -193,10 +173,10 @@ def from_unit(u: np.ndarray, names: Sequence[str], base: MotorParams) -> Candida
     u = np.atleast_2d(np.clip(u, 0.0, 1.0))
     out = {f.name: np.full(len(u), float(getattr(base, f.name))) for f in dataclasses.fields(base)}
     for i, name in enumerate(names):
-        lo, hi, log, _ = SEARCH[name]
+        lo, hi, log, _ = search_range(name)
         out[name] = lo * (hi / lo) ** u[:, i] if log else lo + u[:, i] * (hi - lo)
     for name in names:  # spans and fractions back to values, once every searched value is in
-        p = PARAMETERS[name]
+        p = all_parameters()[name]
         if p.span_above:
             out[name] = out[name] + out[p.span_above]
         elif p.fraction_of:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from toddlerbot.sysid.batch import Replay, RunBatch
-from toddlerbot.sysid.params import SEARCH
+from toddlerbot.sysid.params import search_range
 
 STEP = 1e-3
 """Finite-difference step in the unit cube."""
@@ -81,7 +81,7 @@ def local_uncertainty(replay: Callable[[np.ndarray], Replay], batch: RunBatch, u
     correlation = covariance / np.maximum(np.outer(sigma, sigma), 1e-300)
     out = {}
     for i, name in enumerate(names):
-        lo, hi, log, _ = SEARCH[name]
+        lo, hi, log, _ = search_range(name)
         value = values[name]
         if log:  # sigma of u is sigma of ln(value) / ln(hi / lo)
             relative = float(sigma[i] * np.log(hi / lo))
