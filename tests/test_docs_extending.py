@@ -30,6 +30,16 @@ def restored_tasks(monkeypatch):
 
 
 @pytest.fixture
+def restored_motor_models(monkeypatch):
+    """The actuator model the guide registers, only for the test."""
+    from toddlerbot.actuation.motor_models import MOTOR_MODELS
+
+    MOTOR_MODELS.names()
+    monkeypatch.setattr(MOTOR_MODELS, "_targets", dict(MOTOR_MODELS._targets))
+    monkeypatch.setattr(MOTOR_MODELS, "_resolved", dict(MOTOR_MODELS._resolved))
+
+
+@pytest.fixture
 def restored_skills(monkeypatch):
     """The skill kinds the guide registers last only for the test (as `restored_registries` does for policies)."""
     from toddlerbot.skills import SKILLS
@@ -40,9 +50,9 @@ def restored_skills(monkeypatch):
 
 
 def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, restored_registries, restored_skills,
-                                                        restored_tasks):
+                                                        restored_tasks, restored_motor_models):
     blocks = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), flags=re.S | re.M)
-    assert len(blocks) == 10  # motor model (3), policy (2), variant (1), task (2), skill (2)
+    assert len(blocks) == 12  # motor model (3), actuator model (2), policy (2), variant (1), task (2), skill (2)
     monkeypatch.chdir(tmp_path)  # the blocks write their example files to the current folder
     namespace: dict = {"__name__": "extending_guide"}
     for number, block in enumerate(blocks, 1):
@@ -52,6 +62,7 @@ def test_every_python_block_of_the_extending_guide_runs(tmp_path, monkeypatch, r
 
     assert "look" in SKILLS  # registered by the guide, for chain files
     assert namespace["progress"].succeeded and namespace["reach"].distance() < 0.02
+    assert abs(namespace["fitted"].torque_limit - 0.6) < 0.01
 
 
 def _block(language: str, containing: str) -> str:
@@ -60,12 +71,12 @@ def _block(language: str, containing: str) -> str:
     return block
 
 
-def _installed(tmp_path: Path, module: str, containing: str, group: str):
-    """The guide's block `containing` as `module`.py with the guide's pyproject entry points of `group`, installed
-    as pip installs them (the module beside a dist-info folder whose entry_points.txt lists the group): a function
-    running ``toddlerbot ARGS`` in a process that sees them."""
+def _installed(tmp_path: Path, module: str, containing: str, group: str, toml: str | None = None):
+    """The guide's block `containing` as `module`.py with the guide's pyproject entry points of `group` (or those
+    of `toml`), installed as pip installs them (the module beside a dist-info folder whose entry_points.txt lists the
+    group): a function running ``toddlerbot ARGS`` in a process that sees them."""
     (tmp_path / f"{module}.py").write_text(_block("python", containing))
-    groups = tomllib.loads(_block("toml", group))["project"]["entry-points"]
+    groups = tomllib.loads(toml or _block("toml", group))["project"]["entry-points"]
     dist_info = tmp_path / f"{module}-0.1.dist-info"
     dist_info.mkdir()
     (dist_info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
@@ -120,3 +131,33 @@ def test_a_task_added_as_the_guide_says_is_one_file_and_one_registration_that_ev
     unknown = toddlerbot("manip", "demo-rate", "--task", "kitchen")
     known = " ".join(unknown.stderr.split()).partition("expected one of ")[2]
     assert unknown.returncode == 2 and set(known.split(", ")) == {"pick", "wagon", "reach"}
+
+
+def test_an_actuator_model_added_as_the_guide_says_fits_and_simulates_from_the_command_line(tmp_path):
+    """The guide's actuator model, one file and one entry point: `sysid excite --simulate` with its parameters
+    writes logs, `sysid fit --model linear` recovers them, and `sim run --motor-params` walks a robot whose XC330s
+    are of it; a catalogue or params.json naming an unknown model is one line naming the registered ones."""
+    import json
+
+    (tmp_path / "pyproject.toml").write_text('[project.entry-points."toddlerbot.motor_models"]\n'
+                                             'linear = "my_motor_model:LinearParams"\n')
+    toddlerbot = _installed(tmp_path, "my_motor_model", "class _LinearModel", "toddlerbot.motor_models",
+                            toml=(tmp_path / "pyproject.toml").read_text())
+    truth = {"model": "linear", "damping": 0.004, "armature": 0.004, "frictionloss": 0.03,
+             "stiffness_per_kp": 1 / 150, "torque_limit": 0.6}
+    (tmp_path / "truth.json").write_text(json.dumps({"motor": "XC330", "actuator": truth}))
+    steps = [("sysid", "excite", "--motor", "XC330", "-o", "runs", "--profile", "chirp", "--profile", "steps",
+              "--profile", "sinusoids", "--kp", "100", "--kp", "400", "--duration", "4", "--rig",
+              '{"type": "pendulum", "mass": 0.49, "length": 0.1}', "--simulate", "--params", "truth.json"),
+             ("sysid", "fit", "runs/manifest.json", "--model", "linear", "--evals", "1200", "-o", "fitted.json"),
+             ("sim", "run", "--policy", "walk-zmp", "--seconds", "3", "--motor-params", "fitted.json")]
+    for args in steps:
+        done = toddlerbot(*args)
+        assert done.returncode == 0, (args, done.stdout + done.stderr)
+    fitted = json.loads((tmp_path / "fitted.json").read_text())["actuator"]
+    assert fitted["model"] == "linear" and abs(fitted["torque_limit"] - 0.6) < 0.01
+    assert "no fall" in done.stdout
+    (tmp_path / "bad.json").write_text(json.dumps({"motor": "XC330", "actuator": {**truth, "model": "cubic"}}))
+    unknown = toddlerbot("model", "info", "--motor-params", "bad.json")
+    assert unknown.returncode == 2 and "unknown actuator model 'cubic'; expected one of appendix, dc_motor, linear" \
+        in " ".join(unknown.stderr.split())
