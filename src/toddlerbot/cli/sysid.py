@@ -19,7 +19,7 @@ from toddlerbot.cli.output_paths import not_an_input, output_dir, output_file
 from toddlerbot.cli.sysid_record import Profile, excitation_runs, profile_names, record_command
 from toddlerbot.sysid.errors import SysIDError
 from toddlerbot.sysid.evaluate import evaluate, plot_tracking
-from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES
+from toddlerbot.sysid.excitation import DEFAULT_KP, DEFAULT_PROFILES, SAMPLE_HZ
 from toddlerbot.sysid.fit import DEFAULT_EVALS
 from toddlerbot.sysid.fit import fit as run_fit
 from toddlerbot.sysid.fit_run import fit_provenance, params_for
@@ -159,7 +159,7 @@ def excite(
     profile: Annotated[list[Profile] | None, typer.Option("--profile", help="Repeatable.")] = None,
     kp: Annotated[list[int] | None, typer.Option("--kp", help="Firmware kp values to cycle (repeatable).")] = None,
     seconds: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
-    rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = 200.0,
+    rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = SAMPLE_HZ,
     amplitude: Annotated[float, typer.Option("--amplitude", help="Goal amplitude, rad.")] = 0.5,
     center: Annotated[float, typer.Option("--center", help="Goal centre, rad.")] = 0.0,
     simulate: Annotated[bool, typer.Option("--simulate", help="Also simulate the runs (synthetic logs).")] = False,

@@ -16,7 +16,7 @@ from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.robot.safety import MAX_FIRMWARE_GAIN
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.excitation import PROFILES, Excitation, excitation_set
+from toddlerbot.sysid.excitation import PROFILES, SAMPLE_HZ, Excitation, excitation_set
 from toddlerbot.sysid.logs import MAX_DURATION_S
 from toddlerbot.sysid.rigs import Rig, parse_rig
 
@@ -84,7 +84,7 @@ def record_command(
     profile: ProfileOption = None,
     kp: KpOption = None,
     seconds: Annotated[float, typer.Option("--duration", help="Seconds per run.")] = 6.0,
-    rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = 200.0,
+    rate: Annotated[float, typer.Option("--rate", help="Sample rate, Hz.")] = SAMPLE_HZ,
     amplitude: Annotated[float, typer.Option("--amplitude", help="Goal amplitude, rad.")] = 0.5,
     settle: Annotated[float, typer.Option("--settle", help="Seconds to reach the first goal of each run.")] = 1.0,
     baudrate: Annotated[int, typer.Option("--baudrate", help="Bus baud rate.")] = 2_000_000,

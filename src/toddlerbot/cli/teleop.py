@@ -12,6 +12,7 @@ from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, seed_opt
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.robot.interface import CONTROL_DT, CONTROL_HZ
 from toddlerbot.teleop.launch import MAX_TELEOP_SECONDS, teleop_tasks
 
 app = typer.Typer(help="Teleoperation: game controller (Table 4), keyboard, leader-follower arms; record episodes.",
@@ -121,7 +122,7 @@ def leader(
     calibration: Annotated[Path, typer.Option("--calibration", help="Leader calibration YAML (zero offsets).")],
     link: Annotated[str | None, typer.Option("--link", help="Endpoint to publish on (bind; default: the local "
                                              "one, manipulation.link.DEFAULT_ENDPOINT).")] = None,
-    rate: Annotated[float, typer.Option("--rate", help="Read/publish rate, Hz.")] = 50.0,
+    rate: Annotated[float, typer.Option("--rate", help="Read/publish rate, Hz.")] = CONTROL_HZ,
 ) -> None:
     """Leader side: read the leader arms (torque off) and publish their angles until Ctrl-C."""
     import threading
@@ -176,4 +177,4 @@ def probe(
             if a != b:
                 console.print(f"hat {i}: {b}")
         last = state
-        time.sleep(0.02)
+        time.sleep(CONTROL_DT)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from toddlerbot.robot.interface import CONTROL_DT
+from toddlerbot.tasks.space import POLICY_HZ
 
 
 @dataclass(frozen=True)
@@ -23,8 +24,8 @@ class ActionChunker:
     """Leading actions skipped."""
     n_action_steps: int = 5
     """Actions executed (each for one policy period)."""
-    policy_dt: float = 0.1
-    """Period of the chunk's actions, s (10 Hz)."""
+    policy_dt: float = 1.0 / POLICY_HZ
+    """Period of the chunk's actions, s."""
     control_dt: float = CONTROL_DT
     """Period of the control loop, s."""
 

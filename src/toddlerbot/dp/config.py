@@ -6,6 +6,7 @@ import json
 from dataclasses import asdict, dataclass, fields, replace
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.tasks.space import POLICY_HZ
 
 ENCODERS = ("resnet18", "small_cnn", "none")
 SAMPLERS = ("ddpm", "ddim")
@@ -35,7 +36,7 @@ class DPConfig:
     """Leading actions skipped at execution (their time has passed while inference ran)."""
     n_action_steps: int = 5
     """Actions executed per inference, after the dropped ones."""
-    policy_hz: float = 10.0
+    policy_hz: float = float(POLICY_HZ)
     """Rate of observations and predicted actions, Hz."""
     image_size: int = 96
     """Side of the square head-camera image, pixels."""

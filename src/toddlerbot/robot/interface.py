@@ -17,9 +17,11 @@ from toddlerbot.robot.safety import CommandGuard
 from toddlerbot.robot.spec import RobotSpec
 from toddlerbot.robot.transmission import TransmissionMap
 
-CONTROL_DT = 0.02
-"""The control period, s (50 Hz, appendix): the default of every backend, policy, training environment and command
-that runs a control loop."""
+CONTROL_HZ = 50
+"""The control rate, Hz (appendix 8.5, 8.11): the default of every backend, policy, training environment and command
+that runs a control loop, the leader arms' publishing rate included."""
+CONTROL_DT = 1.0 / CONTROL_HZ
+"""The control period, s."""
 FALL_TILT_RAD = 1.0
 """Torso tilt from upright (angle between its z axis and the world's), rad, beyond which a robot has fallen:
 the simulator's fall detector and the real robot's (from its IMU) use this one threshold."""

@@ -19,7 +19,7 @@ from toddlerbot.runtime.runner import RunObserver, run_policy
 from toddlerbot.skills.runner import ChainRunner, time_limit
 from toddlerbot.skills.sim_observers import ChainVideo, GripMargin, GripObserver
 from toddlerbot.skills.spec import ChainSpec
-from toddlerbot.tasks import make_task
+from toddlerbot.tasks import make_task, task_description
 from toddlerbot.tasks.base import StartPerturbation
 from toddlerbot.tasks.predicates import GraspedParams, LiftedParams, MovedParams
 from toddlerbot.tasks.probe import SceneProbe
@@ -92,7 +92,7 @@ def scene_robot(chain: ChainSpec, seed: int, description: RobotDescription,
 def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
                description: RobotDescription | None = None,
                perturbation: StartPerturbation = StartPerturbation()) -> SimChainResult:
-    description = description or RobotDescription.load(variant="gripper")
+    description = task_description(description)
     robot, start = scene_robot(chain, seed, description, perturbation)
     model = robot.model
     probe = SceneProbe(model, robot.data)

@@ -18,6 +18,7 @@ from toddlerbot.robot.interface import Observation
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.skills.library import GraspParams, ScriptedGrasp, SkillEnv, grasp_gains
 from toddlerbot.skills.spec import load_chain
+from toddlerbot.tasks import task_description
 from toddlerbot.tasks.base import StartPerturbation, Task
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.predicates import Context, holds
@@ -48,10 +49,7 @@ class WagonTask(Task):
     add_scene = staticmethod(add_wagon_scene)
 
     def __init__(self, description: RobotDescription | None = None) -> None:
-        description = description or RobotDescription.load(variant="gripper")
-        if description.spec.variant != "gripper":
-            description = description.with_variant("gripper")
-        self.description = description
+        self.description = description = task_description(description)
         chain = load_chain(CHAIN, description.groups)
         grasp = next(s for s in chain.skills if s.name == GRASP_SKILL)
         self.grasp_params: GraspParams = grasp.params  # type: ignore[assignment]

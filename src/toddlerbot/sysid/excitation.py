@@ -25,6 +25,8 @@ import numpy as np
 from toddlerbot.sysid.errors import SysIDError
 
 DEFAULT_KP = (400, 900, 1500, 2100)
+SAMPLE_HZ = 200.0
+"""Sample rate of the excitation profiles and of a recording, Hz (the real servo logs' 200 Hz)."""
 """Firmware P gains to cycle through (the robot's motors run at 350-2700)."""
 
 
@@ -98,7 +100,7 @@ class Excitation:
         return f"{self.profile}_kp{self.kp}"
 
 
-def excitation(profile: str, duration: float = 6.0, rate: float = 200.0, amplitude: float = 0.5,
+def excitation(profile: str, duration: float = 6.0, rate: float = SAMPLE_HZ, amplitude: float = 0.5,
                center: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """(time s, goal position rad) of one profile sampled at ``rate`` Hz around ``center`` rad."""
     if profile not in PROFILES:
@@ -110,7 +112,7 @@ def excitation(profile: str, duration: float = 6.0, rate: float = 200.0, amplitu
 
 
 def excitation_set(profiles: tuple[str, ...] = DEFAULT_PROFILES, kp_values: tuple[int, ...] = DEFAULT_KP,
-                   duration: float = 6.0, rate: float = 200.0, amplitude: float = 0.5,
+                   duration: float = 6.0, rate: float = SAMPLE_HZ, amplitude: float = 0.5,
                    center: float = 0.0) -> list[Excitation]:
     """Every profile at every kp value."""
     out = []

@@ -23,8 +23,15 @@ GRIPPER = "gripper"
 """The robot variant every task is built for (parallel-jaw grippers instead of hands)."""
 
 
+def task_description(description: RobotDescription | None = None) -> RobotDescription:
+    """`description` as the gripper variant every task is built for (default: the packaged robot's)."""
+    from toddlerbot.robot.description import RobotDescription
+
+    if description is None:
+        return RobotDescription.load(variant=GRIPPER)
+    return description if description.spec.variant == GRIPPER else description.with_variant(GRIPPER)
+
+
 def make_task(name: str, description: RobotDescription | None = None):
     """The task registered as `name`, on `description` as its gripper variant (default: the packaged robot's)."""
-    if description is not None and description.spec.variant != GRIPPER:
-        description = description.with_variant(GRIPPER)
-    return TASKS.get(name)(description)
+    return TASKS.get(name)(task_description(description))

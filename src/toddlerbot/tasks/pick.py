@@ -22,6 +22,7 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, Observation, Robot
 from toddlerbot.runtime.runner import Step
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+from toddlerbot.tasks import task_description
 from toddlerbot.tasks.base import StartPerturbation, Task, TaskProgress, TaskRobot
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.demonstrator import DemoConfig, ScriptedPicker
@@ -102,10 +103,7 @@ class PickTask(Task):
 
     def __init__(self, description: RobotDescription | None = None, config: PickConfig | None = None) -> None:
         self.config = config or PickConfig()
-        description = description or RobotDescription.load(variant="gripper")
-        if description.spec.variant != "gripper":
-            description = description.with_variant("gripper")
-        self.description = description
+        self.description = description = task_description(description)
         self.model = scene_model(description, "pick")
         self.robot = MuJoCoRobot(description, SimConfig(control_dt=self.config.control_dt), model=self.model)
         self.space = ManipulationSpace.of(description)

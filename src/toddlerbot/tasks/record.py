@@ -23,9 +23,11 @@ from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.tasks import make_task
 from toddlerbot.tasks.base import Task, TaskRobot
 from toddlerbot.tasks.camera import CAMERA_EVERY, blank_image
+from toddlerbot.tasks.space import POLICY_HZ
 from toddlerbot.tasks.video import SideBySideVideo, write_png
 
-DATASET_FPS = 10
+DATASET_FPS = POLICY_HZ
+"""Frames per second of a recorded dataset: the policy's rate."""
 
 
 @dataclass

@@ -93,10 +93,10 @@ class WagonLayout:
 def scene_model(description: RobotDescription, scene: str) -> mujoco.MjModel:
     """Compile the scene of the task registered as `scene` for a gripper-variant description (an unknown name is
     the registry's one-line error naming the known ones)."""
-    from toddlerbot.tasks import TASKS
+    from toddlerbot.tasks import GRIPPER, TASKS
 
     task = TASKS.get(scene)
-    if description.spec.variant != "gripper":
+    if description.spec.variant != GRIPPER:
         raise ValueError(f"the {scene} scene needs the gripper variant, got variant {description.spec.variant!r}")
     mj = build_mjspec(description.spec, "floating", scene=True, catalogue=description.catalogue)
     home = np.array(mj.key("home").qpos, dtype=float)

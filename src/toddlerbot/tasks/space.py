@@ -10,6 +10,9 @@ import numpy as np
 from toddlerbot.robot.description import RobotDescription
 
 UPPER_BODY_GROUPS = ("neck", "waist", "arm")
+POLICY_HZ = 10
+"""Rate of a manipulation episode's recorded observations and actions, and of the diffusion policy's steps, Hz
+(appendix 8.12: the joint angles downsampled to 10 Hz for training)."""
 
 
 @dataclass(frozen=True)

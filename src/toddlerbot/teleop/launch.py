@@ -14,6 +14,7 @@ from toddlerbot.policies.base import Policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Robot
 from toddlerbot.runtime.runner import RunObserver, WallClock, run_policy
+from toddlerbot.tasks import task_description
 from toddlerbot.teleop.follower import ArmFollower
 from toddlerbot.teleop.link import LinkSubscriber
 from toddlerbot.teleop.session import CommandSource
@@ -45,7 +46,7 @@ def teleop_tasks() -> tuple[str, ...]:
 def sim_robot(task: str, seed: int, description: RobotDescription | None = None) -> TeleopRobot:
     """The simulated robot of a teleop task (gripper variant): the floor, or the registered task's teleop robot in
     its scene (`Task.teleop_robot`; a mounted task's torso stays at its table: no walking)."""
-    description = description or RobotDescription.load(variant="gripper")
+    description = task_description(description)
     if task == WALK:
         from toddlerbot.sim.mujoco_robot import MuJoCoRobot
         from toddlerbot.tasks.camera import HeadCamera

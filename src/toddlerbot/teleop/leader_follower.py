@@ -16,12 +16,12 @@ import numpy as np
 from toddlerbot.hardware.driver import BusLostError, HardwareError
 from toddlerbot.hardware.leader import LeaderArms
 from toddlerbot.policies.base import Action, Policy
-from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.robot.interface import CONTROL_HZ, Observation, Robot
 from toddlerbot.teleop.follower import ArmFollower
 from toddlerbot.teleop.link import LinkPublisher, LinkSubscriber
 
 
-def stream_leader(leader: LeaderArms, publisher: LinkPublisher, stop: threading.Event, rate_hz: float = 50.0,
+def stream_leader(leader: LeaderArms, publisher: LinkPublisher, stop: threading.Event, rate_hz: float = CONTROL_HZ,
                   on_error=None) -> int:
     """Read the leader and publish its angles at `rate_hz` until `stop` is set; returns the messages sent. Raises
     `BusLostError` (after publishing an error message) when the leader's port is gone."""
