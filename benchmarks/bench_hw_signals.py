@@ -5,7 +5,7 @@ The emulator runs as `toddlerbot hw emulate` in its own process. Each trial fork
 this (pre-imported, thread-free) one, so a trial costs the run itself rather than Python's start-up; the child
 runs the real CLI entry point. After a random delay (uniform over start-up, torque-on, the reset ramp and the
 run) it gets SIGINT; once it has exited, this process reads Torque Enable and Goal Position of every motor back
-over the bus with the official SDK. Odd trials use ``--dt 1e-9`` so that nearly all the time is spent inside bus
+over the bus with the official SDK. Odd trials use ``--control-hz 1000`` so that nearly all the time is spent inside bus
 transactions (the case where an interrupt used to leave the SDK port marked busy and every motor powered).
 ``--spawn`` starts every trial as a fresh interpreter instead, so the signals also land in Python's start-up and the
 CLI's imports (where third-party code once swallowed one).
@@ -113,7 +113,7 @@ def main() -> None:
             checker.write_goal_positions(checker.read_state().position)
         for trial in range(args.trials):
             argv = ["hw", "run", "--port", port, "--calibration", str(cal_file), "--imu", "none", "--policy", "stand",
-                    "--seconds", "2", "--latency-ms", "50"] + (["--dt", "1e-9"] if trial % 2 else [])
+                    "--seconds", "2", "--latency-ms", "50"] + (["--control-hz", "1000"] if trial % 2 else [])
             if args.spawn:
                 with (work / "trial.log").open("w") as log:
                     proc = subprocess.Popen([sys.executable, "-m", "toddlerbot.cli.main", *argv], stdout=log,

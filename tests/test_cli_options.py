@@ -42,6 +42,9 @@ def _error(app, args: list[str]) -> str:
     ("--dt", "nan", "--dt nan: expected a duration in (0, 0.1] seconds"),
     ("--dt", "1e400", "--dt inf: expected"),
     ("--dt", "5", "--dt 5: expected a duration in (0, 0.1] seconds"),
+    ("--control-hz", "nan", "--control-hz nan: expected a number of Hz in [10, 1000]"),
+    ("--control-hz", "5", "--control-hz 5: expected a number of Hz in [10, 1000]"),  # the Bus Watchdog's 0.1 s
+    ("--control-hz", "1e9", "--control-hz 1e+09: expected a number of Hz in [10, 1000]"),
     ("--latency-ms", "0", "--latency-ms 0: expected a duration in (0, 1000] milliseconds"),
     ("--latency-ms", "5000", "--latency-ms 5000: expected a duration in (0, 1000] milliseconds"),
 ])
@@ -125,3 +128,16 @@ def test_eval_tracking_asymmetric_runs_walk_rl_alone():
     alone = evaluate_policy(RobotDescription.load(), "walk-rl", "0:0,0.05,0", 3.0, symmetric=False).summary()
     assert runs[True]["position_m"] == pytest.approx(alone["position_m"], abs=1e-9)
     assert abs(runs[True]["position_m"] - runs[False]["position_m"]) > 1e-4
+
+
+def test_hw_run_takes_the_rate_in_hz_and_dt_as_a_deprecated_alias(calibration):
+    """One spelling of the control rate across commands (`--control-hz`, as `sim run`); `--dt` still works, says it
+    is deprecated and what to write instead, and may not be given with `--control-hz`."""
+    args = ["run", "--port", NO_PORT, "--calibration", str(calibration), "--imu", "none"]
+    result = CliRunner().invoke(hw.app, [*args, "--dt", "0.025"])
+    assert "warning: --dt is deprecated; use --control-hz 40" in " ".join(result.output.split())
+    assert "cannot open serial port" in str(result.exception)  # then it goes on, at 40 Hz, to the bus
+    assert _error(hw.app, [*args, "--dt", "0.02", "--control-hz", "50"]) == (
+        "--dt and --control-hz both give the control rate; keep --control-hz")
+    result = CliRunner().invoke(hw.app, [*args, "--control-hz", "25"])
+    assert "cannot open serial port" in str(result.exception) and "deprecated" not in result.output

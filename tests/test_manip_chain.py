@@ -578,3 +578,53 @@ def test_a_named_checkpoint_that_cannot_be_loaded_is_an_error_not_a_fallback(tmp
     assert expected in str(err.value) and str(err.value).startswith(str(path))
     code, _, stderr = run_main(monkeypatch, capsys, "chain", "run", path)
     assert expected in one_line_error(code, stderr)
+
+
+WALKER_MODULE = '''
+import numpy as np
+
+from toddlerbot.locomotion.config import CommandReach
+from toddlerbot.policies.base import Policy
+
+
+class SwayPolicy(Policy):
+    """A "walking" policy of one's own: it follows velocity commands by swaying the waist yaw with the yaw rate."""
+
+    name = "sway"
+    command_reach = CommandReach(low=(0.0, 0.0, -0.5), high=(0.0, 0.0, 0.5))
+
+    def reset(self, obs):
+        pass
+
+    def act(self, obs, command):
+        targets = self.robot.description.home_motor_pos.copy()
+        targets[self.robot.motor_names.index("waist_drive_1")] += float(self.within_reach(command)[2])
+        return self.joint_action(self.transmission.motor_to_joint(targets))
+'''
+
+
+def test_a_chain_walks_with_any_registered_walking_policy(tmp_path, monkeypatch, restored_registries):
+    """A policy of one's own (one new file and one registration) drives a chain's walk skill: no list of walking
+    policies stands in the way; one that follows no command, or an unknown name, is refused in one line."""
+    from toddlerbot.errors import ToddlerbotError
+    from toddlerbot.policies import register_policy
+    from toddlerbot.skills.sim_run import run_in_sim
+    from toddlerbot.skills.spec import ChainFileError
+
+    (tmp_path / "my_walkers.py").write_text(WALKER_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    register_policy("sway", "my_walkers:SwayPolicy")
+    chain = load_chain(_chain_file(tmp_path, """\
+        scene: wagon
+        skills: [{name: turn, kind: walk, policy: sway, command: [0, 0, 0.3], until: {after: 0.6}}]
+        """), GROUPS)
+    result = run_in_sim(chain, 0, description=DESCRIPTION)
+    assert result.success and result.driven_by == {"turn": "sway"} and result.sim_seconds == pytest.approx(0.6)
+    with pytest.raises(ChainFileError, match=r"skill turn: policy: expected a registered policy \(.*sway\), got "
+                                             r"'moonwalk'"):
+        load_chain(_chain_file(tmp_path, "scene: wagon\nskills: [{name: turn, kind: walk, policy: moonwalk, "
+                                         "until: {after: 1}}]\n"), GROUPS)
+    standing = load_chain(_chain_file(tmp_path, "scene: wagon\nskills: [{name: turn, kind: walk, policy: stand, "
+                                                "until: {after: 1}}]\n"), GROUPS)
+    with pytest.raises(ToddlerbotError, match=r"^walk skill: policy 'stand' follows no velocity command"):
+        run_in_sim(standing, 0, description=DESCRIPTION)

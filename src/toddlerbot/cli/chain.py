@@ -8,11 +8,20 @@ from typing import Annotated
 
 import typer
 
-from toddlerbot.cli.options import ImuOption, open_robot_imu, seed_option
+from toddlerbot.cli.options import (
+    ImuOption,
+    MotorParamsOption,
+    RobotOptions,
+    SpecOption,
+    VariantOption,
+    open_robot_imu,
+    seed_option,
+)
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_file
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
+from toddlerbot.tasks import GRIPPER
 
 app = typer.Typer(help="Skill chains: run a chain file's skills in order (docs/manipulation.md, Skill chaining).")
 
@@ -32,15 +41,15 @@ ScriptedGraspOption = Annotated[bool, typer.Option(
 @app.command()
 def run(name: NameArgument, chain_file: ChainFileOption = None, seed: SeedOption = 0, json_output: JsonOption = False,
         video: VideoOption = None, port: PortOption = None, calibration: CalibrationOption = None,
-        imu: ImuOption = "bno08x", scripted_grasp: ScriptedGraspOption = False) -> None:
+        imu: ImuOption = "bno08x", scripted_grasp: ScriptedGraspOption = False, spec: SpecOption = None,
+        variant: VariantOption = GRIPPER, motor_params: MotorParamsOption = None) -> None:
     """Run a chain to its end (`--json` says which policy or script drove each skill). Sim: success is the
     chain's success predicates (wagon: moved >= 0.5 m and the handle still held; pick: the cube lifted 3 cm and
     held). With --port and --calibration it runs on the real robot through the same interface. Exit code 1 when the
     chain fails (a predicate, a skill or a switch), 2 on bad input."""
-    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.skills.spec import load_chain
 
-    description = RobotDescription.load(variant="gripper")
+    description = RobotOptions.of(spec, variant, motor_params).description()
     chain = load_chain(chain_file or name, tuple(description.groups))
     if scripted_grasp:
         chain = chain.with_scripted_grasps()

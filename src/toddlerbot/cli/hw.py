@@ -14,6 +14,7 @@ from rich.table import Table
 
 from toddlerbot.cli.options import (
     AsymmetricOption,
+    ControlHzOption,
     ImuOption,
     MocapOption,
     MotorParamsOption,
@@ -25,12 +26,14 @@ from toddlerbot.cli.options import (
     open_robot_imu,
     seed_option,
     symmetric_option,
+    within,
 )
 from toddlerbot.cli.output import console, save_or_fallback
 from toddlerbot.cli.output_paths import output_file
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 from toddlerbot.policies import policy_names
-from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
+from toddlerbot.robot.interface import CONTROL_HZ, FALL_TILT_RAD
 
 app = typer.Typer(help="Real robot: Dynamixel bus emulator, scan, zero-point calibration.", no_args_is_help=True)
 
@@ -147,14 +150,16 @@ CameraOpt = Annotated[str | None, typer.Option("--camera", help="For --policy dp
 ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch "
                                                  "(default 1).")]
 SecondsOpt = Annotated[float, typer.Option("--seconds", help="Duration, s (at most an hour).")]
-DtOpt = Annotated[float, typer.Option("--dt", help=f"Control period, s (at most {MAX_CONTROL_DT:g}).")]
+DtOpt = Annotated[float | None, typer.Option("--dt", help="Deprecated (0.2.0): the control period, s; use "
+                                                            "--control-hz.")]
 LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.npz).")]
 
 
 @app.command()
 def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "stand", command: HwCommandOpt = "0:0,0,0",
         motion: MotionOpt = None, weights: WeightsOpt = None, checkpoint: CheckpointOpt = None,
-        camera: CameraOpt = None, threads: ThreadsOpt = None, seconds: SecondsOpt = 5.0, control_dt: DtOpt = CONTROL_DT,
+        camera: CameraOpt = None, threads: ThreadsOpt = None, seconds: SecondsOpt = 5.0,
+        control_hz: ControlHzOption = None, control_dt: DtOpt = None,
         log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,
         spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None,
         asymmetric: AsymmetricOption = False, mocap: MocapOption = "none") -> None:
@@ -172,8 +177,8 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
     try:
         raise_pending_stop()  # a Ctrl-C during start-up that an import swallowed
         options = RobotOptions.of(spec_path, variant, motor_params)
-        _check_run(policy, seconds, control_dt, latency_ms, log, [calibration, motion, weights, checkpoint,
-                                                                  *options.files])
+        control_dt = _check_run(policy, seconds, control_hz, control_dt, latency_ms, log,
+                                [calibration, motion, weights, checkpoint, *options.files])
         robot = _real_robot(options, port, calibration, control_dt, baud, latency_ms, tracked=mocap != "none")
         pol = _hw_policy(robot, policy, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
                                          "camera": camera, "threads": threads,
@@ -191,15 +196,29 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
     _report_run(policy, result, pol, log)
 
 
-def _check_run(policy: str, seconds: float, control_dt: float, latency_ms: float, log: Path | None,
-               inputs: list) -> None:
+def _check_run(policy: str, seconds: float, control_hz: float | None, control_dt: float | None,
+               latency_ms: float, log: Path | None, inputs: list) -> float:
+    """The control period of the run, s, once every option is shown usable (`--dt`, deprecated, says so)."""
     check_run_policy(policy)
     duration(seconds, "--seconds")
-    # longer periods would leave the motors' 0.5 s Bus Watchdog waiting for the next goal
-    duration(control_dt, "--dt", MAX_CONTROL_DT)
+    control_dt = _control_period(control_hz, control_dt)
     duration(latency_ms, "--latency-ms", 1000.0, "milliseconds")  # the driver's bound on the latency timer
     if log is not None:
         output_file(log, "--log", inputs)
+    return control_dt
+
+
+def _control_period(control_hz: float | None, control_dt: float | None) -> float:
+    """The control period from --control-hz (default the 50 Hz rate), or from the deprecated --dt (with a
+    warning); longer than `MAX_CONTROL_DT` would leave the motors' 0.5 s Bus Watchdog waiting for the next goal."""
+    if control_dt is None:
+        within(CONTROL_HZ if control_hz is None else control_hz, "--control-hz", 1.0 / MAX_CONTROL_DT, 1000.0, "Hz")
+        return 1.0 / (CONTROL_HZ if control_hz is None else control_hz)
+    if control_hz is not None:
+        raise ToddlerbotError("--dt and --control-hz both give the control rate; keep --control-hz")
+    duration(control_dt, "--dt", MAX_CONTROL_DT)
+    console.print(f"[yellow]warning:[/] --dt is deprecated; use --control-hz {1.0 / control_dt:g}", highlight=False)
+    return control_dt
 
 
 def _real_robot(options: RobotOptions, port: str, calibration: Path, control_dt: float, baud: int,

@@ -15,6 +15,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies import accepts_option, policy_names
 from toddlerbot.robot.builder import Base
 from toddlerbot.robot.description import RobotDescription, load_variant, variant_names
+from toddlerbot.robot.interface import CONTROL_HZ
 
 
 def _registered_variant(name: str | None) -> str | None:
@@ -27,7 +28,8 @@ def _registered_variant(name: str | None) -> str | None:
 SpecOption = Annotated[Path | None, typer.Option("--spec", help="Robot spec YAML (default: packaged ToddlerBot v1).")]
 VariantOption = Annotated[str | None, typer.Option(
     "--variant", callback=_registered_variant, autocompletion=variant_names,
-    help=f"Registered robot variant: {', '.join(variant_names())} (default: the spec as it is, floating base).")]
+    help=f"Registered robot variant: {', '.join(variant_names())} (default: the spec as it is, floating base; the "
+         "manipulation commands chain and teleop: gripper).")]
 MotorParamsOption = Annotated[list[Path] | None, typer.Option(
     "--motor-params", help="params.json from `toddlerbot sysid fit` (repeatable, one per motor model): the fitted "
                            "actuator parameters replace that motor model's.")]
@@ -70,6 +72,10 @@ MAX_SEED = 2**32 - 1
 def seed_option(help: str, flag: str = "--seed", smallest: int = 0):
     """The typer option of a seed: a whole number in [`smallest`, `MAX_SEED`], refused in one line otherwise."""
     return typer.Option(flag, min=smallest, max=MAX_SEED, help=help)
+
+
+ControlHzOption = Annotated[float | None, typer.Option(
+    "--control-hz", help=f"Control rate, Hz (default {CONTROL_HZ}).")]
 
 
 MAX_RUN_SECONDS = 3600.0

@@ -10,6 +10,7 @@ import typer
 
 from toddlerbot.cli.options import (
     AsymmetricOption,
+    ControlHzOption,
     MotorParamsOption,
     RobotOptions,
     SpecOption,
@@ -27,7 +28,7 @@ from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text, json_text
 from toddlerbot.policies import policy_names
-from toddlerbot.robot.interface import CONTROL_DT
+from toddlerbot.robot.interface import CONTROL_DT, CONTROL_HZ
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -46,7 +47,6 @@ WeightsOpt = Annotated[Path | None, typer.Option("--weights", help="For --policy
                                                  ".onnx run by onnxruntime), or a shipped one by name: walk_rl "
                                                  "(default, CPU-trained) or walk_rl_gpu.")]
 SecondsOpt = Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")]
-ControlHzOpt = Annotated[float, typer.Option("--control-hz", help="Control rate, Hz.")]
 RealtimeOpt = Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")]
 VideoOpt = Annotated[Path | None, typer.Option("--video", help="Write an MP4 from the tracking camera.")]
 SnapshotOpt = Annotated[Path | None, typer.Option("--snapshot", help="Write a PNG of the last frame.")]
@@ -67,7 +67,7 @@ ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --
 @app.command()
 def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file: CommandFileOpt = None,
         motion: MotionOpt = None, weights: WeightsOpt = None, seconds: SecondsOpt = 10.0,
-        control_hz: ControlHzOpt = 1.0 / CONTROL_DT, realtime: RealtimeOpt = False, video: VideoOpt = None,
+        control_hz: ControlHzOption = CONTROL_HZ, realtime: RealtimeOpt = False, video: VideoOpt = None,
         snapshot: SnapshotOpt = None, camera: CameraOpt = "perspective", viewer: ViewerOpt = False,
         log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,
         checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = None, spec: SpecOption = None,

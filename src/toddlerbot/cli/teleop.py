@@ -8,11 +8,22 @@ from typing import Annotated, Literal
 
 import typer
 
-from toddlerbot.cli.options import ImuOption, duration, open_robot_imu, seed_option, within
+from toddlerbot.cli.options import (
+    ImuOption,
+    MotorParamsOption,
+    RobotOptions,
+    SpecOption,
+    VariantOption,
+    duration,
+    open_robot_imu,
+    seed_option,
+    within,
+)
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.interface import CONTROL_DT, CONTROL_HZ
+from toddlerbot.tasks import GRIPPER
 from toddlerbot.teleop.launch import MAX_TELEOP_SECONDS, teleop_tasks
 
 app = typer.Typer(help="Teleoperation: game controller (Table 4), keyboard, leader-follower arms; record episodes.",
@@ -57,7 +68,8 @@ def teleop(ctx: typer.Context, backend: BackendOption = "sim", input_kind: Input
            task: TaskOption = "walk", out: OutOption = None, policy: PolicyOption = "walk-zmp",
            mapping: MappingOption = None, seconds: SecondsOption = 0.0, link: LinkOption = None,
            port: PortOption = None, calibration: CalibrationOption = None, imu: ImuOption = "bno08x",
-           seed: SeedOption = 0, viewer: ViewerOption = False, chains: ChainsOption = None) -> None:
+           seed: SeedOption = 0, viewer: ViewerOption = False, chains: ChainsOption = None, spec: SpecOption = None,
+           variant: VariantOption = GRIPPER, motor_params: MotorParamsOption = None) -> None:
     """Teleoperate: left stick walks, right stick turns, D-pad moves the waist, Y/A/X/B the neck, Menu marks
     episodes; with --input leader the arms follow the leader arms. Runs at 50 Hz in real time."""
     if ctx.invoked_subcommand is not None:
@@ -69,7 +81,9 @@ def teleop(ctx: typer.Context, backend: BackendOption = "sim", input_kind: Input
     from toddlerbot.teleop.session import TeleopSession
 
     _check_outputs(out, seconds, [mapping, calibration])
-    setup, walker = _real(port, calibration, imu, policy) if backend == "real" else _sim(task, seed, policy)
+    description = RobotOptions.of(spec, variant, motor_params).description()
+    setup, walker = (_real(description, port, calibration, imu, policy) if backend == "real"
+                     else _sim(description, task, seed, policy))
     robot = setup.robot
     recorder = None if out is None else EpisodeRecorder(f"teleop {task}", ManipulationSpace.of(robot.description),
                                                         setup.head_image)
@@ -92,24 +106,22 @@ def _check_outputs(out: Path | None, seconds: float, inputs: list) -> None:
         duration(seconds, "--seconds", MAX_TELEOP_SECONDS)
 
 
-def _sim(task: str, seed: int, policy: str):
+def _sim(description, task: str, seed: int, policy: str):
     """The task's simulated robot and, where it walks, the walking policy."""
     from toddlerbot.teleop.launch import sim_robot, walking_policy
 
-    setup = sim_robot(task, seed)
+    setup = sim_robot(task, seed, description)
     return setup, walking_policy(policy, setup.robot) if setup.walks else None
 
 
-def _real(port: str | None, calibration: Path | None, imu: str, policy: str):
+def _real(description, port: str | None, calibration: Path | None, imu: str, policy: str):
     """The real robot (its IMU opened for a policy that balances from it) and the walking policy."""
     if port is None or calibration is None:
         raise ToddlerbotError("--backend real needs --port and --calibration")
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.real_robot import RealRobot
-    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.teleop.launch import TeleopRobot, walking_policy
 
-    description = RobotDescription.load(variant="gripper")
     robot = RealRobot(description, port, load_calibration(calibration, description))
     walker = walking_policy(policy, robot)
     robot.imu = open_robot_imu(imu, port, f"teleop --policy {policy}" if walker.needs_imu else None)
@@ -123,19 +135,20 @@ def leader(
     link: Annotated[str | None, typer.Option("--link", help="Endpoint to publish on (bind; default: the local "
                                              "one, manipulation.link.DEFAULT_ENDPOINT).")] = None,
     rate: Annotated[float, typer.Option("--rate", help="Read/publish rate, Hz.")] = CONTROL_HZ,
+    spec: SpecOption = None,
+    variant: VariantOption = GRIPPER,
 ) -> None:
     """Leader side: read the leader arms (torque off) and publish their angles until Ctrl-C."""
     import threading
 
     from toddlerbot.hardware.calibration import load_calibration
     from toddlerbot.hardware.leader import LeaderArms
-    from toddlerbot.robot.description import RobotDescription
     from toddlerbot.teleop.leader_follower import stream_leader
     from toddlerbot.teleop.link import DEFAULT_ENDPOINT, LinkPublisher
 
     link = link or DEFAULT_ENDPOINT
     within(rate, "--rate", 0.1, 1000.0, "Hz")
-    description = RobotDescription.load(variant="gripper")
+    description = RobotOptions.of(spec, variant).description()
     offsets = load_calibration(calibration, description).offsets
     stop = threading.Event()
     with LeaderArms(description, port, offsets) as arms:

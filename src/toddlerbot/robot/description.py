@@ -235,11 +235,15 @@ def _fixed(description: RobotDescription) -> tuple[RobotDescription, Base]:
     return description, "fixed"
 
 
+GRIPPER = "gripper"
+"""The spec's variant with parallel-jaw grippers instead of hands: the robot of the manipulation tasks."""
+
+
 def _gripper(description: RobotDescription) -> tuple[RobotDescription, Base]:
-    return description.with_variant("gripper"), "floating"
+    return description.with_variant(GRIPPER), "floating"
 
 
-for _name, _factory in {"floating": _floating, "fixed": _fixed, "gripper": _gripper}.items():
+for _name, _factory in {"floating": _floating, "fixed": _fixed, GRIPPER: _gripper}.items():
     VARIANT_REGISTRY.register(_name, _factory)
 
 

@@ -7,7 +7,7 @@ returns motor targets and firmware gains (the runner applies `hold` and sends th
   pick demonstrator does). In sim the bar's position comes from the scene; on hardware from ``target_pos`` or, by
   default, where the scene's layout puts it.
 * ``dp``: a diffusion-policy checkpoint drives the arm and gripper motors (torch is imported only here).
-* ``walk``: a walking policy (walk-zmp, walk-rl) with a fixed command.
+* ``walk``: a registered walking policy (walk-zmp, walk-rl, one's own) with a fixed command.
 * ``hold``: every motor keeps the previous skill's last targets.
 * ``pose``: the named motors move to their angles (the grippers to a fraction of their range) in ``seconds``, the
   others keep the previous skill's targets.
@@ -29,7 +29,7 @@ import numpy as np
 
 from toddlerbot.dp import have_torch
 from toddlerbot.dp.shipped import check_named_checkpoint
-from toddlerbot.errors import ToddlerbotError
+from toddlerbot.errors import ToddlerbotError, quoted
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.tasks.demonstrator import min_jerk
@@ -94,9 +94,17 @@ class DPParams:
 
 @dataclass(frozen=True)
 class WalkParams:
-    policy: Literal["walk-zmp", "walk-rl"] = "walk-zmp"
+    policy: str = "walk-zmp"
+    """A registered policy that follows velocity commands (walk-zmp, walk-rl or one's own)."""
     command: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """(vx m/s, vy m/s, yaw rate rad/s)."""
+
+    def __post_init__(self) -> None:
+        from toddlerbot.policies import policy_names
+
+        if self.policy not in policy_names():
+            raise ValueError(f"policy: expected a registered policy ({', '.join(policy_names())}), got "
+                             f"{quoted(self.policy)}")
 
 
 @dataclass(frozen=True)
@@ -288,6 +296,9 @@ class WalkSkill(Skill):
         from toddlerbot.policies import make_policy
 
         self.policy = make_policy(p.policy, env.robot)
+        if self.policy.command_reach is None:
+            raise ToddlerbotError(f"walk skill: policy {p.policy!r} follows no velocity command (it has no command "
+                                  "reach); a walk skill drives a walking policy")
         self.command = np.array(p.command)
         self.kp = env.robot.description.default_kp.copy()
         self.by = p.policy

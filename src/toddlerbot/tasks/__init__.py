@@ -6,12 +6,8 @@ names a higher layer. Factories are imported on first use, so listing names impo
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from toddlerbot.registry import Registry
-
-if TYPE_CHECKING:
-    from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.description import GRIPPER, RobotDescription
 
 TASKS = Registry("task", entry_point_group="toddlerbot.tasks")
 """Task name -> a `tasks.base.Task` subclass (or factory) taking an optional description; installed packages add
@@ -19,14 +15,8 @@ names through the entry-point group ``toddlerbot.tasks``."""
 TASKS.register("pick", "toddlerbot.tasks.pick:PickTask")
 
 
-GRIPPER = "gripper"
-"""The robot variant every task is built for (parallel-jaw grippers instead of hands)."""
-
-
 def task_description(description: RobotDescription | None = None) -> RobotDescription:
     """`description` as the gripper variant every task is built for (default: the packaged robot's)."""
-    from toddlerbot.robot.description import RobotDescription
-
     if description is None:
         return RobotDescription.load(variant=GRIPPER)
     return description if description.spec.variant == GRIPPER else description.with_variant(GRIPPER)
