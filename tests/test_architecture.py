@@ -18,7 +18,7 @@ LAYER = {
     "sysid": 2, "sim": 2, "hardware": 2, "locomotion": 2, "design": 2,
     "policies": 3, "runtime": 3, "tasks": 3,
     "rl": 4, "teleop": 4, "dp": 4, "motion_editor": 4,
-    "skills": 5,
+    "skills": 5, "sessions": 5,
     "cli": 6,
 }
 HEAVY = {"jax", "jaxlib", "flax", "brax", "optax", "orbax", "torch", "onnx"}

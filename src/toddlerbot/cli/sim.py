@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
 from toddlerbot.cli.options import (
@@ -28,7 +27,7 @@ from toddlerbot.cli.sim_compare import compare_command
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text, json_text
 from toddlerbot.policies import policy_names
-from toddlerbot.robot.interface import CONTROL_DT, CONTROL_HZ
+from toddlerbot.robot.interface import CONTROL_HZ
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -74,7 +73,7 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         variant: VariantOption = None, motor_params: MotorParamsOption = None,
         asymmetric: AsymmetricOption = False) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
-    from toddlerbot.runtime.runner import SimulatedClock, WallClock, run_policy
+    from toddlerbot.sessions.sim import sim_session
 
     robot_options = RobotOptions.of(spec, variant, motor_params)
     _check_options(policy, seconds, control_hz, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
@@ -83,24 +82,20 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
                    [command_file, motion, weights, checkpoint, *robot_options.files])
     schedule = _schedule(command, command_file)
     description, base = robot_options.load()
+    if base != "floating":  # the simulator's robot stands on the floor; a fixed base is for `model build`
+        raise ToddlerbotError(f"sim run simulates the floating robot; --variant selects a {base} base "
+                              "(use a floating variant: floating, gripper)")
     _check_control_rate(control_hz, description.spec.simulation.timestep)
-    realtime = realtime or viewer
-    options = {"motion": motion, "weights": weights, "checkpoint": checkpoint, "threads": threads,
-               "synchronous": not realtime,  # inference inline unless the loop keeps real time
-               **symmetric_option(policy, asymmetric)}
-    robot, pol, scene = _robot_and_policy(description, base, policy, task, seed, 1.0 / control_hz, options)
-    video_obs, render_skipped = _video(robot, camera, video, snapshot)
-    viewer_obs = _viewer(robot) if viewer else None
-    watchers = [w for w in (scene, video_obs, viewer_obs) if w is not None]
-    commands = schedule or (lambda _t: np.array(pol.demo_command, dtype=float))
-    with RunProgress(f"simulating {policy}", round(seconds / robot.control_dt)) as progress:
-        result = run_policy(robot, pol, commands, seconds, clock=WallClock() if realtime else SimulatedClock(),
-                            observers=[*watchers, progress])
-    if viewer_obs is not None:
-        viewer_obs.close()
-    for path in video_obs.write(video, snapshot) if video_obs is not None else []:
+    session = sim_session(policy, schedule, seconds, description, control_hz, realtime, task, seed,
+                          camera if video or snapshot else None, viewer, motion=motion, weights=weights,
+                          checkpoint=checkpoint, threads=threads, **symmetric_option(policy, asymmetric))
+    with RunProgress(f"simulating {policy}", round(seconds / session.robot.control_dt)) as progress:
+        result = session.run(progress)
+    for path in session.write_video(video, snapshot):
         console.print(f"wrote {path}")
-    _report(policy, result, pol, scene, log, summary_json, render_skipped)
+    wanted = [f"{kind} {path}" for kind, path in (("video", video), ("snapshot", snapshot)) if path]
+    skipped = session.render_skipped and f"{' and '.join(wanted)} skipped: {session.render_skipped}"
+    _report(policy, result, session.policy, session.scene, log, summary_json, skipped)
 
 
 def _check_options(policy: str, seconds: float, control_hz: float, policy_options: dict, outputs: dict,
@@ -123,54 +118,6 @@ def _schedule(command: str | None, command_file: Path | None):
     if command_file:
         return CommandSchedule.from_file(command_file)
     return None if command is None else CommandSchedule.parse(command)
-
-
-def _robot_and_policy(description, base: str, policy: str, task: str | None, seed: int, control_dt: float,
-                      options: dict):
-    """(robot, policy, task progress observer or None). In a task's scene (``--task``) the robot is the task's,
-    reset for ``seed``, and a policy that takes a camera sees the task's head camera."""
-    from toddlerbot.policies import accepts_option, make_policy
-    from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
-
-    if base != "floating":  # the simulator's robot stands on the floor; a fixed base is for `model build`
-        raise ToddlerbotError(f"sim run simulates the floating robot; --variant selects a {base} base "
-                              "(use a floating variant: floating, gripper)")
-    if task is None:
-        robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
-        return robot, make_policy(policy, robot, **options), None
-    from toddlerbot.tasks import make_task
-    from toddlerbot.tasks.base import TaskRobot
-
-    if abs(control_dt - CONTROL_DT) > 1e-12:
-        raise ToddlerbotError(f"--task runs at the task's {1 / CONTROL_DT:g} Hz control rate; drop --control-hz")
-    the_task = make_task(task, description)
-    robot = TaskRobot(the_task, seed)
-    camera = {"camera": the_task.head_image} if accepts_option(policy, "camera") else {}
-    return robot, make_policy(policy, robot, **options, **camera, task=task), the_task.progress()
-
-
-def _video(robot, camera: str, video: Path | None, snapshot: Path | None):
-    """(video observer or None, why rendering was skipped or None): without a renderer the run goes on and the
-    report says what was skipped and why."""
-    from toddlerbot.runtime.observers import VideoObserver
-    from toddlerbot.sim.render import RenderError
-
-    if video is None and snapshot is None:
-        return None, None
-    try:
-        return VideoObserver(robot, camera), None
-    except RenderError as exc:
-        wanted = [f"{kind} {path}" for kind, path in (("video", video), ("snapshot", snapshot)) if path]
-        return None, f"{' and '.join(wanted)} skipped: {exc}"
-
-
-def _viewer(robot):
-    from toddlerbot.runtime.observers import ViewerObserver
-    from toddlerbot.sim.render import has_display
-
-    if not has_display():
-        raise ToddlerbotError("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY); use --video instead")
-    return ViewerObserver(robot)
 
 
 def _report(policy: str, result, pol, scene, log: Path | None, summary_json: Path | None,

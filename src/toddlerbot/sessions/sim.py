@@ -1,0 +1,113 @@
+"""`sim run` as a library call: the simulated robot (in a task's scene if asked), the policy, the watchers (the
+task's progress, a video, the viewer) and the clock, assembled once; `SimSession.run` runs them through the one run
+loop (`toddlerbot.runtime.runner.run_policy`).
+
+    session = sim_session("walk-zmp", commands="0:0.1,0,0", seconds=10)
+    result = session.run()
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies import accepts_option, make_policy
+from toddlerbot.policies.base import Policy
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import CONTROL_HZ, Robot
+from toddlerbot.runtime.commands import CommandSchedule
+from toddlerbot.runtime.observers import VideoObserver, ViewerObserver
+from toddlerbot.runtime.runner import Clock, RunObserver, RunResult, SimulatedClock, WallClock, run_policy
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+
+
+@dataclass
+class SimSession:
+    """What `sim run` runs: robot, policy, commands, duration, clock and watchers."""
+
+    robot: Robot
+    policy: Policy
+    commands: Callable[[float], np.ndarray]
+    seconds: float
+    clock: Clock
+    scene: RunObserver | None = None
+    """The task's progress report (`--task`), None without a task."""
+    video: VideoObserver | None = None
+    """The recording of a camera, when a video or snapshot was asked for and a renderer is available."""
+    render_skipped: str | None = None
+    """Why a video or snapshot asked for cannot be made (no renderer), None otherwise."""
+    viewer: ViewerObserver | None = None
+    watchers: list[RunObserver] = field(default_factory=list)
+
+    def run(self, *more: RunObserver) -> RunResult:
+        """The run, with the session's watchers and `more` (e.g. a progress bar); the viewer is closed after it."""
+        try:
+            return run_policy(self.robot, self.policy, self.commands, self.seconds, clock=self.clock,
+                              observers=[*self.watchers, *more])
+        finally:
+            if self.viewer is not None:
+                self.viewer.close()
+
+    def write_video(self, video: Path | None, snapshot: Path | None) -> list[Path]:
+        """Write the recording asked for; returns the files written (none when rendering was skipped)."""
+        return self.video.write(video, snapshot) if self.video is not None else []
+
+
+def sim_session(policy: str = "walk-zmp", commands: str | CommandSchedule | None = None, seconds: float = 10.0,
+                description: RobotDescription | None = None, control_hz: float = CONTROL_HZ,
+                realtime: bool = False, task: str | None = None, seed: int = 0, camera: str | None = None,
+                viewer: bool = False, **policy_options: object) -> SimSession:
+    """`sim run`'s robot and policy: ``policy`` (a registered name, its ``policy_options``: weights, motion, ...)
+    on ``description`` (default: the packaged robot, floating) at ``control_hz``, following ``commands`` (a
+    schedule's text, a schedule, or None: the policy's demo command) for ``seconds``; ``task``: in that registered
+    task's scene, reset for ``seed``; ``camera``: record it (a video or snapshot, `SimSession.write_video`);
+    ``viewer``: show the MuJoCo viewer (implies real time); ``realtime``: keep wall-clock time."""
+    description = description or RobotDescription.load()
+    realtime = realtime or viewer
+    options = {"synchronous": not realtime, **policy_options}  # inference inline unless the loop keeps real time
+    robot, pol, scene = _robot_and_policy(description, policy, task, seed, 1.0 / control_hz, options)
+    schedule = CommandSchedule.parse(commands) if isinstance(commands, str) else commands
+    session = SimSession(robot, pol, schedule or (lambda _t: np.array(pol.demo_command, dtype=float)), seconds,
+                         WallClock() if realtime else SimulatedClock(), scene)
+    if camera is not None:
+        from toddlerbot.sim.render import RenderError
+
+        try:
+            session.video = VideoObserver(robot, camera)  # type: ignore[arg-type]
+        except RenderError as exc:
+            session.render_skipped = str(exc)
+    if viewer:
+        session.viewer = _viewer(robot)
+    session.watchers = [w for w in (scene, session.video, session.viewer) if w is not None]
+    return session
+
+
+def _robot_and_policy(description: RobotDescription, policy: str, task: str | None, seed: int, control_dt: float,
+                      options: dict) -> tuple[Robot, Policy, RunObserver | None]:
+    """(robot, policy, task progress observer or None). In a task's scene the robot is the task's, reset for
+    ``seed``, and a policy that takes a camera sees the task's head camera."""
+    if task is None:
+        robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
+        return robot, make_policy(policy, robot, **options), None
+    from toddlerbot.robot.interface import CONTROL_DT
+    from toddlerbot.tasks import make_task
+    from toddlerbot.tasks.base import TaskRobot
+
+    if abs(control_dt - CONTROL_DT) > 1e-12:
+        raise ToddlerbotError(f"--task runs at the task's {1 / CONTROL_DT:g} Hz control rate; drop --control-hz")
+    the_task = make_task(task, description)
+    robot = TaskRobot(the_task, seed)
+    camera = {"camera": the_task.head_image} if accepts_option(policy, "camera") else {}
+    return robot, make_policy(policy, robot, **options, **camera, task=task), the_task.progress()
+
+
+def _viewer(robot: Robot) -> ViewerObserver:
+    from toddlerbot.sim.render import has_display
+
+    if not has_display():
+        raise ToddlerbotError("--viewer needs a display (DISPLAY or WAYLAND_DISPLAY); use --video instead")
+    return ViewerObserver(robot)  # type: ignore[arg-type]
