@@ -14,7 +14,6 @@ from toddlerbot.cli.options import (
     RobotOptions,
     SpecOption,
     VariantOption,
-    open_robot_imu,
     seed_option,
 )
 from toddlerbot.cli.output import console
@@ -80,15 +79,11 @@ def _run_sim(chain, seed: int, video: Path | None, description) -> tuple[bool, d
 
 def _run_real(chain, description, port: str, calibration: Path, imu: str, video: Path | None,
               say) -> tuple[bool, dict, list[str]]:
-    from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.real_robot import RealRobot
-    from toddlerbot.skills.robot_run import needs_imu, run_on_robot
+    from toddlerbot.sessions.robot import chain_on_robot
 
     if video is not None:
         raise ToddlerbotError("--video records the simulator; it is not available on the real robot")
-    robot = RealRobot(description, port, load_calibration(calibration, description),
-                      imu=open_robot_imu(imu, port, f"chain {chain.name} (it walks)" if needs_imu(chain) else None))
-    status = run_on_robot(chain, robot, on_switch=say)
+    status = chain_on_robot(chain, description, port, calibration, imu, on_switch=say)
     outcome = {"chain": chain.name, "success": status.failure is None, "failure": status.failure,
                "switches": [{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in status.switches]}
     line = f"chain {chain.name}: {'ended' if status.failure is None else 'FAILED: ' + status.failure}"

@@ -23,7 +23,6 @@ from toddlerbot.cli.options import (
     VariantOption,
     check_run_policy,
     duration,
-    open_robot_imu,
     seed_option,
     symmetric_option,
     within,
@@ -169,8 +168,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
     keeps the steps so far: in --log, or, when the bus or a motor failed, in a temporary file whose name is
     printed."""
     from toddlerbot.hardware.driver import BusInterrupt, raise_on_stop_signals, raise_pending_stop
-    from toddlerbot.runtime.commands import CommandSchedule
-    from toddlerbot.runtime.hardware_run import drive
+    from toddlerbot.sessions.robot import robot_session
 
     previous = raise_on_stop_signals()  # a stop signal at any moment, even before the bus opens, ends the run
     stack = ExitStack()  # the dp policy's worker and camera reader stop however the run ends
@@ -179,12 +177,11 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         options = RobotOptions.of(spec_path, variant, motor_params)
         control_dt = _check_run(policy, seconds, control_hz, control_dt, latency_ms, log,
                                 [calibration, motion, weights, checkpoint, *options.files])
-        robot = _real_robot(options, port, calibration, control_dt, baud, latency_ms, tracked=mocap != "none")
-        pol = _hw_policy(robot, policy, {"motion": motion, "weights": weights, "checkpoint": checkpoint,
-                                         "camera": camera, "threads": threads,
-                                         **symmetric_option(policy, asymmetric)}, stack)
-        _open_sensors(robot, imu, mocap, port, pol, stack)
-        result = drive(robot, pol, CommandSchedule.parse(command), seconds, log, lambda partial: save_or_fallback(
+        session = stack.enter_context(robot_session(
+            options.description(), port, calibration, policy, command, seconds, control_dt, baud, latency_ms, imu,
+            mocap, motion=motion, weights=weights, checkpoint=checkpoint, camera=camera, threads=threads,
+            **symmetric_option(policy, asymmetric)))
+        result = session.run(log, lambda partial: save_or_fallback(
             partial.save, log, f"the log of the {partial.time.size} steps before the stop"))
     except BusInterrupt as exc:
         console.print(f"{policy}: stopped by {exc.args[0]}; torque is off", highlight=False)
@@ -193,7 +190,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         stack.close()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    _report_run(policy, result, pol, log)
+    _report_run(policy, result, session.policy, log)
 
 
 def _check_run(policy: str, seconds: float, control_hz: float | None, control_dt: float | None,
@@ -219,42 +216,6 @@ def _control_period(control_hz: float | None, control_dt: float | None) -> float
     duration(control_dt, "--dt", MAX_CONTROL_DT)
     console.print(f"[yellow]warning:[/] --dt is deprecated; use --control-hz {1.0 / control_dt:g}", highlight=False)
     return control_dt
-
-
-def _real_robot(options: RobotOptions, port: str, calibration: Path, control_dt: float, baud: int,
-                latency_ms: float, tracked: bool = False):
-    """The robot on ``port``; ``tracked``: watched by motion capture (`TrackedRealRobot`, its mocap opened later)."""
-    from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.real_robot import RealRobot, TrackedRealRobot
-
-    description = options.description()
-    return (TrackedRealRobot if tracked else RealRobot)(
-        description, port, load_calibration(calibration, description), control_dt=control_dt, baudrate=baud,
-        calibration_source=str(calibration), latency_ms=latency_ms)
-
-
-def _open_sensors(robot, imu: str, mocap: str, port: str, pol, stack: ExitStack) -> None:
-    """The robot's IMU (refused as none for a policy that balances) and motion capture, closed however the run
-    ends."""
-    from toddlerbot.hardware.imu_stream import open_mocap
-
-    robot.imu = open_robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
-    stack.callback(robot.imu.close)
-    capture = open_mocap(mocap, port)
-    if capture is not None:
-        robot.mocap = capture
-        stack.callback(capture.close)
-
-
-def _hw_policy(robot, policy: str, options: dict, stack: ExitStack):
-    """The policy, closed however the run ends; bad weights, motions, checkpoints or cameras fail before the bus
-    opens."""
-    from toddlerbot.policies import check_policy_options, make_policy
-
-    check_policy_options(policy, **options)
-    pol = make_policy(policy, robot, **options)
-    stack.callback(pol.close)
-    return pol
 
 
 def _report_run(policy: str, result, pol, log: Path | None) -> None:

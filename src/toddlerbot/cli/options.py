@@ -111,17 +111,6 @@ ImuOption = Annotated[str, typer.Option("--imu", help="The IMU: bno08x (the robo
                                         "stand-in; walking policies refuse it).")]
 
 
-def open_robot_imu(kind: str, port: str, balancing: str | None):
-    """The IMU for a robot on ``port``; ``balancing`` names what balances from it (a walking policy, a chain
-    with a walk), which ``none`` is refused for (one line)."""
-    from toddlerbot.hardware.imu_kinds import open_imu
-
-    if kind == "none" and balancing is not None:
-        raise ToddlerbotError(f"{balancing} balances from the IMU: --imu none would run it blind (it falls within "
-                              "seconds); use --imu bno08x or --imu emulator")
-    return open_imu(kind, port)
-
-
 def duration(value: float, option: str, max_s: float = MAX_RUN_SECONDS, unit: str = "seconds") -> float:
     """`value` if it is a finite duration in (0, `max_s`] (a run of 1e300 s would never end)."""
     if not (math.isfinite(value) and 0 < value <= max_s):

@@ -15,7 +15,6 @@ from toddlerbot.cli.options import (
     SpecOption,
     VariantOption,
     duration,
-    open_robot_imu,
     seed_option,
     within,
 )
@@ -74,27 +73,15 @@ def teleop(ctx: typer.Context, backend: BackendOption = "sim", input_kind: Input
     episodes; with --input leader the arms follow the leader arms. Runs at 50 Hz in real time."""
     if ctx.invoked_subcommand is not None:
         return
-    from toddlerbot.skills.teleop_hook import with_chains
-    from toddlerbot.tasks.space import ManipulationSpace
-    from toddlerbot.teleop.launch import input_source, leader_link, run_teleop
-    from toddlerbot.teleop.recording import EpisodeRecorder
-    from toddlerbot.teleop.session import TeleopSession
+    from toddlerbot.sessions.teleop import teleop_session
 
     _check_outputs(out, seconds, [mapping, calibration])
-    description = RobotOptions.of(spec, variant, motor_params).description()
-    setup, walker = (_real(description, port, calibration, imu, policy) if backend == "real"
-                     else _sim(description, task, seed, policy))
-    robot = setup.robot
-    recorder = None if out is None else EpisodeRecorder(f"teleop {task}", ManipulationSpace.of(robot.description),
-                                                        setup.head_image)
-    session = TeleopSession(robot, input_source(input_kind, mapping, console.print), walker,
-                            leader_link(link, robot) if input_kind == "leader" else None,
-                            on_menu=None if recorder is None else recorder.toggle, log=console.print)
-    driver = with_chains(session, chains, task if backend == "sim" else None, setup.head_image, console.print)
-    run_teleop(robot, driver, seconds, [] if recorder is None else [recorder], viewer and backend == "sim",
-               console.print)
-    if recorder is not None:
-        recorder.write(out, console.print)  # type: ignore[arg-type]
+    run = teleop_session(RobotOptions.of(spec, variant, motor_params).description(), backend, input_kind, task,
+                         policy, mapping, link, port, calibration, imu, seed, chains, record=out is not None,
+                         log=console.print)
+    run.run(seconds, viewer, console.print)
+    if out is not None:
+        run.write(out, console.print)
 
 
 def _check_outputs(out: Path | None, seconds: float, inputs: list) -> None:
@@ -104,28 +91,6 @@ def _check_outputs(out: Path | None, seconds: float, inputs: list) -> None:
         output_dir(out, "--out", inputs)
     if seconds:  # 0: until Esc or Ctrl-C
         duration(seconds, "--seconds", MAX_TELEOP_SECONDS)
-
-
-def _sim(description, task: str, seed: int, policy: str):
-    """The task's simulated robot and, where it walks, the walking policy."""
-    from toddlerbot.teleop.launch import sim_robot, walking_policy
-
-    setup = sim_robot(task, seed, description)
-    return setup, walking_policy(policy, setup.robot) if setup.walks else None
-
-
-def _real(description, port: str | None, calibration: Path | None, imu: str, policy: str):
-    """The real robot (its IMU opened for a policy that balances from it) and the walking policy."""
-    if port is None or calibration is None:
-        raise ToddlerbotError("--backend real needs --port and --calibration")
-    from toddlerbot.hardware.calibration import load_calibration
-    from toddlerbot.hardware.real_robot import RealRobot
-    from toddlerbot.teleop.launch import TeleopRobot, walking_policy
-
-    robot = RealRobot(description, port, load_calibration(calibration, description))
-    walker = walking_policy(policy, robot)
-    robot.imu = open_robot_imu(imu, port, f"teleop --policy {policy}" if walker.needs_imu else None)
-    return TeleopRobot(robot, None, walks=True), walker
 
 
 @app.command()
