@@ -24,8 +24,8 @@ def test_the_readme_script_walks_as_sim_run_does(tmp_path, monkeypatch, capsys):
     summary, session = namespace["summary"], namespace["session"]
     assert not summary.fell and 0.85 < summary.displacement_m[0] < 1.05  # 10 s at 0.1 m/s: 0.95 m in the README
     assert (tmp_path / "walk.mp4").stat().st_size > 10_000 or session.render_skipped
-    code, out, err = run_main(monkeypatch, capsys, "sim", "run", "--policy", "walk-zmp", "--command", "0:0.1,0,0",
-                              "--seconds", "10", "--log", tmp_path / "cli.npz")
+    code, _, err = run_main(monkeypatch, capsys, "sim", "run", "--policy", "walk-zmp", "--command", "0:0.1,0,0",
+                            "--seconds", "10", "--log", tmp_path / "cli.npz")
     assert code == 0, err
     cli = RunLog.load(tmp_path / "cli.npz")
     np.testing.assert_array_equal(cli.base_pos, namespace["result"].log.base_pos)  # the very same run
