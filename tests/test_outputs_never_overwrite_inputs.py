@@ -119,3 +119,16 @@ def test_an_output_folder_may_be_new_when_its_parent_exists(monkeypatch, capsys,
     code, _, err = run_main(monkeypatch, capsys, "design", "report", "--plot", tmp_path / "figures")
     assert code == 0, err
     assert len(list((tmp_path / "figures").glob("*.png"))) >= 3
+
+
+def test_a_dataset_is_never_written_into_a_folder_that_holds_something(monkeypatch, capsys, tmp_path):
+    """`manip demo` and `teleop` write a dataset whole: a folder with files in it is refused by the one output check
+    (the demonstrations replace it only with --overwrite), and its files are untouched."""
+    full = tmp_path / "full"
+    full.mkdir()
+    (full / "notes.txt").write_text("mine")
+    code, _, err = run_main(monkeypatch, capsys, "manip", "demo", "-o", full, "--episodes", "1")
+    assert one_line_error(code, err) == f"error: --out {full}: exists and is not empty; pass --overwrite to replace it"
+    code, _, err = run_main(monkeypatch, capsys, "teleop", "--out", full, "--seconds", "1")
+    assert one_line_error(code, err) == f"error: --out {full}: exists and is not empty; record into a new folder"
+    assert (full / "notes.txt").read_text() == "mine"

@@ -77,9 +77,7 @@ def _check_demo_outputs(out: Path, video: Path | None, snapshot: Path | None, ov
     """Every file `manip demo` writes is shown writable before the first episode runs."""
     if snapshot is not None and video is None:
         raise ToddlerbotError("--snapshot takes a frame of the video: give --video too")
-    if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise ToddlerbotError(f"{out} exists and is not empty; pass --overwrite to replace it")
-    output_dir(out, "--out")
+    output_dir(out, "--out", empty=None if overwrite else "; pass --overwrite to replace it")
     for option, path in (("--video", video), ("--snapshot", snapshot)):
         if path is not None:
             output_file(path, option)

@@ -38,11 +38,14 @@ def output_file(path: Path, option: str, inputs: Inputs = (), into_package: bool
     return path
 
 
-def output_dir(path: Path, option: str, inputs: Inputs = (), default: bool = False) -> Path:
+def output_dir(path: Path, option: str, inputs: Inputs = (), default: bool = False, empty: str | None = None) -> Path:
     """`path` as a folder to write files into: an existing folder, or a new one whose parent exists (``default``:
-    the command's own default location, whose parents are created). Shown writable with a probe file."""
+    the command's own default location, whose parents are created). Shown writable with a probe file. ``empty``:
+    the folder must be new or empty (a dataset is written whole), and this says how to replace one."""
     if path.exists() and not path.is_dir():
         raise ToddlerbotError(f"{option} {path}: is not a folder, expected a folder to write into")
+    if empty is not None and path.is_dir() and any(path.iterdir()):
+        raise ToddlerbotError(f"{option} {path}: exists and is not empty{empty}")
     _check_place(path, option, inputs, into_package=False)
     if default:
         path.absolute().parent.mkdir(parents=True, exist_ok=True)

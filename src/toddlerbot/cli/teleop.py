@@ -20,7 +20,6 @@ from toddlerbot.cli.options import (
 )
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir
-from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.interface import CONTROL_DT, CONTROL_HZ
 from toddlerbot.tasks import GRIPPER
 from toddlerbot.teleop.launch import MAX_TELEOP_SECONDS, teleop_tasks
@@ -85,10 +84,8 @@ def teleop(ctx: typer.Context, backend: BackendOption = "sim", input_kind: Input
 
 
 def _check_outputs(out: Path | None, seconds: float, inputs: list) -> None:
-    if out is not None and out.is_dir() and any(out.iterdir()):
-        raise ToddlerbotError(f"{out} exists and is not empty")
     if out is not None:
-        output_dir(out, "--out", inputs)
+        output_dir(out, "--out", inputs, empty="; record into a new folder")
     if seconds:  # 0: until Esc or Ctrl-C
         duration(seconds, "--seconds", MAX_TELEOP_SECONDS)
 
