@@ -90,7 +90,7 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
                           camera if video or snapshot else None, viewer, motion=motion, weights=weights,
                           checkpoint=checkpoint, threads=threads, **symmetric_option(policy, asymmetric))
     with RunProgress(f"simulating {policy}", round(seconds / session.robot.control_dt)) as progress:
-        result = session.run(progress)
+        result = session.run(progress, log_path=log)
     for path in session.write_video(video, snapshot):
         console.print(f"wrote {path}")
     wanted = [f"{kind} {path}" for kind, path in (("video", video), ("snapshot", snapshot)) if path]

@@ -1,5 +1,6 @@
 """A policy on the real robot (or the emulator behind the driver): the one run loop inside the robot's torque
-context, keeping the steps of a run that stops early."""
+context, keeping the steps of a run that stops early; with a log file, the steps go to disk in chunks while the run
+goes on (`toddlerbot.runtime.log.LogRecorder`)."""
 
 from __future__ import annotations
 
@@ -19,8 +20,9 @@ def drive(robot: RealRobot, policy: Policy, commands: Callable[[float], np.ndarr
           log_path: Path | None, keep_partial: Callable[[RunLog], object]) -> RunResult:
     """Run `policy` with torque on (off again on every exit path). A run that stops early (an error, a stop
     signal) hands the steps so far to `keep_partial` when a log was asked for, or always when the bus or a motor
-    failed (the log is then the evidence), and re-raises."""
-    run_log = RunLogObserver()
+    failed (the log is then the evidence), and re-raises. Chunks of an unfinished run already at `log_path` are
+    refused before torque comes on."""
+    run_log = RunLogObserver(log_path)
     try:
         with robot:
             return run_policy(robot, policy, commands, seconds, log=run_log)

@@ -21,7 +21,15 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_HZ, Robot
 from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.observers import VideoObserver, ViewerObserver
-from toddlerbot.runtime.runner import Clock, RunObserver, RunResult, SimulatedClock, WallClock, run_policy
+from toddlerbot.runtime.runner import (
+    Clock,
+    RunLogObserver,
+    RunObserver,
+    RunResult,
+    SimulatedClock,
+    WallClock,
+    run_policy,
+)
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
 
@@ -43,11 +51,12 @@ class SimSession:
     viewer: ViewerObserver | None = None
     watchers: list[RunObserver] = field(default_factory=list)
 
-    def run(self, *more: RunObserver) -> RunResult:
-        """The run, with the session's watchers and `more` (e.g. a progress bar); the viewer is closed after it."""
+    def run(self, *more: RunObserver, log_path: Path | None = None) -> RunResult:
+        """The run, with the session's watchers and `more` (e.g. a progress bar); the viewer is closed after it.
+        `log_path`: the file the log will be saved to, where its rows go in chunks while the run goes on."""
         try:
             return run_policy(self.robot, self.policy, self.commands, self.seconds, clock=self.clock,
-                              observers=[*self.watchers, *more])
+                              observers=[*self.watchers, *more], log=RunLogObserver(log_path))
         finally:
             if self.viewer is not None:
                 self.viewer.close()
