@@ -18,7 +18,6 @@ the caller's ``with robot:`` turns torque off. The policy is closed on every exi
 
 from __future__ import annotations
 
-import gc
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -104,21 +103,11 @@ class SimulatedClock(Clock):
     """No waiting: simulated time advances as fast as the computer steps."""
 
 
-def settle_garbage() -> None:
-    """Collect, then freeze what survives out of the collector's sight, before a loop that keeps wall-clock time:
-    what start-up built (about 180,000 objects: modules, the robot, the policy) is otherwise walked by every full
-    collection during the run, 18-62 ms each in a HIL walk of `hw run` on the 2-core VM (three in 26 s), pauses a
-    50 Hz loop cannot absorb."""
-    gc.collect()
-    gc.freeze()
-
-
 class WallClock(Clock):
     """Each step locked to wall-clock time: sleeps off the rest of the control period (deadlines accumulate, so a
     late step is caught up by the next ones rather than drifting)."""
 
     def start(self) -> None:
-        settle_garbage()
         self._deadline = time.perf_counter()
 
     def wait(self, period: float) -> None:
