@@ -132,3 +132,15 @@ def test_a_dataset_is_never_written_into_a_folder_that_holds_something(monkeypat
     code, _, err = run_main(monkeypatch, capsys, "teleop", "--out", full, "--seconds", "1")
     assert one_line_error(code, err) == f"error: --out {full}: exists and is not empty; record into a new folder"
     assert (full / "notes.txt").read_text() == "mine"
+
+
+def test_a_commands_own_default_location_is_created_but_a_typed_one_is_not(tmp_path):
+    """`rl train` without --out writes runs/rl/<time>, whose folders a fresh checkout lacks: the command's own
+    default is created (`default=True`); the same path typed by the user is held to the rule."""
+    from toddlerbot.errors import ToddlerbotError
+
+    run = tmp_path / "runs" / "rl" / "20261128-120000"
+    with pytest.raises(ToddlerbotError, match="does not exist; create it first"):
+        output_paths.output_dir(run, "--out")
+    assert not (tmp_path / "runs").exists()
+    assert output_paths.output_dir(run, "--out", default=True) == run and run.parent.is_dir() and not run.exists()

@@ -157,8 +157,8 @@ def _plan(out: Path | None, resume: Path | None, request: TrainRequest):
         return resume_plan(resume, request)
     if request.imitation_iterations:
         training_budget(None, request.imitation_iterations, "--imitation-iterations")
-    return new_run_plan(output_dir(out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S"), "--out"),
-                        request)
+    run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
+    return new_run_plan(output_dir(run_dir, "--out", default=out is None), request)  # the default's folder is made
 
 
 def _train_with_progress(plan, minutes: float | None, epochs: int | None, sinks) -> list[dict]:
