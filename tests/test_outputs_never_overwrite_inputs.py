@@ -109,7 +109,7 @@ def test_a_missing_output_folder_is_refused_not_created(monkeypatch, capsys, tmp
         target = tmp_path / "typo" / "sub" / "out.file"
         code, _, err = run_main(monkeypatch, capsys, *args, target)
         assert one_line_error(code, err) == (f"error: {option} {target}: folder {target.parent} does not exist; "
-                                             "create it first")
+                                             f"create it first (mkdir -p {target.parent})")
     code, _, err = run_main(monkeypatch, capsys, "sim", "plot", tmp_path / "x.npz", "-o", tmp_path / "a" / "b")
     assert f"--out {tmp_path / 'a' / 'b'}: folder {tmp_path / 'a'} does not exist" in one_line_error(code, err)
     assert not (tmp_path / "typo").exists() and not (tmp_path / "a").exists()

@@ -95,7 +95,8 @@ def _probe(folder: Path, name: str, option: str, path: Path) -> None:
     if not existing.is_dir():
         raise ToddlerbotError(f"{option} {path}: cannot write there ({existing} is not a folder)")
     if existing != folder:
-        raise ToddlerbotError(f"{option} {path}: folder {folder} does not exist; create it first")
+        raise ToddlerbotError(f"{option} {path}: folder {path.parent} does not exist; create it first (mkdir -p "
+                              f"{path.parent})")
     try:
         fd, probe = tempfile.mkstemp(prefix=f".{name}.", suffix=".probe", dir=folder)
         os.close(fd)
