@@ -190,7 +190,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         stack.close()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    _report_run(policy, result, session.policy, log)
+    _report_run(policy, result, session.policy, log, session.robot.bus)
 
 
 def _check_run(policy: str, seconds: float, control_hz: float | None, control_dt: float | None,
@@ -218,12 +218,13 @@ def _control_period(control_hz: float | None, control_dt: float | None) -> float
     return control_dt
 
 
-def _report_run(policy: str, result, pol, log: Path | None) -> None:
-    """Print the run's rate and tracking, save the log; a fall exits 1."""
+def _report_run(policy: str, result, pol, log: Path | None, bus) -> None:
+    """Print the run's rate, tracking and what the bus lost, save the log; a fall exits 1."""
     steps = result.log.time.size
     error = np.abs(result.log.motor_pos - result.log.motor_target).max(axis=1)
     console.print(f"{policy}: {steps} steps at {steps / max(result.log.step_period.sum(), 1e-9):.0f} Hz; "
                   f"median largest tracking error {np.rad2deg(np.median(error)):.2f} deg")
+    console.print(f"bus {bus.port_name}: {bus.counters.describe()}", highlight=False)
     if pol.status is not None:  # e.g. dp's inference, and how its camera stopped if it did
         console.print(pol.status.describe(), highlight=False)
     if np.all(np.isfinite(result.log.base_pos)):  # motion capture watched the run

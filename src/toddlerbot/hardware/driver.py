@@ -123,6 +123,24 @@ class BusMotor:
         return f"motor {self.id} ({self.name}, {self.model.name})"
 
 
+@dataclass
+class BusCounters:
+    """What went wrong on the bus since the driver was made (`hw run` prints them after a run)."""
+
+    crc_errors: int = 0
+    """Status packets that arrived damaged (a bad CRC, or cut short)."""
+    timeouts: int = 0
+    """Waits for a status packet that ended with nothing."""
+    retries: int = 0
+    """Transactions sent again after a failure (a single-motor transaction, a state read, a sync write)."""
+    stale_readings: int = 0
+    """Motor states missing after a cycle's retry, replaced by the motor's last reading."""
+
+    def describe(self) -> str:
+        return (f"{self.retries} retries, {self.crc_errors} CRC errors, {self.timeouts} timeouts, "
+                f"{self.stale_readings} stale readings")
+
+
 @dataclass(frozen=True)
 class MotorState:
     """Raw readings of all motors, in the bus's motor order."""
@@ -232,6 +250,7 @@ class DynamixelBus:
         self.torque_enabled = False
         self.bytes_tx = 0
         self.bytes_rx = 0
+        self.counters = BusCounters()
         self.is_open = False
         self.lost: str | None = None
         """Why the port is gone (None while it works); set by the first port error that means a lost device."""
@@ -345,15 +364,22 @@ class DynamixelBus:
     def _result(self, comm: int, error: int) -> str | None:
         """None on success, else a description of the failure."""
         if comm != sdk.COMM_SUCCESS:
+            self._count(comm)
             return self.ph.getTxRxResult(comm)
         if error & 0x7F:
             return self.ph.getRxPacketError(error)
         return None
 
+    def _count(self, comm: int) -> None:
+        """Count a failed reception."""
+        self.counters.crc_errors += comm == sdk.COMM_RX_CORRUPT
+        self.counters.timeouts += comm == sdk.COMM_RX_TIMEOUT
+
     def _retry(self, motor: BusMotor, what: str, call, allow_alert: bool = False) -> tuple:
         """Run `call` (an SDK transaction returning (..., comm_result, error)) up to `retries` times."""
         problem = ""
-        for _ in range(self.retries):
+        for attempt in range(self.retries):
+            self.counters.retries += attempt > 0
             try:
                 *values, comm, error = call()
             except IndexError:  # the SDK indexes past the end of a short (but CRC-valid) status packet
@@ -578,9 +604,11 @@ class DynamixelBus:
             missing = [i for i in self.ids if i not in answers]
             if not missing:
                 break
+            self.counters.retries += 1
             retried, problem = self._group_read(missing, fast=False)
             answers |= retried
         fresh = np.array([i in answers for i in self.ids])
+        self.counters.stale_readings += int(np.count_nonzero(~fresh))
         self.missed = np.where(fresh, 0, self.missed + 1)
         silent = [m.label for m, n in zip(self.motors, self.missed, strict=True) if n >= self.max_missed_cycles]
         if silent or (not fresh.all() and self._last_state is None):
@@ -635,6 +663,7 @@ class DynamixelBus:
         while len(answers) < len(ids):
             rx, comm = self.ph.rxPacket(self.port, False)
             if comm != sdk.COMM_SUCCESS:
+                self._count(comm)
                 problem = f"sync read: {self.ph.getTxRxResult(comm)}"
                 break
             dxl_id = rx[sdk.PKT_ID]
@@ -671,6 +700,7 @@ class DynamixelBus:
         comm = reader.fastSyncReadTxPacket()
         if comm == sdk.COMM_SUCCESS:
             raw, comm, _ = self.ph.fastSyncReadRx(self.port, sdk.BROADCAST_ID, (length + 4) * n)
+        self._count(comm)
         if comm != sdk.COMM_SUCCESS:
             return False, f"fast sync read: {self.ph.getTxRxResult(comm)}"
         if len(raw) != (length + 4) * n:
@@ -713,7 +743,8 @@ class DynamixelBus:
         self._send(writer, "gains")
 
     def _send(self, writer, what: str) -> None:
-        for _ in range(self.retries):
+        for attempt in range(self.retries):
+            self.counters.retries += attempt > 0
             try:
                 comm = writer.txPacket()
             except PORT_ERRORS as exc:
