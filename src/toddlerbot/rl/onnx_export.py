@@ -100,7 +100,7 @@ def policy_model(policy: RLPolicyFile):
 def random_observations(policy: RLPolicyFile, n: int = 256, seed: int = 0) -> np.ndarray:
     """Observations drawn in the policy's normalised space: obs_mean + obs_std * z, half with z ~ N(0, 1), half
     with z uniform in [-3, 3]. (Raw standard-normal vectors lie up to hundreds of obs_std away from anything the
-    robot observes; there float32 summation order alone moves the actions by ~2e-5, docs/rl.md.)"""
+    robot observes, where float32 rounding alone moves the actions by ~1e-5, docs/rl.md.)"""
     rng = np.random.default_rng(seed)
     width = len(policy.obs_mean)
     z = np.concatenate([rng.normal(size=(n // 2, width)), rng.uniform(-3, 3, (n - n // 2, width))])
