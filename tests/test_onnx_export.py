@@ -10,7 +10,7 @@ import pytest
 onnx = pytest.importorskip("onnx")
 ort = pytest.importorskip("onnxruntime")
 
-from toddlerbot.cli.main import main  # noqa: E402
+from cli_support import run_main  # noqa: E402
 from toddlerbot.errors import ToddlerbotError  # noqa: E402
 from toddlerbot.policies.rl_inference import ONNX_INPUT, RLPolicyFile  # noqa: E402
 from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, WalkRLPolicy  # noqa: E402
@@ -18,15 +18,6 @@ from toddlerbot.rl import onnx_export  # noqa: E402
 from toddlerbot.rl.onnx_export import export_onnx, random_observations, recorded_observations  # noqa: E402
 
 TOL = 1e-5
-
-
-def _cli(monkeypatch, capsys, *args):
-    """(exit code, stdout, stderr) of ``toddlerbot ARGS`` run in this process."""
-    monkeypatch.setattr(sys, "argv", ["toddlerbot", *map(str, args)])
-    with pytest.raises(SystemExit) as info:
-        main()
-    out = capsys.readouterr()
-    return info.value.code, out.out, out.err
 
 
 def _max_diff(onnx_policy, numpy_policy, observations):
@@ -204,19 +195,19 @@ def test_wrong_motor_set_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
     with pytest.raises(ToddlerbotError, match="trained for motors") as info:
         WalkRLPolicy(MuJoCoRobot(), path)
     assert "\n" not in str(info.value)
-    code, _, err = _cli(monkeypatch, capsys, "sim", "run", "--policy", "walk-rl", "--weights", path, "--seconds",
+    code, _, err = run_main(monkeypatch, capsys, "sim", "run", "--policy", "walk-rl", "--weights", path, "--seconds",
                         "0.1")
     assert code == 2 and err.count("\n") == 1 and "trained for motors ('neck_pitch_drive'" in err
 
 
 def test_cli_export_from_npz_and_bad_format(tmp_path, monkeypatch, capsys):
     out = tmp_path / "w.onnx"
-    code, stdout, _ = _cli(monkeypatch, capsys, "rl", "export", _residual_policy(tmp_path), "--format", "onnx",
+    code, stdout, _ = run_main(monkeypatch, capsys, "rl", "export", _residual_policy(tmp_path), "--format", "onnx",
                            "--out", out)
     assert code == 0 and out.is_file() and "max abs action difference" in stdout
     figures = [float(x) for x in stdout.split("difference:")[1].replace(",", " ").split() if x[0].isdigit()]
     assert figures[0] <= TOL and figures[1] == 256  # difference on 256 random observations
-    code, _, err = _cli(monkeypatch, capsys, "rl", "export", DEFAULT_WEIGHTS, "--format", "tflite", "--out",
+    code, _, err = run_main(monkeypatch, capsys, "rl", "export", DEFAULT_WEIGHTS, "--format", "tflite", "--out",
                         tmp_path / "x.tflite")
     assert code == 2 and err.count("\n") == 1 and "'--format': Value error, 'tflite' is not one of 'npz', 'onnx'" in err
     assert not (tmp_path / "x.tflite").exists()
@@ -271,7 +262,7 @@ def test_a_perturbed_weight_is_refused_in_one_line_naming_the_output(tmp_path, m
     difference, allowed = map(float, figures)
     assert allowed <= tolerance and difference > 5 * allowed
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["residual.npz"]  # no temporary left
-    code, _, err = _cli(monkeypatch, capsys, "rl", "export", npz, "--format", "onnx", "--out", out)
+    code, _, err = run_main(monkeypatch, capsys, "rl", "export", npz, "--format", "onnx", "--out", out)
     assert code == 2 and err.count("\n") == 1 and f"{out}: ONNX actions differ" in err and not out.exists()
 
 
@@ -315,33 +306,17 @@ def test_onnx_runtime_missing_or_foreign_models_are_one_line_errors(shipped, tmp
 
 def _small_run(tmp_path):
     """A training run directory (config + one checkpoint of a small network) as `rl train` leaves it."""
-    jax = pytest.importorskip("jax")
     pytest.importorskip("brax")
-    from toddlerbot.policies.rl_inference import ObsConfig
-    from toddlerbot.rl import train
-    from toddlerbot.rl.config import EnvConfig, PPOConfig
-    from toddlerbot.rl.export import _template
-    from toddlerbot.robot.description import RobotDescription
+    from ppo_support import small_run
 
-    run = tmp_path / "run"
-    env_cfg = EnvConfig(obs=ObsConfig(history=2, gait_period=0.72), residual=False)
-    ppo_cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=(32, 16), value_hidden=(16,))
-    run.mkdir()
-    train.save_config(run, env_cfg, ppo_cfg)
-    state, _ = _template(env_cfg, ppo_cfg, RobotDescription.load(), 7)
-    policy = state.params.policy
-    head = policy["params"]["Dense_0"]
-    policy["params"]["Dense_0"] = {**head, "kernel": head["kernel"] * 6.0}  # some means beyond +-1: clipping
-    state = state.replace(params=state.params.replace(policy=policy), env_steps=jax.numpy.asarray(4096))
-    train.save_checkpoint(run, state, jax.random.PRNGKey(0), [{"env_steps": 4096, "walltime": 1.0}])
-    return run
+    return small_run(tmp_path)
 
 
 def test_small_run_exports_to_onnx_equal_to_its_npz(tmp_path, monkeypatch, capsys):
     run = _small_run(tmp_path)
-    code, _, err = _cli(monkeypatch, capsys, "rl", "export", run, "--out", tmp_path / "run.npz")
+    code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, "--out", tmp_path / "run.npz")
     assert code == 0, err
-    code, stdout, err = _cli(monkeypatch, capsys, "rl", "export", run, "--format", "onnx", "--out",
+    code, stdout, err = run_main(monkeypatch, capsys, "rl", "export", run, "--format", "onnx", "--out",
                              tmp_path / "run.onnx")
     assert code == 0, err
     assert "on 256 random observations" in stdout and "on 100 recorded" in stdout  # 50 steps x 2
@@ -405,13 +380,13 @@ def test_dp_networks_in_onnx_equal_torch_and_sample_the_same_chunk(tmp_path, cha
 
 def test_dp_export_cli_formats(tmp_path, monkeypatch, capsys):
     checkpoint = _dp_checkpoint(tmp_path)
-    code, stdout, err = _cli(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "onnx", "--out",
+    code, stdout, err = run_main(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "onnx", "--out",
                              tmp_path / "onnx")
     assert code == 0, err
     assert sorted(p.name for p in (tmp_path / "onnx").iterdir()) == ["noise_unet.onnx", "observation_encoder.onnx"]
     differences = [float(line.split("max abs difference ")[1].split()[0]) for line in stdout.splitlines()]
     assert len(differences) == 2 and max(differences) <= TOL
-    code, _, err = _cli(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "tflite", "--out",
+    code, _, err = run_main(monkeypatch, capsys, "dp", "export", checkpoint, "--format", "tflite", "--out",
                         tmp_path / "x")
     assert code == 2 and err.count("\n") == 1 and "'--format': Value error, 'tflite' is not one of 'pt', 'onnx'" in err
 
