@@ -4,6 +4,7 @@ goes on (`toddlerbot.runtime.log.LogRecorder`)."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,12 +22,14 @@ def drive(robot: RealRobot, policy: Policy, commands: Callable[[float], np.ndarr
     """Run `policy` with torque on (off again on every exit path). A run that stops early (an error, a stop
     signal) hands the steps so far to `keep_partial` when a log was asked for, or always when the bus or a motor
     failed (the log is then the evidence), and re-raises. Chunks of an unfinished run already at `log_path` are
-    refused before torque comes on."""
+    refused before torque comes on. The log is joined once torque is off: joining 30 minutes of chunks takes
+    seconds, which a walking robot held by motors that get no goals would spend falling over."""
     run_log = RunLogObserver(log_path)
     try:
         with robot:
-            return run_policy(robot, policy, commands, seconds, log=run_log)
+            result = run_policy(robot, policy, commands, seconds, observers=[run_log], record_log=False)
     except BaseException as exc:
         if len(run_log.recorder) and (log_path is not None or isinstance(exc, HardwareError)):
             keep_partial(run_log.finish(robot, policy))
         raise
+    return dataclasses.replace(result, log=run_log.finish(robot, policy))
