@@ -46,6 +46,9 @@ def print_segment(segment: Segment) -> None:
 def print_report(report: SoakReport, sample_every: float) -> None:
     dt_ms = report.control_dt * 1e3
     steps = report.step_period.size
+    if not steps:
+        print(f"no step logged; hw run printed:\n{report.segments[-1].output}")
+        return
     counters = ", ".join(f"{report.bus(c)} {c.replace('_', ' ')}" for c in BUS_COUNTERS)
     print(f"packets: {counters} (driver); "
           f"{report.emulator_crc_errors} CRC errors, "

@@ -97,6 +97,17 @@ def test_a_recorder_killed_mid_run_leaves_chunks_that_load_with_every_complete_r
     _assert_same(RunLog.load(path), log)
 
 
+def test_a_chunk_that_cannot_be_written_leaves_the_rows_in_memory_and_the_run_going(tmp_path):
+    path = tmp_path / "run.npz"
+    parts_of(path).write_text("in the way")  # the chunks' folder cannot be made, as on a full disk
+    recorder = LogRecorder(path, chunk_seconds=0.1)
+    recorder.start(NAMES, NAMES, 0.02, "stand")
+    for k in range(12):
+        recorder.append(**_row(k))
+    assert recorder.spilled == 0 and len(recorder.rows["time"]) == 12 and recorder.parts is None
+    np.testing.assert_allclose(recorder.finish(NAMES, NAMES, 0.02, "stand").time, 0.02 * np.arange(12))
+
+
 def test_chunks_of_two_runs_or_none_at_all_are_one_line_errors(tmp_path):
     first, second = (LogRecorder(tmp_path / name, chunk_seconds=0.02) for name in ("a.npz", "b.npz"))
     first.start(NAMES, NAMES, 0.02, "stand")
