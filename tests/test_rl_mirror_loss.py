@@ -97,7 +97,7 @@ def test_the_walk_env_mirrors_every_frame_of_its_history_and_leg_actions():
 def test_a_mirror_loss_needs_an_env_with_a_mirror_and_a_weight_of_at_least_zero(tmp_path):
     with pytest.raises(ToddlerbotError, match=r"mirror_loss 1\.0: the environment TargetEnv has no mirror"):
         train.PPO(TargetEnv(), PPOConfig(**{**CFG.__dict__, "mirror_loss": 1.0}))
-    with pytest.raises(ToddlerbotError, match=r"--mirror-loss: mirror_loss -1\.0: expected a weight >= 0"):
+    with pytest.raises(ToddlerbotError, match=r"--mirror-loss: mirror_loss -1\.0: expected a weight in \[0, 10000\]"):
         new_run_plan(tmp_path / "bad", TrainRequest(smoke=True, mirror_loss=-1.0))
     assert new_run_plan(tmp_path / "run", TrainRequest(smoke=True, mirror_loss=0.5)).ppo.mirror_loss == 0.5
 

@@ -218,13 +218,14 @@ def _recipe(backend: str, request: TrainRequest) -> tuple[config.PPOConfig, conf
 
 
 def _ppo_overrides(ppo_cfg: config.PPOConfig, request: TrainRequest) -> config.PPOConfig:
-    try:
-        if request.timesteps is not None:
-            ppo_cfg = replace(ppo_cfg, num_timesteps=request.timesteps)
-        if request.num_envs is not None:
-            ppo_cfg = config.with_num_envs(ppo_cfg, request.num_envs)
-        if request.mirror_loss is not None:
-            ppo_cfg = replace(ppo_cfg, mirror_loss=request.mirror_loss)
-    except ValueError as exc:
-        raise ToddlerbotError(f"--num-envs/--timesteps/--mirror-loss: {exc}") from exc
+    overrides = (("--timesteps", request.timesteps, lambda cfg, v: replace(cfg, num_timesteps=v)),
+                 ("--num-envs", request.num_envs, config.with_num_envs),
+                 ("--mirror-loss", request.mirror_loss, lambda cfg, v: replace(cfg, mirror_loss=v)))
+    for option, value, apply in overrides:
+        if value is None:
+            continue
+        try:
+            ppo_cfg = apply(ppo_cfg, value)
+        except ValueError as exc:
+            raise ToddlerbotError(f"{option}: {exc}") from exc
     return ppo_cfg
