@@ -104,8 +104,8 @@ def bench_env(mjx_batches: tuple[int, ...], cpu_batches: tuple[int, ...], steps:
     import jax.numpy as jnp
 
     from toddlerbot.rl.config import EnvConfig
-    from toddlerbot.rl.env import WalkEnv
     from toddlerbot.rl.reference import load_reference
+    from toddlerbot.rl.walk_env import WalkEnv
     from toddlerbot.robot.description import RobotDescription
 
     description = RobotDescription.load()
@@ -243,8 +243,8 @@ def bench_settings(n_envs: int, seconds: float, settings: tuple = SETTINGS) -> N
     height), the transmission constraints' worst residual, and env steps/s of the compiled rollout."""
     from toddlerbot.rl.checks import equality_residual, stand
     from toddlerbot.rl.config import smoke_env_config
-    from toddlerbot.rl.env import WalkEnv
     from toddlerbot.rl.reference import standing_table
+    from toddlerbot.rl.walk_env import WalkEnv
     from toddlerbot.robot.description import RobotDescription
 
     description = RobotDescription.load()

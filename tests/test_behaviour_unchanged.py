@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-BASELINE = "6a5363d579e63d241d9b366f0676461f630665a2"
-"""The last commit before the architecture round 4 restructuring (issue 40)."""
+BASELINE = "e869420af88a39b4b62b6487633395606d7d501e"
+"""The last commit before the RL environments became registrations (issue 41)."""
 
 
 def _digests(source: Path, folder: Path) -> dict:

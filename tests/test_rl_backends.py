@@ -14,9 +14,9 @@ jnp = jax.numpy
 
 from toddlerbot.policies.motions import load_motion  # noqa: E402
 from toddlerbot.rl.config import smoke_env_config  # noqa: E402
-from toddlerbot.rl.env import WalkEnv  # noqa: E402
 from toddlerbot.rl.model import training_model  # noqa: E402
 from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.rl.walk_env import WalkEnv  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot  # noqa: E402
 

@@ -17,9 +17,9 @@ import toddlerbot.robot.description as description_module
 from toddlerbot.cli.main import app
 from toddlerbot.rl import randomization
 from toddlerbot.rl.config import EnvConfig, smoke_env_config
-from toddlerbot.rl.env import WalkEnv
 from toddlerbot.rl.reference import standing_table
 from toddlerbot.rl.run_files import motor_params_record
+from toddlerbot.rl.walk_env import WalkEnv
 from toddlerbot.robot.description import RobotDescription
 
 KNEE_MODEL = "XM430-W210"

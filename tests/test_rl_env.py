@@ -13,8 +13,8 @@ pytest.importorskip("mujoco.mjx")
 jnp = jax.numpy
 
 from toddlerbot.rl.config import smoke_env_config  # noqa: E402
-from toddlerbot.rl.env import WalkEnv  # noqa: E402
 from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.rl.walk_env import WalkEnv  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 

@@ -11,8 +11,8 @@ pytest.importorskip("brax")
 jnp = jax.numpy
 
 from toddlerbot.rl.config import CommandConfig, EnvConfig  # noqa: E402
-from toddlerbot.rl.env import WalkEnv  # noqa: E402
 from toddlerbot.rl.imitation import TeacherBatch, teacher_action, teacher_gain_scales  # noqa: E402
+from toddlerbot.rl.walk_env import WalkEnv  # noqa: E402
 from toddlerbot.rl.wrappers import wrap_for_training  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 

@@ -113,8 +113,8 @@ def test_residual_policy_targets_the_reference_like_the_environment(tmp_path):
     from toddlerbot.policies.rl_inference import GaitReference
     from toddlerbot.policies.walk_rl import WalkRLPolicy
     from toddlerbot.rl.config import EnvConfig, smoke_env_config
-    from toddlerbot.rl.env import WalkEnv
     from toddlerbot.rl.export import write_policy
+    from toddlerbot.rl.walk_env import WalkEnv
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 

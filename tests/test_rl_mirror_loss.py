@@ -17,9 +17,9 @@ from toddlerbot.errors import ToddlerbotError  # noqa: E402
 from toddlerbot.policies.rl_inference import mirror_frame, mirror_leg_action  # noqa: E402
 from toddlerbot.rl import train  # noqa: E402
 from toddlerbot.rl.config import PPOConfig, smoke_env_config  # noqa: E402
-from toddlerbot.rl.env import WalkEnv  # noqa: E402
 from toddlerbot.rl.launch import TrainRequest, new_run_plan  # noqa: E402
 from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.rl.walk_env import WalkEnv  # noqa: E402
 
 PARTNER, SIGN = np.array([1, 0, 2, 3]), np.array([1.0, 1.0, -1.0, 1.0])
 """The target task's mirror: targets 0 and 1 swap, target 2 changes sign (an involution)."""

@@ -12,8 +12,8 @@ jnp = jax.numpy
 
 from toddlerbot.errors import ToddlerbotError  # noqa: E402
 from toddlerbot.rl.config import RandomizationConfig, smoke_env_config  # noqa: E402
-from toddlerbot.rl.env import WalkEnv  # noqa: E402
 from toddlerbot.rl.reference import standing_table  # noqa: E402
+from toddlerbot.rl.walk_env import WalkEnv  # noqa: E402
 from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 
@@ -176,9 +176,10 @@ def test_stages_recorded_before_the_interval_could_change_read_as_the_configurat
 @pytest.mark.parametrize(("request_fields", "message"), [
     ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
     ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),
-    ({"hand_force": 1.0}, r"--mirror-loss/--reward-weight: a resumed run keeps the settings it started with"),
+    ({"hand_force": 1.0}, r"^--hand-force: a resumed run keeps the settings it started with"),
     ({"push_interval": (3.0, 1.0)}, r"^--push-interval: push interval 3\.0\.\.1\.0: expected 0 < shortest"),
-    ({"reward_weights": ("path_xy=5",)}, r"--reward-weight: a resumed run keeps the settings it started with"),
+    ({"reward_weights": ("path_xy=5",)}, r"^--reward-weight: a resumed run keeps the settings it started with"),
+    ({"num_envs": 8, "environment": "walk2"}, r"^--num-envs/--env: a resumed run keeps the settings it started"),
     ({"imu_age": (0.02, 0.01)}, r"^--imu-age: IMU age 0\.02\.\.0\.01: expected 0 <= youngest <= oldest, s$"),
     ({"imu_age": (0.0, 0.03)}, r"^--imu-age: IMU age up to 0\.03 s: expected at most the control period 0\.02 s$"),
     ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval, --imu-age and "

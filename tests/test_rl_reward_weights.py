@@ -10,11 +10,11 @@ pytest.importorskip("jax")
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.rl import config, train
 from toddlerbot.rl.launch import TrainRequest, new_run_plan, reward_weights
-from toddlerbot.rl.rewards import TERMS
+from toddlerbot.rl.rewards import WALK_REWARDS
 
 
 def test_a_weight_is_set_by_name_and_the_others_keep_table_6():
-    table = config.RewardConfig().weights
+    table = WALK_REWARDS.default_weights
     weights = reward_weights(table, TrainRequest(reward_weights=("path_xy=5", "survival=12.5")))
     assert weights == {**table, "path_xy": 5.0, "survival": 12.5}
     assert table["path_xy"] == 0.0  # the configuration itself is not changed
@@ -42,7 +42,7 @@ def test_a_new_run_trains_with_the_weight_and_a_warm_start_refuses_one(tmp_path)
 
 
 def test_a_run_saved_before_the_path_term_existed_loads_with_it_off(tmp_path):
-    weighted = config.RewardConfig(weights={**config.RewardConfig().weights, "path_xy": 5.0})
+    weighted = config.RewardConfig(weights={**WALK_REWARDS.default_weights, "path_xy": 5.0})
     env_cfg = config.EnvConfig(reward=weighted)
     train.save_config(tmp_path, env_cfg, config.SMOKE)
     assert train.load_config(tmp_path)[0].reward.weights["path_xy"] == 5.0  # saved, loaded back
@@ -50,4 +50,4 @@ def test_a_run_saved_before_the_path_term_existed_loads_with_it_off(tmp_path):
     del raw["env"]["reward"]["weights"]["path_xy"]  # as a run of an earlier version saved it
     (tmp_path / "config.json").write_text(json.dumps(raw))
     loaded = train.load_config(tmp_path)[0].reward.weights
-    assert set(loaded) == set(TERMS) and loaded["path_xy"] == 0.0 and loaded["survival"] == 10.0
+    assert set(loaded) == set(WALK_REWARDS) and loaded["path_xy"] == 0.0 and loaded["survival"] == 10.0

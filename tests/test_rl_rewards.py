@@ -34,15 +34,17 @@ def quantities(**overrides):
 
 
 def test_weights_are_table_6_and_cover_every_term():
-    assert RewardConfig().weights == {**TABLE_6, "path_xy": 0.0}  # the path term is ours, off by default
-    assert set(rewards.TERMS) == set(TABLE_6) | {"path_xy"}
-    with pytest.raises(ValueError, match="missing"):
-        rewards.check_weights(RewardConfig(weights={"survival": 1.0}))
+    walk = rewards.WALK_REWARDS
+    assert walk.default_weights == {**TABLE_6, "path_xy": 0.0}  # the path term is ours, off by default
+    assert set(walk) == set(TABLE_6) | {"path_xy"}
+    assert walk.weights(None) == walk.default_weights  # a configuration without weights means the table's
+    with pytest.raises(ValueError, match=r"missing \[.*'torso_quat'.*\], unknown \['toe'\]"):
+        walk.weights({"survival": 1.0, "toe": 1.0})
 
 
 def test_perfect_standing_earns_every_imitation_term_and_no_penalty():
-    cfg = RewardConfig()
-    total, terms = rewards.total_reward(quantities(), cfg, dt=0.02)
+    cfg = RewardConfig(weights=rewards.WALK_REWARDS.default_weights)
+    total, terms = rewards.WALK_REWARDS.total(quantities(), cfg, dt=0.02)
     imitation = ("torso_quat", "lin_vel_xy", "lin_vel_z", "ang_vel_xy", "ang_vel_z", "leg_motor_pos", "feet_contact")
     for name in imitation:
         assert float(terms[name]) == pytest.approx(1.0)

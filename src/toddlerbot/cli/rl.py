@@ -22,6 +22,7 @@ from toddlerbot.cli.output_paths import output_dir, output_file, source_checkout
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig
+from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT, ENVIRONMENTS
 from toddlerbot.rl.launch import TrainRequest
 from toddlerbot.rl.onnx_export import EXPORT_FORMATS
 
@@ -51,6 +52,9 @@ EpochsOption = Annotated[int | None, typer.Option(help="Stop after this many epo
 SolverIterationsOption = Annotated[int | None, typer.Option(help="Newton iterations of the training model (default "
                                                                  "4; see docs/rl.md before lowering).")]
 LsIterationsOption = Annotated[int | None, typer.Option(help="Line-search iterations (default 8).")]
+EnvOption = Annotated[str, typer.Option(
+    "--env", help=f"Registered environment to train: {', '.join(ENVIRONMENTS.names())} (docs/rl.md \"Environments\"; "
+                  "installed packages add more).")]
 BackendOption = Annotated[Literal[("auto", *PHYSICS_BACKENDS)], typer.Option(  # the backends rl.config knows
     help="Physics: cpu (classic MuJoCo on threads), mjx, or auto (mjx with a GPU, else cpu: then the CPU recipe of "
          "docs/rl.md).")]
@@ -91,6 +95,7 @@ WarmStartOption = Annotated[Path | None, typer.Option(
 @app.command()
 def train(
     out: OutOption = None,
+    env: EnvOption = DEFAULT_ENVIRONMENT,
     smoke: SmokeOption = False,
     resume: ResumeOption = None,
     timesteps: TimestepsOption = None,
@@ -116,17 +121,19 @@ def train(
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
 ) -> None:
-    """Train with PPO (CPU: docs/rl.md's CPU recipe, a DAgger warm start from walk-zmp then PPO; GPU: the one-GPU
-    configuration; --smoke: a tiny run) with checkpoints, a curve and TensorBoard scalars (--wandb: also W&B).
-    --motor-params: the robot trains on the fitted motors, randomisation scales around them. --variant with
-    --upper-body-pose (and --hand-force): a policy for a variant that walks whatever its arms do (and hold)."""
+    """Train an environment (--env, default walk) with PPO on its recipe (walk on a CPU: docs/rl.md's CPU recipe,
+    a DAgger warm start from walk-zmp then PPO; GPU: the one-GPU configuration; --smoke: a tiny run) with
+    checkpoints, a curve and TensorBoard scalars (--wandb: also W&B). --motor-params: the robot trains on the fitted
+    motors, randomisation scales around them. --variant with --upper-body-pose (and --hand-force): a policy for a
+    variant that walks whatever its arms do (and hold)."""
     for limit, count, option in ((minutes, epochs, "--epochs"), (None, timesteps, "--timesteps"),
                                  (None, num_envs, "--num-envs")):
         training_budget(limit, count, option)
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
-                           hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()))
+                           hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()),
+                           env)
     plan = _plan(out, resume, request)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from toddlerbot.rl.env import WalkEnv
+from toddlerbot.rl.walk_env import WalkEnv
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
 from toddlerbot.sim.motor_drive import MotorDrive

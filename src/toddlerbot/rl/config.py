@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 from toddlerbot.locomotion.config import WALK_REACH, WalkConfig
 from toddlerbot.policies.rl_inference import ObsConfig
+from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
 
 __all__ = ["ObsConfig"]
@@ -45,20 +46,11 @@ class CommandConfig:
 
 @dataclass(frozen=True)
 class RewardConfig:
-    """Table 6 weights (all positive; penalty terms return negative values) and the terms' shape parameters."""
+    """The reward terms' weights (all >= 0; penalty terms return negative values) and their shape parameters."""
 
-    weights: dict[str, float] = field(default_factory=lambda: {
-        # imitation
-        "torso_quat": 1.0, "lin_vel_xy": 5.0, "lin_vel_z": 1.0, "ang_vel_xy": 2.0, "ang_vel_z": 5.0,
-        "leg_motor_pos": 5.0, "feet_contact": 1.0,
-        "path_xy": 0.0,  # not in Table 6: off unless `rl train --reward-weight path_xy=W`
-        # regularisation
-        "feet_air_time": 500.0, "feet_clearance": 0.05, "feet_distance": 1.0, "feet_slip": 0.05,
-        "align_ground": 1.0, "stand_still": 1.0, "torso_roll": 0.5, "torso_pitch": 0.5, "collision": 0.1,
-        "leg_action_rate": 0.05, "leg_action_acc": 0.05, "motor_torque": 0.01, "energy": 0.05,
-        # survival
-        "survival": 10.0,
-    })
+    weights: dict[str, float] | None = None
+    """Weight of every reward term of the environment; None: its table's defaults (`rewards.WALK_REWARDS` for
+    walking, Table 6). A built environment's configuration holds them resolved, and so does a saved run."""
     tracking_sigma: float = 20.0
     """Sharpness of exp(-sigma * error^2) imitation kernels, 1/(unit^2)."""
     velocity_sigma: float = 100.0
@@ -169,6 +161,11 @@ PHYSICS_BACKENDS = ("cpu", "mjx")
 
 @dataclass(frozen=True)
 class EnvConfig:
+    """An environment's configuration: the robot, its physics, observations, commands, rewards and randomisation.
+    An environment whose configuration needs more subclasses this (`RLEnvironment.config_class`)."""
+
+    environment: str = DEFAULT_ENVIRONMENT
+    """The registered environment it configures (`toddlerbot.rl.environments`; `rl train --env`)."""
     ctrl_dt: float = CONTROL_DT
     """Control period, s."""
     sim_dt: float = 0.004
@@ -325,6 +322,15 @@ def with_num_envs(cfg: PPOConfig, num_envs: int) -> PPOConfig:
         raise ValueError(f"{num_envs} envs: expected a positive multiple of {step} ({rollouts} rollout(s) of every "
                          f"env per update in {cfg.num_minibatches} minibatches)")
     return replace(cfg, num_envs=num_envs, batch_size=num_envs * rollouts // cfg.num_minibatches)
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """An environment's default training settings on one physics backend."""
+
+    ppo: PPOConfig
+    imitation: ImitationConfig = field(default_factory=ImitationConfig)
+    """Its warm start (none by default)."""
 
 
 FULL = PPOConfig()

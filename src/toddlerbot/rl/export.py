@@ -74,7 +74,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
     """Export a checkpoint of a training run (for the run's robot: packaged spec, its variant and params.json):
     the latest, the named file of ``checkpoints/``, or ``warm_start`` (the DAgger warm start, before PPO)."""
     from toddlerbot.rl import train  # jax-heavy; keep `write_policy` importable alone
-    from toddlerbot.rl.env import training_description
+    from toddlerbot.rl.environment import training_description
 
     run_dir = Path(run_dir)
     env_cfg, ppo_cfg = train.load_config(run_dir)

@@ -101,7 +101,7 @@ class WarmStart:
 def dagger(env, networks: ppo_networks.PPONetworks, cfg: ImitationConfig, episode_length: int, discounting: float,
            key: jax.Array, deadline: float | None = None, progress: Callable[[dict], None] | None = None,
            t_start: float | None = None) -> WarmStart:
-    """DAgger from walk-zmp in ``env`` (a `toddlerbot.rl.env.WalkEnv`): each iteration steps ``cfg.num_envs`` envs
+    """DAgger from walk-zmp in ``env`` (a `toddlerbot.rl.walk_env.WalkEnv`): each iteration steps ``cfg.num_envs`` envs
     for ``cfg.steps`` control steps (the teacher acting in the first ``teacher_iterations``, the student's mean
     after), labels every visited state with the teacher's action, updates the observation normaliser, and fits
     the actor's mean to all labels so far (mean squared error) and the critic to the discounted returns.

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
 from toddlerbot.rl import config
+from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT, environment_class
 from toddlerbot.rl.run_files import CONFIG, SMOKE_MARKER
 
 if TYPE_CHECKING:
@@ -43,6 +44,8 @@ class TrainRequest:
     mirror_loss: float | None = None
     reward_weights: tuple[str, ...] = ()
     """``NAME=WEIGHT`` overrides of `RewardConfig.weights`."""
+    environment: str = DEFAULT_ENVIRONMENT
+    """The registered environment to train (`toddlerbot.rl.environments`)."""
 
 
 @dataclass(frozen=True)
@@ -64,7 +67,8 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
                   "ls_iterations": "--ls-iterations", "backend": "--backend",
                   "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
                   "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
-                  "num_envs": "--num-envs", "mirror_loss": "--mirror-loss", "reward_weights": "--reward-weight"}
+                  "num_envs": "--num-envs", "mirror_loss": "--mirror-loss", "reward_weights": "--reward-weight",
+                  "environment": "--env"}
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
@@ -79,8 +83,10 @@ def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
     are refused."""
     if not (run_dir / CONFIG).is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
-    if any(getattr(request, field) != getattr(TrainRequest(), field) for field in KEPT_ON_RESUME):
-        raise ToddlerbotError(f"{'/'.join(KEPT_ON_RESUME.values())}: a resumed run keeps the settings it started "
+    changed = [option for field, option in KEPT_ON_RESUME.items()
+               if getattr(request, field) != getattr(TrainRequest(), field)]
+    if changed:
+        raise ToddlerbotError(f"{'/'.join(changed)}: a resumed run keeps the settings it started "
                               f"with (only {', '.join(STAGE_OPTIONS.values())} and --timesteps start a next stage)")
     if request.timesteps is not None or any(getattr(request, field) is not None for field in STAGE_OPTIONS):
         _next_stage(run_dir, request)
@@ -106,16 +112,21 @@ def _next_stage(run_dir: Path, request: TrainRequest) -> None:
 
 
 def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
-    """A new run in `run_dir`: the recipe of the resolved backend (CPU recipe, one-GPU configuration or smoke), or
-    the `--warm-start` run's environment, networks and warm start (copied into `run_dir`), then the overrides."""
-    from toddlerbot.rl.env import resolve_backend
+    """A new run in `run_dir` of the requested environment: its recipe on the resolved backend (e.g. the CPU
+    recipe, the one-GPU configuration or the smoke run), or the `--warm-start` run's environment, networks and warm
+    start (copied into `run_dir`), then the overrides."""
+    from toddlerbot.rl.environment import resolve_backend
     from toddlerbot.rl.train import adopt_warm_start
 
+    env_class = environment_class(request.environment)
     backend = resolve_backend(request.backend)
     source = _warm_start_source(request)
-    env_cfg = _environment(source.env if source else config.smoke_env_config() if request.smoke
-                           else config.EnvConfig(), backend, request)
-    ppo_cfg, imitation_cfg = _recipe(backend, request)
+    if source and source.env.environment != request.environment:
+        raise ToddlerbotError(f"--warm-start {source.run_dir}: a run of environment {source.env.environment!r}; "
+                              f"expected {request.environment!r}")
+    env_cfg = _environment(source.env if source else env_class.default_config(request.smoke), backend, request)
+    recipe = env_class.recipe(backend, request.smoke)
+    ppo_cfg, imitation_cfg = replace(recipe.ppo, seed=request.seed), recipe.imitation
     if source:
         ppo_cfg, imitation_cfg = source.policy_of(ppo_cfg), source.imitation
     if request.imitation_iterations is not None:
@@ -155,8 +166,9 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
             else request.ls_iterations)
     except ValueError as exc:
         raise ToddlerbotError(f"--solver-iterations/--ls-iterations: {exc}") from exc
+    defaults = environment_class(env_cfg.environment).reward_terms.weights(env_cfg.reward.weights)
     env_cfg = replace(_robot_variant(env_cfg, request),
-                      reward=replace(env_cfg.reward, weights=reward_weights(env_cfg.reward.weights, request)))
+                      reward=replace(env_cfg.reward, weights=reward_weights(defaults, request)))
     if not request.motor_params:
         return env_cfg
     from toddlerbot.actuation.params_file import catalogue_with_params
@@ -207,14 +219,6 @@ def reward_weights(weights: dict[str, float], request: TrainRequest) -> dict[str
                                   f"[0, {config.MAX_LOSS_WEIGHT:g}]")
         weights[name] = value
     return weights
-
-
-def _recipe(backend: str, request: TrainRequest) -> tuple[config.PPOConfig, config.ImitationConfig]:
-    cpu = backend == "cpu"
-    ppo_cfg = config.SMOKE if request.smoke else config.CPU if cpu else config.FULL
-    imitation_cfg = config.SMOKE_IMITATION if request.smoke else config.CPU_IMITATION if cpu \
-        else config.ImitationConfig()
-    return replace(ppo_cfg, seed=request.seed), imitation_cfg
 
 
 def _ppo_overrides(ppo_cfg: config.PPOConfig, request: TrainRequest) -> config.PPOConfig:

@@ -2,7 +2,7 @@
 
 Both step the training model (`toddlerbot.rl.model.training_model`) one control period at a time, applying the
 actuator model every physics substep, with the env's own domain-randomised model fields and actuator arrays, and
-return the same `Frame`: the few physics quantities `toddlerbot.rl.env.WalkEnv` reads. Everything above the
+return the same `Frame`: the few physics quantities `toddlerbot.rl.walk_env.WalkEnv` reads. Everything above the
 physics (observations, rewards, commands, randomisation draws, pushes, termination) is the environment's one JAX
 definition, whatever the backend.
 

@@ -1,10 +1,11 @@
-"""Reward terms of appendix Table 6, one named function each (JAX).
+"""Reward terms of appendix Table 6, one named function each (JAX), and the walking environment's table of them
+with their weights (`WALK_REWARDS`).
 
 Every term reads the `StepQuantities` computed once per control step and returns a scalar. Imitation and
 survival terms are rewards in [0, 1]; regularisation terms are penalties (<= 0) except feet air time and
-clearance, which may be either sign. The environment adds ``weight * term`` over `TERMS` with the weights of
-`RewardConfig.weights` (Table 6) and multiplies the sum by the control period, so a reward rate does not depend
-on the control frequency.
+clearance, which may be either sign. An environment adds ``weight * term`` over its `RewardTerms` (its weights:
+`RewardConfig.weights`, by default the table's) and multiplies the sum by the control period, so a reward rate
+does not depend on the control frequency.
 """
 
 from __future__ import annotations
@@ -182,25 +183,51 @@ def survival(q: StepQuantities, c: RewardConfig) -> jax.Array:
     return q.alive
 
 
-TERMS: dict[str, Term] = {
-    f.__name__: f
-    for f in (
-        torso_quat, lin_vel_xy, path_xy, lin_vel_z, ang_vel_xy, ang_vel_z, leg_motor_pos, feet_contact,
-        feet_air_time, feet_clearance, feet_distance, feet_slip, align_ground, stand_still, torso_roll,
-        torso_pitch, collision, leg_action_rate, leg_action_acc, motor_torque, energy, survival,
-    )
-}
+class RewardTerms:
+    """An environment's reward terms, each beside its default weight, in summation order (a reordering changes the
+    sum's rounding, so a seeded run's results)."""
+
+    def __init__(self, *weighted: tuple[Term, float]) -> None:
+        self.terms: dict[str, Term] = {term.__name__: term for term, _ in weighted}
+        self.default_weights: dict[str, float] = {term.__name__: float(weight) for term, weight in weighted}
+        if len(self.terms) != len(weighted):
+            raise ValueError("reward terms: a term is listed twice")
+
+    def __iter__(self):
+        return iter(self.terms)
+
+    def weights(self, given: dict[str, float] | None) -> dict[str, float]:
+        """The weights a configuration means: the defaults for None, else `given`, which must weight every term
+        and no other (one line naming the missing and unknown ones)."""
+        if given is None:
+            return dict(self.default_weights)
+        missing, extra = set(self.terms) - set(given), set(given) - set(self.terms)
+        if missing or extra:
+            raise ValueError(f"reward weights: missing {sorted(missing)}, unknown {sorted(extra)}")
+        return {name: float(given[name]) for name in self.terms}
+
+    def saved_weights(self, saved: dict[str, float]) -> dict[str, float]:
+        """A saved run's weights; a term added since the run was saved has weight 0 (the run trained without it)."""
+        return self.weights({**dict.fromkeys(self.terms, 0.0), **saved})
+
+    def total(self, q: StepQuantities, cfg: RewardConfig, dt: float) -> tuple[jax.Array, dict[str, jax.Array]]:
+        """(total reward of the step, unweighted value of each term) with ``cfg``'s weights, which the environment
+        has resolved (`weights`)."""
+        terms = {name: fn(q, cfg) for name, fn in self.terms.items()}
+        total = sum(cfg.weights[name] * value for name, value in terms.items()) * dt
+        return total, terms
 
 
-def check_weights(cfg: RewardConfig) -> None:
-    """Every term has a weight and every weight a term."""
-    missing, extra = set(TERMS) - set(cfg.weights), set(cfg.weights) - set(TERMS)
-    if missing or extra:
-        raise ValueError(f"reward weights: missing {sorted(missing)}, unknown {sorted(extra)}")
-
-
-def total_reward(q: StepQuantities, cfg: RewardConfig, dt: float) -> tuple[jax.Array, dict[str, jax.Array]]:
-    """(total reward of the step, unweighted value of each term)."""
-    terms = {name: fn(q, cfg) for name, fn in TERMS.items()}
-    total = sum(cfg.weights[name] * value for name, value in terms.items()) * dt
-    return total, terms
+WALK_REWARDS = RewardTerms(
+    # imitation
+    (torso_quat, 1.0), (lin_vel_xy, 5.0),
+    (path_xy, 0.0),  # not in Table 6: off unless `rl train --reward-weight path_xy=W`
+    (lin_vel_z, 1.0), (ang_vel_xy, 2.0), (ang_vel_z, 5.0), (leg_motor_pos, 5.0), (feet_contact, 1.0),
+    # regularisation
+    (feet_air_time, 500.0), (feet_clearance, 0.05), (feet_distance, 1.0), (feet_slip, 0.05), (align_ground, 1.0),
+    (stand_still, 1.0), (torso_roll, 0.5), (torso_pitch, 0.5), (collision, 0.1), (leg_action_rate, 0.05),
+    (leg_action_acc, 0.05), (motor_torque, 0.01), (energy, 0.05),
+    # survival
+    (survival, 10.0),
+)
+"""The walking environment's terms with their Table 6 weights."""

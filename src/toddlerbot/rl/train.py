@@ -38,7 +38,7 @@ from brax.training.agents.ppo import networks as ppo_networks
 from flax import serialization
 
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.files import atomic_savez, atomic_write_bytes, atomic_write_text
+from toddlerbot.files import atomic_write_bytes, atomic_write_text
 from toddlerbot.metrics import Dashboards, MetricsLogger
 from toddlerbot.rl.config import (
     CommandConfig,
@@ -49,19 +49,17 @@ from toddlerbot.rl.config import (
     RandomizationConfig,
     RewardConfig,
 )
-from toddlerbot.rl.env import TRACKING_METRICS, WalkEnv
+from toddlerbot.rl.environment import RLEnvironment
+from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT, environment_class
 from toddlerbot.rl.imitation import WarmStart
 from toddlerbot.rl.precision import use_full_precision
-from toddlerbot.rl.rewards import TERMS
 from toddlerbot.rl.run_files import (
-    ACTION_SPACE,
     CHECKPOINTS,
     CONFIG,
     IMITATION_RECORD,
     MAX_CHECKPOINT_BYTES,
     METRICS_RECORD,
     MOTOR_PARAMS_RECORD,
-    REFERENCE_RECORD,
     WARM_START,
     motor_params_record,
     read_json_lines,
@@ -174,6 +172,7 @@ class PPO:
         self.epochs = max(1, min(cfg.num_evals, updates_total))
         self.updates_per_epoch = -(-updates_total // self.epochs)
         self.total_steps = self.updates_per_epoch * self.epochs * cfg.env_steps_per_update
+        self._step_metrics = getattr(env, "step_metrics", ())
         self._p_epoch = jax.pmap(self._epoch, axis_name=AXIS)
         self._p_reset = jax.pmap(self.train_env.reset, axis_name=AXIS)
 
@@ -260,7 +259,7 @@ class PPO:
         metrics.update(
             episode_reward=jnp.sum(episodes["sum_reward"] * done) / jnp.maximum(n_done, 1),
             episode_length=jnp.sum(episodes["length"] * done) / jnp.maximum(n_done, 1),
-            **{name: jnp.sum(episodes[name] * done) / lengths for name in TRACKING_METRICS if name in episodes},
+            **{name: jnp.sum(episodes[name] * done) / lengths for name in self._step_metrics if name in episodes},
             episodes=n_done, step_reward=jnp.mean(data.reward),
             fall_rate=jnp.sum(done * (1 - extras["truncation"])) / done.size,
         )
@@ -279,7 +278,10 @@ class PPO:
 # configuration files -------------------------------------------------------------------------------------------
 def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig,
                 imitation_cfg: ImitationConfig | None = None, stages: list[dict] | None = None) -> None:
-    """config.json; ``stages`` (see `training_stages`) where a resumed run changed its push band or budget."""
+    """config.json, the reward weights resolved (`RewardTerms.weights`); ``stages`` (see `training_stages`) where a
+    resumed run changed its push band or budget."""
+    weights = environment_class(env_cfg.environment).reward_terms.weights(env_cfg.reward.weights)
+    env_cfg = replace(env_cfg, reward=replace(env_cfg.reward, weights=weights))
     raw = {"env": asdict(env_cfg), "ppo": asdict(ppo_cfg), "imitation": asdict(imitation_cfg or ImitationConfig())}
     atomic_write_text(run_dir / CONFIG, json.dumps(raw | ({"stages": stages} if stages else {}), indent=1))
 
@@ -317,6 +319,9 @@ def load_imitation_config(run_dir: Path) -> ImitationConfig:
 
 
 def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
+    """The run's environment configuration (of the class its environment takes; a run saved before environments
+    had names trained ``walk``) and PPO configuration. A reward term added since the run was saved has weight 0
+    (the run trained without it)."""
     path = run_dir / CONFIG
     if not path.is_file():
         raise ToddlerbotError(f"{path}: no training run here (config.json missing)")
@@ -324,22 +329,18 @@ def load_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
     try:
         raw = json.loads(read_run_text(path, "training configuration"))
         env = dict(raw["env"])
-        env_cfg = EnvConfig(
+        env_class = environment_class(env.get("environment", DEFAULT_ENVIRONMENT))
+        reward = tuples(env["reward"])
+        env_cfg = env_class.config_class(
             **{k: v for k, v in tuples(env).items() if k not in ("obs", "command", "reward", "randomization")},
             obs=ObsConfig(**env["obs"]), command=CommandConfig(**tuples(env["command"])),
-            reward=_reward_config(tuples(env["reward"])),
+            reward=RewardConfig(**{**reward, "weights": env_class.reward_terms.saved_weights(reward["weights"])}),
             randomization=RandomizationConfig(**tuples(env["randomization"])),
         )
         return env_cfg, PPOConfig(**tuples(raw["ppo"]))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise ToddlerbotError(f"{path}: not a training configuration ({reason})") from None
-
-
-def _reward_config(saved: dict) -> RewardConfig:
-    """A saved reward configuration; a term added since the run was saved has weight 0 (the run trained without
-    it)."""
-    return RewardConfig(**{**saved, "weights": {**dict.fromkeys(TERMS, 0.0), **saved["weights"]}})
 
 
 # checkpoints ----------------------------------------------------------------------------------------------------
@@ -385,7 +386,7 @@ def load_checkpoint(path: Path, template: TrainingState) -> tuple[TrainingState,
 
 # training --------------------------------------------------------------------------------------------------------
 def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | None = None, resume: bool = False,
-          progress: Progress | None = None, env: WalkEnv | None = None, max_epochs: int | None = None,
+          progress: Progress | None = None, env: RLEnvironment | None = None, max_epochs: int | None = None,
           time_limit_s: float | None = None, imitation_cfg: ImitationConfig | None = None,
           imitation_progress: Callable[[dict], None] | None = None,
           dashboards: Dashboards | None = None) -> tuple[TrainingState, list[dict]]:
@@ -409,13 +410,11 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         env_cfg, ppo_cfg = env_cfg or EnvConfig(), ppo_cfg or PPOConfig()
         imitation_cfg = imitation_cfg or ImitationConfig()
     cfg = ppo_cfg
-    env = env or WalkEnv(env_cfg)
+    env = env or environment_class(env_cfg.environment)(env_cfg)
     if not resume:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, env.cfg, ppo_cfg, imitation_cfg)
-        atomic_write_text(run_dir / REFERENCE_RECORD, env.reference_source + "\n")
-        atomic_savez(run_dir / ACTION_SPACE, {**env.reference.arrays(), "kp_stance_scale": env.gain_scales[0],
-                                              "kp_swing_scale": env.gain_scales[1]})
+        env.record_action_space(run_dir)
         if env.cfg.motor_params:
             record = motor_params_record(env.cfg.motor_params)
             atomic_write_text(run_dir / MOTOR_PARAMS_RECORD, json.dumps(record, indent=1))
@@ -426,7 +425,7 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
                       imitation_progress, metrics, t_start)
 
 
-def _train(run_dir: Path, env: WalkEnv, cfg: PPOConfig, resume: bool, progress: Progress | None,
+def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, progress: Progress | None,
            max_epochs: int | None, time_limit_s: float | None, imitation_cfg: ImitationConfig,
            imitation_progress: Callable[[dict], None] | None, metrics: MetricsLogger,
            t_start: float) -> tuple[TrainingState, list[dict]]:
@@ -483,7 +482,7 @@ def _train(run_dir: Path, env: WalkEnv, cfg: PPOConfig, resume: bool, progress: 
 """File in a run directory holding the DAgger warm start (actor, critic, normaliser, its records)."""
 
 
-def describe_device(env: WalkEnv) -> str:
+def describe_device(env: RLEnvironment) -> str:
     """What trains: JAX's devices, and for the CPU physics backend the CPU and its threads."""
     jax_devices = f"{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
     if env.backend != "cpu":
@@ -501,7 +500,7 @@ def _cpu_name() -> str:
     return platform.processor() or platform.machine()
 
 
-def _warm_start(run_dir: Path, env: WalkEnv, ppo: PPO, cfg: ImitationConfig, ts: TrainingState, key: jax.Array,
+def _warm_start(run_dir: Path, env: RLEnvironment, ppo: PPO, cfg: ImitationConfig, ts: TrainingState, key: jax.Array,
                 t_start: float, time_limit_s: float | None, progress,
                 metrics: MetricsLogger) -> tuple[WarmStart, float]:
     """The run's warm start: loaded from ``warm_start.msgpack`` or made now (DAgger) and saved. Returns it and the
@@ -593,7 +592,7 @@ def _strip_weak_types(tree):
     return jax.tree.map(lambda x: jnp.asarray(x).astype(jnp.asarray(x).dtype), tree)
 
 
-def _evaluator(env: WalkEnv, make_policy, cfg: PPOConfig, key: jax.Array) -> acting.Evaluator:
+def _evaluator(env: RLEnvironment, make_policy, cfg: PPOConfig, key: jax.Array) -> acting.Evaluator:
     return acting.Evaluator(wrap_for_training(env, cfg.eval_episode_length),
                             functools.partial(make_policy, deterministic=True), num_eval_envs=cfg.num_eval_envs,
                             episode_length=cfg.eval_episode_length, action_repeat=1, key=key)

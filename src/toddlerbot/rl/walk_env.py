@@ -1,4 +1,5 @@
-"""The walking environment (Brax `Env` interface): velocity commands, ZMP imitation, 50 Hz control.
+"""The walking environment, registered as ``walk`` (`toddlerbot.rl.environments`): velocity commands, ZMP
+imitation, 50 Hz control.
 
 * Physics: the training variant of the robot's model (`toddlerbot.rl.model.training_model`: timestep
   ``EnvConfig.sim_dt`` = 4 ms, 5 substeps per 20 ms control step, pruned contacts, solver settings), stepped by a
@@ -10,7 +11,10 @@
   so a zero action walks the reference; otherwise home + ``action_scale`` * action. The other 18 motors hold the
   home pose. With ``teacher_gains`` the leg P gains follow walk-zmp's stance/swing schedule.
 * Episodes: `PPOConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
-  torso falls below ``min_torso_height`` or tilts more than ``max_tilt``.
+  torso falls below ``min_torso_height`` or tilts more than ``max_tilt`` (`WalkEnv.terminated`).
+* Rewards: `toddlerbot.rl.rewards.WALK_REWARDS` (Table 6 and the path term, each beside its weight).
+* Default training: the CPU recipe (DAgger warm start from walk-zmp, then PPO), the one-GPU configuration, and the
+  smoke run (`WalkEnv.recipes`).
 * Observations: ``{"state": actor, "privileged_state": critic}`` (see `toddlerbot.rl.observations`).
 * Every reset draws new domain-randomisation parameters, a command, and a push schedule for that env; every
   command comes with its upper-body pose and pull on the hands (both zero unless randomised).
@@ -20,40 +24,29 @@ from __future__ import annotations
 
 from dataclasses import replace
 from functools import cached_property
+from pathlib import Path
+from types import MappingProxyType
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from brax.envs.base import Env, State
+from brax.envs.base import State
 
 from toddlerbot.actuation.model import ActuatorArrays
+from toddlerbot.files import atomic_savez, atomic_write_text
 from toddlerbot.policies.rl_inference import GaitReference, leg_gain_scale, mirror_frame, mirror_leg_action
-from toddlerbot.rl import randomization, rewards
-from toddlerbot.rl.config import EnvConfig
+from toddlerbot.rl import config, randomization, rewards
+from toddlerbot.rl.config import EnvConfig, Recipe
+from toddlerbot.rl.environment import RLEnvironment, training_description
 from toddlerbot.rl.model import training_model
 from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, aged_imu, critic_obs, push_frame
-from toddlerbot.rl.physics import BACKENDS, MODEL_FIELDS, Addresses, Frame
+from toddlerbot.rl.physics import MODEL_FIELDS, Addresses, Frame
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.reference import leg_motor_indices, load_reference
+from toddlerbot.rl.run_files import ACTION_SPACE, REFERENCE_RECORD
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.mirror import Mirror, robot_mirror
 from toddlerbot.robot.upper_body import upper_body_mask
-
-TRACKING_METRICS = ("lin_vel_error", "ang_vel_error")
-"""Per-step metrics besides the reward terms: |achieved - commanded| horizontal velocity (m/s, yaw frame) and
-yaw rate (rad/s), instantaneous (the tracking evaluation averages over a gait cycle)."""
-
-
-def training_description(cfg: EnvConfig) -> RobotDescription:
-    """The robot an env configuration trains: the packaged spec with its variant and fitted motor parameters."""
-    return RobotDescription.load(variant=cfg.variant, motor_params=cfg.motor_params)
-
-
-def resolve_backend(name: str) -> str:
-    """``auto`` -> ``mjx`` when JAX's default device is a GPU, else ``cpu``."""
-    if name != "auto":
-        return name
-    return "mjx" if jax.default_backend() == "gpu" else "cpu"
 
 
 def _yaw_quat(yaw: jax.Array) -> jax.Array:
@@ -70,8 +63,20 @@ def _rotate_z(v: jax.Array, angle: jax.Array) -> jax.Array:
     return jnp.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
 
 
-class WalkEnv(Env):
+class WalkEnv(RLEnvironment):
     """One walking robot; vmap it (the training wrappers do) for many."""
+
+    name = "walk"
+    reward_terms = rewards.WALK_REWARDS
+    recipes = MappingProxyType({"cpu": Recipe(config.CPU, config.CPU_IMITATION), "mjx": Recipe(config.FULL),
+                                "smoke": Recipe(config.SMOKE, config.SMOKE_IMITATION)})
+    step_metrics = ("lin_vel_error", "ang_vel_error")
+    """|achieved - commanded| horizontal velocity (m/s, yaw frame) and yaw rate (rad/s), instantaneous (the
+    tracking evaluation averages over a gait cycle)."""
+
+    @classmethod
+    def default_config(cls, smoke: bool = False) -> EnvConfig:
+        return config.smoke_env_config() if smoke else EnvConfig()
 
     def __init__(self, cfg: EnvConfig | None = None, description: RobotDescription | None = None,
                  reference: GaitReference | None = None, gain_scales: tuple[np.ndarray, np.ndarray] | None = None
@@ -81,8 +86,7 @@ class WalkEnv(Env):
         ``gain_scales``: (stance (n_motors,), swing (2, n_motors)) factors on the spec's P gains (default, with
         ``cfg.teacher_gains``: walk-zmp's)."""
         use_full_precision()
-        cfg = cfg or EnvConfig()
-        rewards.check_weights(cfg.reward)
+        cfg = self.resolved_config(cfg or EnvConfig())
         if description is None:
             description = training_description(cfg)
         elif description.spec.variant != cfg.variant:
@@ -99,15 +103,12 @@ class WalkEnv(Env):
         self.reference = reference
         if cfg.obs.gait_period is None:
             cfg = replace(cfg, obs=replace(cfg.obs, gait_period=reference.period))
-        cfg = replace(cfg, backend=resolve_backend(cfg.backend))
         self.cfg = cfg
-        """The configuration with the gait period and the backend resolved (save this one)."""
+        """The configuration with the gait period, the backend and the reward weights resolved (save this one)."""
         model = training_model(description, cfg)
         self.mj_model = model
         self.addresses = Addresses.of(model, description)
-        physics = BACKENDS[cfg.backend]
-        self.physics = physics(model, self.addresses, cfg.n_substeps, cfg.cpu_threads) if cfg.backend == "cpu" \
-            else physics(model, self.addresses, cfg.n_substeps)
+        self.physics = self.make_physics(model, self.addresses, cfg)
         self._nominal = {name: jnp.asarray(getattr(model, name)) for name in MODEL_FIELDS}
 
         self.home_motor_pos = np.asarray(description.home_motor_pos, dtype=np.float32)
@@ -142,10 +143,6 @@ class WalkEnv(Env):
     @property
     def action_size(self) -> int:
         return len(self.leg_index)
-
-    @property
-    def backend(self) -> str:
-        return self.cfg.backend
 
     @cached_property
     def mirror(self) -> Mirror:
@@ -183,7 +180,7 @@ class WalkEnv(Env):
         obs, info = self._observe(frame, info, k_noise, contact=jnp.ones(2), ref_leg=ref_leg)
         info["history"] = jnp.tile(info["history"][:1], (cfg.obs.history, 1))
         obs["state"] = info["history"].reshape(-1)
-        metrics = {name: jnp.zeros(()) for name in (*rewards.TERMS, *TRACKING_METRICS)}
+        metrics = {name: jnp.zeros(()) for name in (*self.reward_terms, *self.step_metrics)}
         return State(self.physics.home_state, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
 
     def step(self, state: State, action: jax.Array) -> State:
@@ -210,8 +207,7 @@ class WalkEnv(Env):
         qpos, qvel = frame.qpos, frame.qvel
         torso_quat = qpos[3:7]
         gravity = -frame.torso_z  # world -z in torso frame
-        tilt = jnp.arccos(jnp.clip(-gravity[2], -1.0, 1.0))
-        fallen = (qpos[2] < cfg.min_torso_height) | (tilt > cfg.max_tilt) | ~jnp.isfinite(qpos[2])
+        fallen = self.terminated(frame)
         yaw = _yaw(torso_quat)
         lateral = _rotate_z(frame.feet_pos[0] - frame.feet_pos[1], -yaw)[1]
         ref_leg, ref_contact = self.reference_at(info["command"], info["time"])
@@ -234,7 +230,7 @@ class WalkEnv(Env):
             last_last_action=info["last_last_action"], motor_torque=frame.torque,
             motor_vel=qvel[self.motor_dadr], alive=1.0 - fallen.astype(jnp.float32),
         )
-        reward, terms = rewards.total_reward(q, cfg.reward, cfg.ctrl_dt)
+        reward, terms = self.reward_terms.total(q, cfg.reward, cfg.ctrl_dt)
         reward = jnp.where(jnp.isfinite(reward), reward, 0.0)
         terms["lin_vel_error"] = jnp.linalg.norm(q.lin_vel[:2] - q.command[:2])
         terms["ang_vel_error"] = jnp.abs(q.ang_vel[2] - q.command[2])
@@ -252,6 +248,18 @@ class WalkEnv(Env):
         obs, info = self._observe(frame, info, k_noise, contact=contact, ref_leg=ref_leg)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
                              metrics={**state.metrics, **terms}, info=info)
+
+    def terminated(self, frame: Frame) -> jax.Array:
+        """A fall: the torso below ``min_torso_height``, tilted beyond ``max_tilt``, or its height not finite."""
+        tilt = jnp.arccos(jnp.clip(frame.torso_z[2], -1.0, 1.0))
+        height = frame.qpos[2]
+        return (height < self.cfg.min_torso_height) | (tilt > self.cfg.max_tilt) | ~jnp.isfinite(height)
+
+    def record_action_space(self, run_dir: Path) -> None:
+        """The reference's source (`REFERENCE_RECORD`) and its tables with the leg gain schedule (`ACTION_SPACE`)."""
+        atomic_write_text(run_dir / REFERENCE_RECORD, self.reference_source + "\n")
+        atomic_savez(run_dir / ACTION_SPACE, {**self.reference.arrays(), "kp_stance_scale": self.gain_scales[0],
+                                              "kp_swing_scale": self.gain_scales[1]})
 
     # the policy's action space -------------------------------------------------------------------------------
     def reference_at(self, command: jax.Array, t: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -333,6 +341,6 @@ class WalkEnv(Env):
             "air_time": info["air_time"], "torso_height": frame.qpos[2:3],
             "floor_friction": info["dr"].floor_friction[None], "avg_vel": info["avg_vel"],
         }
-        if cfg.reward.weights["path_xy"]:  # only then, so that the critics of runs without the term keep their shape
+        if cfg.reward.weights.get("path_xy"):  # only then: the critics of runs without the term keep their shape
             privileged["path_error"] = info["path_error"]
         return {"state": actor, "privileged_state": critic_obs(actor, clean, privileged)}, info

@@ -1,0 +1,93 @@
+"""What every registered RL environment is (`toddlerbot.rl.environments`): a Brax `Env` whose class carries its
+whole bundle, so that `rl train --env NAME` trains it on either physics backend without knowing which it is.
+
+The bundle: its name, its configuration class (`EnvConfig` or a subclass of it) and default configuration, its
+reward terms with their weights beside them (`rewards.RewardTerms`), its resets (``reset``) and terminations
+(`terminated`), the per-step metrics it reports besides its reward terms, and its default PPO settings by physics
+backend (`Recipe`). Physics is built from the configuration once for all environments (`make_physics`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import replace
+from pathlib import Path
+from typing import ClassVar
+
+import jax
+import mujoco
+from brax.envs.base import Env
+
+from toddlerbot.rl.config import EnvConfig, Recipe
+from toddlerbot.rl.physics import BACKENDS, Addresses, Frame
+from toddlerbot.rl.rewards import RewardTerms
+from toddlerbot.robot.description import RobotDescription
+
+
+def training_description(cfg: EnvConfig) -> RobotDescription:
+    """The robot an env configuration trains: the packaged spec with its variant and fitted motor parameters."""
+    return RobotDescription.load(variant=cfg.variant, motor_params=cfg.motor_params)
+
+
+def resolve_backend(name: str) -> str:
+    """``auto`` -> ``mjx`` when JAX's default device is a GPU, else ``cpu``."""
+    if name != "auto":
+        return name
+    return "mjx" if jax.default_backend() == "gpu" else "cpu"
+
+
+class RLEnvironment(Env):
+    """A registered environment. Subclasses set the class attributes and implement Brax's ``reset``/``step``,
+    ending an episode where `terminated` says so."""
+
+    name: ClassVar[str]
+    """The name it is registered under (`rl train --env NAME`, a run's config.json)."""
+    config_class: ClassVar[type[EnvConfig]] = EnvConfig
+    reward_terms: ClassVar[RewardTerms]
+    """Its reward terms, each beside its default weight."""
+    recipes: ClassVar[Mapping[str, Recipe]]
+    """Default PPO and warm-start settings for ``cpu``, ``mjx`` and ``smoke`` (`recipe`)."""
+    step_metrics: ClassVar[tuple[str, ...]] = ()
+    """Per-step metrics besides the reward terms, averaged over finished episodes in PPO's epoch records."""
+
+    cfg: EnvConfig
+
+    @classmethod
+    def default_config(cls, smoke: bool = False) -> EnvConfig:
+        """The configuration of a new run (``smoke``: of the tiny test run)."""
+        return cls.config_class()
+
+    @classmethod
+    def recipe(cls, backend: str, smoke: bool = False) -> Recipe:
+        """The default PPO and warm-start settings on a resolved physics backend (``smoke``: the tiny run's)."""
+        return cls.recipes["smoke" if smoke else backend]
+
+    @classmethod
+    def resolved_config(cls, cfg: EnvConfig) -> EnvConfig:
+        """``cfg`` with its physics backend and reward weights resolved (what a run saves); a configuration of
+        another environment, or of another class, is refused."""
+        if cfg.environment != cls.name or type(cfg) is not cls.config_class:
+            raise ValueError(f"a {type(cfg).__name__} of environment {cfg.environment!r}: the {cls.name!r} "
+                             f"environment takes a {cls.config_class.__name__} of environment {cls.name!r}")
+        weights = cls.reward_terms.weights(cfg.reward.weights)
+        return replace(cfg, backend=resolve_backend(cfg.backend), reward=replace(cfg.reward, weights=weights))
+
+    @staticmethod
+    def make_physics(model: mujoco.MjModel, addresses: Addresses, cfg: EnvConfig):
+        """The configuration's physics backend (`toddlerbot.rl.physics`) for the training model."""
+        physics = BACKENDS[cfg.backend]
+        if cfg.backend == "cpu":
+            return physics(model, addresses, cfg.n_substeps, cfg.cpu_threads)
+        return physics(model, addresses, cfg.n_substeps)
+
+    def terminated(self, frame: Frame) -> jax.Array:
+        """Whether the episode ends after the step that reached ``frame`` (bool scalar)."""
+        raise NotImplementedError
+
+    def record_action_space(self, run_dir: Path) -> None:
+        """Write into a new run's folder what its exported policy needs to turn actions into motor targets."""
+        raise NotImplementedError
+
+    @property
+    def backend(self) -> str:
+        return self.cfg.backend
