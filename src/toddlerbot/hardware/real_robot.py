@@ -115,6 +115,7 @@ class RealRobot(Robot):
             self.check_startup_pose(self._angles(state.position))
             bus.enable_torque(state.position)
             self._gains = (self.default_kp.copy(), self.default_kd.copy())
+            self.fall_guard.reset()
             self._t0 = self._deadline = time.perf_counter()
             start, home = self._angles(state.position), self.description.home_motor_pos
             self.last_targets = start

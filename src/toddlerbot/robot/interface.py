@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.fall import FALL_TILT_RAD, FallGuard, tilt
 from toddlerbot.robot.safety import CommandGuard
 from toddlerbot.robot.spec import RobotSpec
 from toddlerbot.robot.transmission import TransmissionMap
@@ -22,17 +23,6 @@ CONTROL_HZ = 50
 that runs a control loop, the leader arms' publishing rate included."""
 CONTROL_DT = 1.0 / CONTROL_HZ
 """The control period, s."""
-FALL_TILT_RAD = 1.0
-"""Torso tilt from upright (angle between its z axis and the world's), rad, beyond which a robot has fallen:
-the simulator's fall detector and the real robot's (from its IMU) use this one threshold."""
-
-
-def tilt(quat: np.ndarray) -> float:
-    """Angle between the z axis of a frame with orientation ``quat`` (w, x, y, z) and the world's z axis, rad."""
-    _, x, y, _ = quat
-    return float(np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0)))
-
-
 @dataclass(frozen=True)
 class Observation:
     time: float
@@ -89,7 +79,8 @@ class Robot(ABC):
     """A robot a policy can drive: read observations, command motor position targets.
 
     `step` is the same for every backend: the command passes the shared `CommandGuard` (finite, in range,
-    optionally slew-limited) before the backend's `_apply` sees it, so no backend can skip the checks.
+    optionally slew-limited) and, while the robot falls, the `FallGuard` (lowered P gains) before the backend's
+    `_apply` sees it, so no backend can skip them.
     """
 
     def __init__(self, description: RobotDescription, control_dt: float, max_step: np.ndarray | None = None) -> None:
@@ -104,8 +95,11 @@ class Robot(ABC):
             description.motor_names, description.motor_range, description.joint_range,
             self.transmission.matrix, self.transmission.inverse, max_step,
         )
+        self.fall_guard = FallGuard(control_dt)
         self.last_targets: np.ndarray | None = None
         """The last motor targets sent (after the guard), rad; None before `reset`."""
+        self.last_gains: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+        """The firmware gains (kp, kd) the last step sent, after the guards (None: the backend kept its own)."""
 
     @property
     def spec(self) -> RobotSpec:
@@ -136,8 +130,13 @@ class Robot(ABC):
         targets = self.guard.targets(motor_targets, self.last_targets)
         kp = None if kp is None else self.guard.gains(kp, "kp")
         kd = None if kd is None else self.guard.gains(kd, "kd")
-        self.last_targets = targets
-        return self._apply(targets, kp, kd)
+        if self.last_targets is None:  # the first step after a reset
+            self.fall_guard.reset()
+        kp = self.fall_guard.gains(kp, self.default_kp)
+        self.last_targets, self.last_gains = targets, (kp, kd)
+        obs = self._apply(targets, kp, kd)
+        self.fall_guard.update(obs.imu_quat, obs.imu_ang_vel)
+        return obs
 
     @abstractmethod
     def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:

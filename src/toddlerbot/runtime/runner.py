@@ -9,7 +9,10 @@ on its bus instead).
 
 The run stops when the requested time has elapsed, when the policy is done, when an observer asks to stop (a
 success check), or when the robot falls (`Robot.fallen`: the IMU tilt, or the simulator's ground truth) unless
-``stop_on_fall`` is False. The torso's true pose is logged for robots with `GroundTruth` and NaN for the others.
+``stop_on_fall`` is False. Given a ``recovery`` policy (`get-up`), a fall hands the robot to it instead: once it
+reports success the run's policy starts again from where the robot stands and the schedule goes on; a recovery
+that gives up ends the run as a fall. The torso's true pose is logged for robots with `GroundTruth` and NaN for the
+others.
 
 A command the robot's guard refuses (`UnsafeCommandError`) or a policy that raises stops the run at once: the
 error propagates (a policy's own exception wrapped in `PolicyError`, which names the policy and the time) and
@@ -48,6 +51,10 @@ class RunResult:
     """True when the run ended without a fall (time elapsed, policy done or an observer's stop)."""
     stopped_by: str | None = None
     """Why the run ended early: ``fall``, ``policy`` (done) or an observer's class name; None when time ran out."""
+    falls: int = 0
+    """Falls detected, recovered ones included."""
+    recoveries: int = 0
+    """Falls the recovery policy got the robot up from."""
 
 
 @dataclass(frozen=True)
@@ -63,7 +70,7 @@ class Step:
     next_obs: Observation
     """The robot after the step."""
     kp: np.ndarray
-    """Firmware gains in effect during the step."""
+    """Firmware gains in effect during the step (as sent: a falling robot's lowered ones, `robot.fall`)."""
     kd: np.ndarray
     base_pos: np.ndarray
     """Torso position in the world before the step (ground truth; NaN without it)."""
@@ -155,11 +162,12 @@ def run_policy(
     stop_on_fall: bool = True,
     log: RunLogObserver | None = None,
     record_log: bool = True,
+    recovery: Policy | None = None,
 ) -> RunResult:
     """Run ``policy`` on ``robot`` for ``seconds`` (or until the policy is done, an observer stops the run or the
     robot falls), following the velocity ``commands`` (a function of time; none: stand still). Steps are logged
     into ``log`` (a new one if None), unless ``record_log`` is False (hours of teleoperation at 50 Hz would fill
-    the memory with rows nobody reads)."""
+    the memory with rows nobody reads). ``recovery``: the policy a fall hands the robot to (module docstring)."""
     log = (RunLogObserver() if log is None else log) if record_log else None
     clock = SimulatedClock() if clock is None else clock
     watchers = (*observers,) if log is None else (log, *observers)
@@ -168,47 +176,82 @@ def run_policy(
         policy.reset(obs)
         for observer in watchers:
             observer.on_start(robot, policy, obs)
-        fall_time, stopped_by = _loop(robot, policy, commands, round(seconds / robot.control_dt), clock, watchers,
-                                      stop_on_fall, obs)
+        loop = _Loop(robot, policy, recovery, commands, clock, watchers, stop_on_fall)
+        stopped_by = loop.run(obs, round(seconds / robot.control_dt))
     finally:
         policy.close()
-    fell = fall_time is not None
-    return RunResult(log=None if log is None else log.finish(robot, policy), fell=fell, fall_time=fall_time,
-                     completed=not fell, stopped_by=stopped_by)
+        if recovery is not None:
+            recovery.close()
+    fell = loop.fall_time is not None
+    return RunResult(log=None if log is None else log.finish(robot, policy), fell=fell, fall_time=loop.fall_time,
+                     completed=not fell, stopped_by=stopped_by, falls=loop.falls, recoveries=loop.recoveries)
 
 
-def _loop(robot: Robot, policy: Policy, commands: Callable[[float], np.ndarray], n_steps: int, clock: Clock,
-          watchers: Sequence[RunObserver], stop_on_fall: bool, obs: Observation) -> tuple[float | None, str | None]:
-    truth = robot if isinstance(robot, GroundTruth) else None
-    kp, kd = robot.default_kp, robot.default_kd  # gains stay in effect until a policy sends others
-    fall_time = None
-    clock.start()
-    for index in range(n_steps):
-        start = time.perf_counter()
-        command = policy.within_reach(commands(obs.time))  # logged as the policy follows it
-        action = _act(policy, obs, command)
-        base_pos = truth.base_pos if truth is not None else NAN3
-        base_quat = truth.base_quat if truth is not None else NAN4
-        next_obs = robot.step(action.motor_targets, action.kp, action.kd)
-        kp = kp if action.kp is None else action.kp
-        kd = kd if action.kd is None else action.kd
-        compute = time.perf_counter() - start
-        clock.wait(robot.control_dt)
-        step = Step(index, obs, command, action, next_obs, kp, kd, base_pos, base_quat, compute,
-                    time.perf_counter() - start)
-        for observer in watchers:
-            observer.on_step(step)
-        obs = next_obs
-        if robot.fallen:
-            fall_time = obs.time
-            if stop_on_fall:
-                return fall_time, "fall"
-        if policy.done:
-            return fall_time, "policy"
-        for observer in watchers:
-            if observer.stop_requested:
-                return fall_time, type(observer).__name__
-    return fall_time, None
+class _Loop:
+    """The steps of one run: the run's policy, or the recovery policy from a fall until it is done."""
+
+    def __init__(self, robot: Robot, policy: Policy, recovery: Policy | None,
+                 commands: Callable[[float], np.ndarray], clock: Clock, watchers: Sequence[RunObserver],
+                 stop_on_fall: bool) -> None:
+        self.robot, self.policy, self.recovery = robot, policy, recovery
+        self.commands, self.clock, self.watchers, self.stop_on_fall = commands, clock, watchers, stop_on_fall
+        self.fall_time: float | None = None
+        """s since reset when the last fall not recovered from was detected; None without one."""
+        self.falls = self.recoveries = 0
+        self._was_fallen = False
+
+    def run(self, obs: Observation, n_steps: int) -> str | None:
+        """Step until time runs out (None) or a reason to stop: ``fall``, ``policy`` or an observer's name."""
+        robot = self.robot
+        truth = robot if isinstance(robot, GroundTruth) else None
+        kp, kd = robot.default_kp, robot.default_kd  # gains stay in effect until a policy sends others
+        active = self.policy
+        self.clock.start()
+        for index in range(n_steps):
+            start = time.perf_counter()
+            command = active.within_reach(self.commands(obs.time))  # logged as the policy follows it
+            action = _act(active, obs, command)
+            base_pos = truth.base_pos if truth is not None else NAN3
+            base_quat = truth.base_quat if truth is not None else NAN4
+            next_obs = robot.step(action.motor_targets, action.kp, action.kd)
+            sent_kp, sent_kd = robot.last_gains
+            kp = kp if sent_kp is None else sent_kp
+            kd = kd if sent_kd is None else sent_kd
+            compute = time.perf_counter() - start
+            self.clock.wait(robot.control_dt)
+            step = Step(index, obs, command, action, next_obs, kp, kd, base_pos, base_quat, compute,
+                        time.perf_counter() - start)
+            for observer in self.watchers:
+                observer.on_step(step)
+            obs = next_obs
+            if active is self.recovery:
+                if active.done and not active.succeeded:
+                    return "fall"
+                if active.done:
+                    self.recoveries += 1
+                    self.fall_time, self._was_fallen = None, False
+                    active = self.policy
+                    active.reset(obs)
+            elif self._fell(robot.fallen, obs.time):
+                if self.recovery is not None:
+                    active = self.recovery
+                    active.reset(obs)
+                elif self.stop_on_fall:
+                    return "fall"
+            if active is self.policy and active.done:
+                return "policy"
+            for observer in self.watchers:
+                if observer.stop_requested:
+                    return type(observer).__name__
+        return None
+
+    def _fell(self, fallen: bool, t: float) -> bool:
+        """Whether the robot is down; a fall is counted (and timed) when it goes down."""
+        if fallen and not self._was_fallen:
+            self.falls += 1
+            self.fall_time = t
+        self._was_fallen = fallen
+        return fallen
 
 
 def _act(policy: Policy, obs: Observation, command: np.ndarray) -> Action:

@@ -156,7 +156,7 @@ class TaskRobot(Robot, TorsoGroundTruth):
         """The task's step; the simulator's own `step` guards the command (a second guard here would clamp twice,
         and clamping through a coupled transmission is not exactly idempotent)."""
         obs = self.task.step(motor_targets, kp, kd)
-        self.last_targets = self.sim.last_targets
+        self.last_targets, self.last_gains = self.sim.last_targets, self.sim.last_gains
         return obs
 
     def _apply(self, motor_targets: np.ndarray, kp: np.ndarray | None, kd: np.ndarray | None) -> Observation:
