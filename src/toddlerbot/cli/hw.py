@@ -18,6 +18,7 @@ from toddlerbot.cli.options import (
     ImuOption,
     MocapOption,
     MotorParamsOption,
+    OnFallOption,
     RobotOptions,
     SpecOption,
     VariantOption,
@@ -161,7 +162,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         control_hz: ControlHzOption = None, control_dt: DtOpt = None,
         log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,
         spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None,
-        asymmetric: AsymmetricOption = False, mocap: MocapOption = "none") -> None:
+        asymmetric: AsymmetricOption = False, mocap: MocapOption = "none", on_fall: OnFallOption = "stop") -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
     with 128 + its number, a fall (the IMU tilted past the simulator's threshold) with 1. A run that stops early
@@ -179,7 +180,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
                                 [calibration, motion, weights, checkpoint, *options.files])
         session = stack.enter_context(robot_session(
             options.description(), port, calibration, policy, command, seconds, control_dt, baud, latency_ms, imu,
-            mocap, motion=motion, weights=weights, checkpoint=checkpoint, camera=camera, threads=threads,
+            mocap, on_fall, motion=motion, weights=weights, checkpoint=checkpoint, camera=camera, threads=threads,
             **symmetric_option(policy, asymmetric)))
         result = session.run(log, lambda partial: save_or_fallback(
             partial.save, log, f"the log of the {partial.time.size} steps before the stop"))
@@ -227,6 +228,8 @@ def _report_run(policy: str, result, pol, log: Path | None, bus) -> None:
     console.print(f"bus {bus.port_name}: {bus.counters.describe()}", highlight=False)
     if pol.status is not None:  # e.g. dp's inference, and how its camera stopped if it did
         console.print(pol.status.describe(), highlight=False)
+    if result.falls:
+        console.print(f"{policy}: {result.falls} falls, got up from {result.recoveries}", highlight=False)
     if np.all(np.isfinite(result.log.base_pos)):  # motion capture watched the run
         from toddlerbot.runtime.summary import summarize
 

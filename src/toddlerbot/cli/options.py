@@ -7,7 +7,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
 
@@ -89,6 +89,9 @@ def check_run_policy(name: str) -> str:
     return name
 
 
+OnFallOption = Annotated[Literal["stop", "get-up"], typer.Option(  # toddlerbot.sessions.recovery.ON_FALL
+    "--on-fall", help="What a fall does: stop (the run ends; on the robot torque goes off, exit 1) or get-up (the "
+                      "get-up policy stands the robot up, then the run goes on; falls and recoveries are counted).")]
 AsymmetricOption = Annotated[bool, typer.Option(
     "--asymmetric", help="For --policy walk-rl: the policy alone, not the mean of it and its mirror image "
                          "(docs/rl.md, \"Mirror symmetry\").")]

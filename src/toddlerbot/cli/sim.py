@@ -11,6 +11,7 @@ from toddlerbot.cli.options import (
     AsymmetricOption,
     ControlHzOption,
     MotorParamsOption,
+    OnFallOption,
     RobotOptions,
     SpecOption,
     VariantOption,
@@ -71,7 +72,7 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,
         checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = None, spec: SpecOption = None,
         variant: VariantOption = None, motor_params: MotorParamsOption = None,
-        asymmetric: AsymmetricOption = False) -> None:
+        asymmetric: AsymmetricOption = False, on_fall: OnFallOption = "stop") -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.sessions.sim import sim_session
 
@@ -87,7 +88,7 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
                               "(use a floating variant: floating, gripper)")
     _check_control_rate(control_hz, description.spec.simulation.timestep)
     session = sim_session(policy, schedule, seconds, description, control_hz, realtime, task, seed,
-                          camera if video or snapshot else None, viewer, motion=motion, weights=weights,
+                          camera if video or snapshot else None, viewer, on_fall, motion=motion, weights=weights,
                           checkpoint=checkpoint, threads=threads, **symmetric_option(policy, asymmetric))
     with RunProgress(f"simulating {policy}", round(seconds / session.robot.control_dt)) as progress:
         result = session.run(progress, log_path=log)
@@ -125,7 +126,7 @@ def _report(policy: str, result, pol, scene, log: Path | None, summary_json: Pat
     """Save the log and summary asked for, print the summary; a fall exits 1."""
     from toddlerbot.runtime.summary import summarize
 
-    summary = summarize(result.log, result.fell, result.fall_time)
+    summary = summarize(result.log, result.fell, result.fall_time, falls=result.falls, recoveries=result.recoveries)
     if log:
         result.log.save(log)
         console.print(f"wrote {log}")
@@ -134,6 +135,8 @@ def _report(policy: str, result, pol, scene, log: Path | None, summary_json: Pat
                  | ({} if pol.status is None else {pol.name: pol.status.to_dict()}))
         atomic_write_text(summary_json, json_text(summary.to_dict() | extra, indent=2))
     status = f"[red]FELL[/] at {summary.fall_time_s:.2f} s" if summary.fell else "[green]no fall[/]"
+    if summary.recoveries:
+        status = f"{summary.falls} falls, got up from {summary.recoveries}" + ("; " + status if summary.fell else "")
     console.print(f"[bold]{policy}[/] {summary.duration_s:.2f} s: {status}; {summary.motion_text()}; compute "
                   f"{summary.mean_compute_ms:.2f} ms/step")
     for part in (scene, pol.status):

@@ -21,6 +21,8 @@ base_quat           (n, 4)      torso orientation in the world (simulation groun
 compute_time        (n,)        s spent in policy + backend step
 step_period         (n,)        s of wall time from this step's start to the next's
 motor_kp/kd         (n, m)      firmware gains in effect during the step (optional: absent in older logs)
+recovering          (n,)        1 where the recovery policy (``--on-fall get-up``) drove the step (optional: only
+                                in runs with one)
 motor_names         (m,)        str
 joint_names         (m,)        str
 control_dt          ()          s
@@ -48,7 +50,7 @@ STEP_KEYS = (
 )
 MAX_RUN_LOG_BYTES = 1 << 30
 """Largest run log (uncompressed), bytes: a compressed .npz of a few kB could otherwise expand to gigabytes."""
-OPTIONAL_STEP_KEYS = ("motor_kp", "motor_kd")
+OPTIONAL_STEP_KEYS = ("motor_kp", "motor_kd", "recovering")
 """Recorded when given to `LogRecorder.append`; logs written before they existed load with None."""
 HEADER_KEYS = ("motor_names", "joint_names", "control_dt", "policy")
 """What names the run (every chunk of one run carries the same)."""
@@ -160,6 +162,8 @@ class RunLog:
     motor_kp: np.ndarray | None = None
     """(n, m) firmware P gains in effect at each step (None: not recorded)."""
     motor_kd: np.ndarray | None = None
+    recovering: np.ndarray | None = None
+    """(n,) 1 where the recovery policy drove the step (None: the run had none)."""
 
     def save(self, path: str | Path) -> Path:
         """Write the log as a compressed ``.npz`` atomically (concurrent saves of one path never mix), then remove

@@ -79,6 +79,8 @@ class Step:
     """s spent in the policy and the backend's step."""
     step_period: float
     """s of wall time from this step's start to the next's (the clock's wait included)."""
+    recovering: bool | None = None
+    """True for a step the recovery policy drove, False for the run's policy; None in a run without a recovery."""
 
 
 class RunObserver:
@@ -142,6 +144,7 @@ class RunLogObserver(RunObserver):
             imu_ang_vel=obs.imu_ang_vel, imu_lin_acc=obs.imu_lin_acc, foot_contact=obs.foot_contact,
             base_pos=step.base_pos, base_quat=step.base_quat, compute_time=step.compute_time,
             step_period=step.step_period, motor_kp=step.kp, motor_kd=step.kd,
+            **({} if step.recovering is None else {"recovering": step.recovering}),
         )
 
     def finish(self, robot: Robot, policy: Policy) -> RunLog:
@@ -220,7 +223,7 @@ class _Loop:
             compute = time.perf_counter() - start
             self.clock.wait(robot.control_dt)
             step = Step(index, obs, command, action, next_obs, kp, kd, base_pos, base_quat, compute,
-                        time.perf_counter() - start)
+                        time.perf_counter() - start, None if self.recovery is None else active is self.recovery)
             for observer in self.watchers:
                 observer.on_step(step)
             obs = next_obs

@@ -37,6 +37,10 @@ class RunSummary:
     tracking: Tracking
     mean_compute_ms: float
     """Mean policy + backend time per control step."""
+    falls: int = 0
+    """Falls detected (`fell`: the last one was not recovered from)."""
+    recoveries: int = 0
+    """Falls the recovery policy got the robot up from (``--on-fall get-up``)."""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -49,7 +53,8 @@ class RunSummary:
                 f"{t.lin_vel_mps:.3f} m/s, angular velocity {t.ang_vel_radps:.3f} rad/s")
 
 
-def summarize(log: RunLog, fell: bool, fall_time: float | None, window_s: float = WalkConfig.cycle_time) -> RunSummary:
+def summarize(log: RunLog, fell: bool, fall_time: float | None, window_s: float = WalkConfig.cycle_time,
+              falls: int = 0, recoveries: int = 0) -> RunSummary:
     dt = log.control_dt
     pos = log.base_pos[:, :2]
     yaw = np.unwrap(heading(log.base_quat))
@@ -68,4 +73,6 @@ def summarize(log: RunLog, fell: bool, fall_time: float | None, window_s: float 
         tracking=Tracking(position_m=errors.position_m, lin_vel_mps=errors.lin_vel_mps,
                           ang_vel_radps=errors.ang_vel_radps),
         mean_compute_ms=float(np.mean(log.compute_time) * 1e3),
+        falls=falls,
+        recoveries=recoveries,
     )

@@ -27,6 +27,7 @@ from toddlerbot.runtime.commands import CommandSchedule
 from toddlerbot.runtime.hardware_run import drive
 from toddlerbot.runtime.log import RunLog
 from toddlerbot.runtime.runner import RunResult
+from toddlerbot.sessions.recovery import recovery_policy
 
 DEFAULT_BAUD = 2_000_000
 """The Dynamixel bus rate the robot runs at (appendix 8.5: 2 Mbaud)."""
@@ -43,12 +44,14 @@ class RobotSession:
     commands: CommandSchedule
     seconds: float
     resources: ExitStack
+    recovery: Policy | None = None
+    """The policy a fall hands the robot to (``on_fall="get-up"``); None: a fall ends the run with torque off."""
 
     def run(self, log_path: Path | None = None,
             keep_partial: Callable[[RunLog], object] = lambda _: None) -> RunResult:
         """The run with torque on; a run that stops early hands its steps to `keep_partial` (when a log was asked
         for, or always when the bus or a motor failed) and re-raises."""
-        return drive(self.robot, self.policy, self.commands, self.seconds, log_path, keep_partial)
+        return drive(self.robot, self.policy, self.commands, self.seconds, log_path, keep_partial, self.recovery)
 
     def close(self) -> None:
         """Close the policy (a dp policy's worker and camera), the IMU and motion capture."""
@@ -82,17 +85,20 @@ def open_robot(description: RobotDescription, port: str, calibration: Path, cont
 def robot_session(description: RobotDescription, port: str, calibration: Path, policy: str = "stand",
                   commands: str | CommandSchedule = "0:0,0,0", seconds: float = 5.0, control_dt: float = CONTROL_DT,
                   baud: int = DEFAULT_BAUD, latency_ms: float = DEFAULT_LATENCY_MS, imu: str = "bno08x",
-                  mocap: str = "none", **policy_options: object) -> RobotSession:
+                  mocap: str = "none", on_fall: str = "stop", **policy_options: object) -> RobotSession:
     """`hw run`'s robot and policy: ``policy`` (its ``policy_options``: weights, motion, checkpoint, camera, ...;
     bad ones fail before the bus opens) on the robot at ``port``, with its IMU (``imu``: bno08x, emulator, none)
-    and motion capture (``mocap``: none or emulator), following ``commands`` for ``seconds``."""
+    and motion capture (``mocap``: none or emulator), following ``commands`` for ``seconds``; ``on_fall``: what a
+    fall does (`toddlerbot.sessions.recovery`; ``get-up`` needs the IMU)."""
     robot = open_robot(description, port, calibration, control_dt, baud, latency_ms, tracked=mocap != "none")
     resources = ExitStack()
     try:
         check_policy_options(policy, **policy_options)
         pol = make_policy(policy, robot, **policy_options)
         resources.callback(pol.close)
-        robot.imu = robot_imu(imu, port, f"policy {pol.name}" if pol.needs_imu else None)
+        recovery = recovery_policy(on_fall, robot)  # closed by the run loop, as the run's policy is
+        balancing = f"policy {pol.name}" if pol.needs_imu else "--on-fall get-up" if recovery else None
+        robot.imu = robot_imu(imu, port, balancing)
         resources.callback(robot.imu.close)
         capture = open_mocap(mocap, port)
         if capture is not None:
@@ -102,7 +108,7 @@ def robot_session(description: RobotDescription, port: str, calibration: Path, p
         resources.close()
         raise
     schedule = CommandSchedule.parse(commands) if isinstance(commands, str) else commands
-    return RobotSession(robot, pol, schedule, seconds, resources)
+    return RobotSession(robot, pol, schedule, seconds, resources, recovery)
 
 
 def chain_on_robot(chain, description: RobotDescription, port: str, calibration: Path, imu: str = "bno08x",

@@ -30,6 +30,7 @@ from toddlerbot.runtime.runner import (
     WallClock,
     run_policy,
 )
+from toddlerbot.sessions.recovery import recovery_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
 
 
@@ -50,13 +51,16 @@ class SimSession:
     """Why a video or snapshot asked for cannot be made (no renderer), None otherwise."""
     viewer: ViewerObserver | None = None
     watchers: list[RunObserver] = field(default_factory=list)
+    recovery: Policy | None = None
+    """The policy a fall hands the robot to (``on_fall="get-up"``); None: a fall ends the run."""
 
     def run(self, *more: RunObserver, log_path: Path | None = None) -> RunResult:
         """The run, with the session's watchers and `more` (e.g. a progress bar); the viewer is closed after it.
         `log_path`: the file the log will be saved to, where its rows go in chunks while the run goes on."""
         try:
             return run_policy(self.robot, self.policy, self.commands, self.seconds, clock=self.clock,
-                              observers=[*self.watchers, *more], log=RunLogObserver(log_path))
+                              observers=[*self.watchers, *more], log=RunLogObserver(log_path),
+                              recovery=self.recovery)
         finally:
             if self.viewer is not None:
                 self.viewer.close()
@@ -69,19 +73,20 @@ class SimSession:
 def sim_session(policy: str = "walk-zmp", commands: str | CommandSchedule | None = None, seconds: float = 10.0,
                 description: RobotDescription | None = None, control_hz: float = CONTROL_HZ,
                 realtime: bool = False, task: str | None = None, seed: int = 0, camera: str | None = None,
-                viewer: bool = False, **policy_options: object) -> SimSession:
+                viewer: bool = False, on_fall: str = "stop", **policy_options: object) -> SimSession:
     """`sim run`'s robot and policy: ``policy`` (a registered name, its ``policy_options``: weights, motion, ...)
     on ``description`` (default: the packaged robot, floating) at ``control_hz``, following ``commands`` (a
     schedule's text, a schedule, or None: the policy's demo command) for ``seconds``; ``task``: in that registered
     task's scene, reset for ``seed``; ``camera``: record it (a video or snapshot, `SimSession.write_video`);
-    ``viewer``: show the MuJoCo viewer (implies real time); ``realtime``: keep wall-clock time."""
+    ``viewer``: show the MuJoCo viewer (implies real time); ``realtime``: keep wall-clock time; ``on_fall``: what a
+    fall does (`toddlerbot.sessions.recovery`)."""
     description = description or RobotDescription.load()
     realtime = realtime or viewer
     options = {"synchronous": not realtime, **policy_options}  # inference inline unless the loop keeps real time
     robot, pol, scene = _robot_and_policy(description, policy, task, seed, 1.0 / control_hz, options)
     schedule = CommandSchedule.parse(commands) if isinstance(commands, str) else commands
     session = SimSession(robot, pol, schedule or (lambda _t: np.array(pol.demo_command, dtype=float)), seconds,
-                         WallClock() if realtime else SimulatedClock(), scene)
+                         WallClock() if realtime else SimulatedClock(), scene, recovery=recovery_policy(on_fall, robot))
     if camera is not None:
         from toddlerbot.sim.render import RenderError
 
