@@ -58,19 +58,24 @@ def emulate(
     spec_path: SpecOption = None,
     variant: VariantOption = None,
     motor_params: MotorParamsOption = None,
+    kick: Annotated[list[str] | None, typer.Option("--kick", help="With --hil: push the simulated robot, TIME:SPEED "
+                                                   "or TIME:SPEED@DEGREES (s after torque first comes on, m/s, from "
+                                                   "its heading: 0 forward, 180 backwards; repeatable).")] = None,
+    kick_seed: Annotated[int, seed_option("Seed of the directions of --kick without @DEGREES.", "--kick-seed")] = 0,
 ) -> None:
     """Serve the robot's motors on a pseudo-terminal: prints the device path as the first line, then serves until
     interrupted (Ctrl-C, SIGTERM, SIGHUP), then prints one JSON line of statistics. With --hil the simulated
     robot's IMU is published too, as the BNO08x reports it (`hw run --imu emulator` reads it)."""
     from toddlerbot.hardware.emulator import EmulatedBus, Faults
+    from toddlerbot.hardware.hil_kicks import parse_kicks
     from toddlerbot.hardware.serve import serve_until_stopped, write_true_calibration
 
     parsed = Faults.parse(faults or [])
     robot = RobotOptions.of(spec_path, variant, motor_params)
     if write_calibration is not None:
         output_file(write_calibration, "--write-calibration", robot.files)
-    bus = EmulatedBus(robot.description(), hil=hil, faults=parsed,
-                      fast_sync_read=not no_fast_sync_read, offsets_seed=offsets_seed)
+    bus = EmulatedBus(robot.description(), hil=hil, faults=parsed, fast_sync_read=not no_fast_sync_read,
+                      offsets_seed=offsets_seed, kicks=parse_kicks(kick or [], kick_seed))
     if write_calibration is not None:
         write_true_calibration(bus, write_calibration)
     report = serve_until_stopped(bus, lambda path: print(path, flush=True))

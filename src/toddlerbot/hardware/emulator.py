@@ -50,6 +50,7 @@ from toddlerbot.hardware.control_table import (
     encode,
 )
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
+from toddlerbot.hardware.hil_kicks import Kick
 from toddlerbot.hardware.plant import HilPlant, SimplePlant
 from toddlerbot.robot.description import RobotDescription
 
@@ -139,6 +140,7 @@ class EmulatedBus:
         faults: Faults | None = None,
         fast_sync_read: bool = True,
         offsets_seed: int = 0,
+        kicks: tuple[Kick, ...] = (),
     ) -> None:
         self.description = description
         self.spec = description.spec
@@ -154,7 +156,10 @@ class EmulatedBus:
             self.motors.append(motor)
         self.lock = threading.Lock()
         self.stats = BusStats()
-        self.plant: SimplePlant | HilPlant = HilPlant(self.motors, description) if hil else SimplePlant(self.motors)
+        if kicks and not hil:
+            raise ToddlerbotError("--kick pushes the simulated robot: it needs --hil")
+        self.plant: SimplePlant | HilPlant = HilPlant(self.motors, description, kicks) if hil \
+            else SimplePlant(self.motors)
         for motor in self.motors:
             self._power_up(motor)
 

@@ -28,6 +28,7 @@ from toddlerbot.hardware.control_table import (
     traits,
 )
 from toddlerbot.hardware.emulated_motor import EmulatedMotor
+from toddlerbot.hardware.hil_kicks import Kick
 from toddlerbot.hardware.imu import ImuReading
 from toddlerbot.hardware.imu_stream import Pose
 from toddlerbot.robot.description import RobotDescription
@@ -151,8 +152,15 @@ class HilPlant(TorsoGroundTruth):
     The model and the actuator parameters come from the description, so fitted params.json files apply.
     """
 
-    def __init__(self, motors: list[EmulatedMotor], description: RobotDescription) -> None:
+    def __init__(self, motors: list[EmulatedMotor], description: RobotDescription, kicks: tuple[Kick, ...] = ()
+                 ) -> None:
         self.motors = motors
+        self.kicks = list(kicks)
+        """Kicks still to come (`toddlerbot.hardware.hil_kicks`), in time order."""
+        self.kicked: list[tuple[float, float, float]] = []
+        """(powered time s, dvx, dvy m/s in the world) of each kick given."""
+        self.powered_time = 0.0
+        """Simulated seconds since torque first came on: the kicks' clock."""
         self.params = [m.model.actuator for m in motors]
         self.model = description.model(base="floating", scene=True)
         self.data = mujoco.MjData(self.model)
@@ -253,6 +261,9 @@ class HilPlant(TorsoGroundTruth):
         motion's bookkeeping and the IMU sample (the physics thread's work between two reads of the tables)."""
         step_actuated([self.model], [self.data], self._motors, cmd.q_target[None], cmd.drive(), n_steps)
         self.sim_time += n_steps * self.model.opt.timestep
+        if self.powered_start is not None or cmd.torque_on.any():
+            self.powered_time += n_steps * self.model.opt.timestep
+            self._kick()
         if cmd.torque_on.any():
             self.powered_min_height = min(self.powered_min_height, self.torso_height())
             self.powered_min_upright = min(self.powered_min_upright, self.torso_uprightness())
@@ -263,6 +274,15 @@ class HilPlant(TorsoGroundTruth):
                 self.powered_turn += float((self.powered_end[1] - previous[1] + np.pi) % (2 * np.pi) - np.pi)
         self.imu_sample = (self.sim_time, self._read_imu())
         self.pose_sample = (self.sim_time, self._read_pose())
+
+    def _kick(self) -> None:
+        """Give the kicks that are due: a horizontal velocity change of the floating base."""
+        while self.kicks and self.kicks[0].time <= self.powered_time + 1e-9:
+            kick = self.kicks.pop(0)
+            angle = kick.direction + self.torso_planar_pose()[1]
+            dv = kick.speed * np.array([np.cos(angle), np.sin(angle)])
+            self.data.qvel[0:2] += dv
+            self.kicked.append((round(self.powered_time, 3), float(dv[0]), float(dv[1])))
 
     def _run(self) -> None:
         dt = self.model.opt.timestep

@@ -53,7 +53,8 @@ def _plant_report(plant: HilPlant) -> dict:
             "powered_min_torso_height": _finite(plant.powered_min_height),
             "powered_min_torso_upright": _finite(plant.powered_min_upright),
             "powered_torso_motion": None if motion is None else dict(
-                zip(("dx_m", "dy_m", "yaw_rad"), (round(v, 4) for v in motion), strict=True))}
+                zip(("dx_m", "dy_m", "yaw_rad"), (round(v, 4) for v in motion), strict=True)),
+            "kicks": [dict(zip(("time_s", "dvx_mps", "dvy_mps"), kick, strict=True)) for kick in plant.kicked]}
 
 
 def _finite(value: float) -> float:
