@@ -22,7 +22,7 @@ from toddlerbot.cli.output_paths import output_dir, output_file, source_checkout
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig
-from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT, ENVIRONMENTS
+from toddlerbot.rl.environments import ENVIRONMENTS
 from toddlerbot.rl.launch import TrainRequest
 from toddlerbot.rl.onnx_export import EXPORT_FORMATS
 
@@ -52,9 +52,9 @@ EpochsOption = Annotated[int | None, typer.Option(help="Stop after this many epo
 SolverIterationsOption = Annotated[int | None, typer.Option(help="Newton iterations of the training model (default "
                                                                  "4; see docs/rl.md before lowering).")]
 LsIterationsOption = Annotated[int | None, typer.Option(help="Line-search iterations (default 8).")]
-EnvOption = Annotated[str, typer.Option(
-    "--env", help=f"Registered environment to train: {', '.join(ENVIRONMENTS.names())} (docs/rl.md \"Environments\"; "
-                  "installed packages add more).")]
+EnvOption = Annotated[str | None, typer.Option(
+    "--env", help=f"Registered environment to train: {', '.join(ENVIRONMENTS.names())} (default walk; docs/rl.md "
+                  "\"Environments\"; installed packages add more).")]
 BackendOption = Annotated[Literal[("auto", *PHYSICS_BACKENDS)], typer.Option(  # the backends rl.config knows
     help="Physics: cpu (classic MuJoCo on threads), mjx, or auto (mjx with a GPU, else cpu: then the CPU recipe of "
          "docs/rl.md).")]
@@ -95,7 +95,7 @@ WarmStartOption = Annotated[Path | None, typer.Option(
 @app.command()
 def train(
     out: OutOption = None,
-    env: EnvOption = DEFAULT_ENVIRONMENT,
+    env: EnvOption = None,
     smoke: SmokeOption = False,
     resume: ResumeOption = None,
     timesteps: TimestepsOption = None,
@@ -121,11 +121,8 @@ def train(
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
 ) -> None:
-    """Train an environment (--env, default walk) with PPO on its recipe (walk on a CPU: docs/rl.md's CPU recipe,
-    a DAgger warm start from walk-zmp then PPO; GPU: the one-GPU configuration; --smoke: a tiny run) with
-    checkpoints, a curve and TensorBoard scalars (--wandb: also W&B). --motor-params: the robot trains on the fitted
-    motors, randomisation scales around them. --variant with --upper-body-pose (and --hand-force): a policy for a
-    variant that walks whatever its arms do (and hold)."""
+    """Train a registered environment (--env, default walk) with PPO on its recipe (walk's: docs/rl.md; --smoke: a
+    tiny run): checkpoints, a training curve and TensorBoard scalars (--wandb: W&B too)."""
     for limit, count, option in ((minutes, epochs, "--epochs"), (None, timesteps, "--timesteps"),
                                  (None, num_envs, "--num-envs")):
         training_budget(limit, count, option)

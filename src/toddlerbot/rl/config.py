@@ -11,7 +11,6 @@ from dataclasses import asdict, dataclass, field, replace
 
 from toddlerbot.locomotion.config import WALK_REACH, WalkConfig
 from toddlerbot.policies.rl_inference import ObsConfig
-from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
 
 __all__ = ["ObsConfig"]
@@ -157,6 +156,10 @@ class RandomizationConfig:
 CONTACT_SETS = ("feet_hands", "all")
 JACOBIANS = ("dense", "sparse")
 PHYSICS_BACKENDS = ("cpu", "mjx")
+
+
+DEFAULT_ENVIRONMENT = "walk"
+"""What `rl train` trains without ``--env``, and what a run saved before environments had names trained."""
 
 
 @dataclass(frozen=True)

@@ -13,9 +13,6 @@ from toddlerbot.registry import Registry
 if TYPE_CHECKING:
     from toddlerbot.rl.environment import RLEnvironment
 
-DEFAULT_ENVIRONMENT = "walk"
-"""What `rl train` trains without ``--env``, and what a run saved before environments had names trained."""
-
 ENVIRONMENTS = Registry("environment", entry_point_group="toddlerbot.environments")
 ENVIRONMENTS.register("walk", "toddlerbot.rl.walk_env:WalkEnv")
 

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text
 from toddlerbot.rl import config
-from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT, environment_class
+from toddlerbot.rl.environments import environment_class
 from toddlerbot.rl.run_files import CONFIG, SMOKE_MARKER
 
 if TYPE_CHECKING:
@@ -44,8 +44,8 @@ class TrainRequest:
     mirror_loss: float | None = None
     reward_weights: tuple[str, ...] = ()
     """``NAME=WEIGHT`` overrides of `RewardConfig.weights`."""
-    environment: str = DEFAULT_ENVIRONMENT
-    """The registered environment to train (`toddlerbot.rl.environments`)."""
+    environment: str | None = None
+    """The registered environment to train (`toddlerbot.rl.environments`; None: `config.DEFAULT_ENVIRONMENT`)."""
 
 
 @dataclass(frozen=True)
@@ -118,12 +118,13 @@ def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
     from toddlerbot.rl.environment import resolve_backend
     from toddlerbot.rl.train import adopt_warm_start
 
-    env_class = environment_class(request.environment)
+    name = request.environment or config.DEFAULT_ENVIRONMENT
+    env_class = environment_class(name)
     backend = resolve_backend(request.backend)
     source = _warm_start_source(request)
-    if source and source.env.environment != request.environment:
+    if source and source.env.environment != name:
         raise ToddlerbotError(f"--warm-start {source.run_dir}: a run of environment {source.env.environment!r}; "
-                              f"expected {request.environment!r}")
+                              f"expected {name!r}")
     env_cfg = _environment(source.env if source else env_class.default_config(request.smoke), backend, request)
     recipe = env_class.recipe(backend, request.smoke)
     ppo_cfg, imitation_cfg = replace(recipe.ppo, seed=request.seed), recipe.imitation

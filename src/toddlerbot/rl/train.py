@@ -41,6 +41,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_bytes, atomic_write_text
 from toddlerbot.metrics import Dashboards, MetricsLogger
 from toddlerbot.rl.config import (
+    DEFAULT_ENVIRONMENT,
     CommandConfig,
     EnvConfig,
     ImitationConfig,
@@ -50,7 +51,7 @@ from toddlerbot.rl.config import (
     RewardConfig,
 )
 from toddlerbot.rl.environment import RLEnvironment
-from toddlerbot.rl.environments import DEFAULT_ENVIRONMENT, environment_class
+from toddlerbot.rl.environments import environment_class
 from toddlerbot.rl.imitation import WarmStart
 from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.run_files import (
