@@ -25,7 +25,7 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.fall import FALL_KP_FRACTION, FallGuard
 from toddlerbot.runtime.robustness import DirectedKick
 from toddlerbot.runtime.runner import RunObserver, Step, run_policy
-from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimulationError
 
 KICK_TIME_S, HOLD_S = 2.0, 1.5
 
@@ -69,7 +69,8 @@ class FallWindow(RunObserver):
         self.at_limit += float(np.sum(torque >= 0.99)) * (obs.time - step.obs.time)
 
 
-def trial(description: RobotDescription, seed: int, kp_fraction: float) -> FallWindow | None:
+def trial(description: RobotDescription, seed: int, kp_fraction: float) -> FallWindow | str | None:
+    """The fall's figures, ``"diverged"`` where the simulation did, or None without a fall."""
     rng = np.random.default_rng([seed, 41])
     command = rng.uniform(WALK_REACH.low, WALK_REACH.high)
     speed, direction = rng.uniform(1.0, 2.0), rng.uniform(0.0, 2 * np.pi)
@@ -78,8 +79,12 @@ def trial(description: RobotDescription, seed: int, kp_fraction: float) -> FallW
     hold = HoldWhereItIs(robot)
     tau_max = np.array([p.tau_max for p in description.actuator_params])
     window = FallWindow(tau_max, np.asarray(description.max_motor_speed), hold)
-    result = run_policy(robot, make_policy("walk-rl", robot), lambda t: command, KICK_TIME_S + 4.0,
-                        observers=[DirectedKick(robot, speed, direction, KICK_TIME_S), window], recovery=hold)
+    try:
+        result = run_policy(robot, make_policy("walk-rl", robot, synchronous=True), lambda t: command,
+                            KICK_TIME_S + 4.0, observers=[DirectedKick(robot, speed, direction, KICK_TIME_S), window],
+                            recovery=hold)
+    except SimulationError:
+        return "diverged"
     return window if result.falls else None
 
 
@@ -92,13 +97,15 @@ def main() -> None:
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
           f"{args.trials} kicks of 1-2 m/s during walk-rl, seeds {args.seed}-{args.seed + args.trials - 1}")
     for label, fraction in ((f"lowered gains ({FALL_KP_FRACTION:g} x kp)", FALL_KP_FRACTION), ("full gains", 1.0)):
-        windows = [w for w in (trial(description, args.seed + k, fraction) for k in range(args.trials)) if w]
+        outcomes = [trial(description, args.seed + k, fraction) for k in range(args.trials)]
+        windows = [w for w in outcomes if isinstance(w, FallWindow)]
         torque = np.array([w.torque for w in windows])
         speed = np.array([w.speed for w in windows])
         limit = np.array([w.at_limit for w in windows])
-        print(f"{label}: {len(windows)} falls; peak torque / tau_max mean {torque.mean():.2f}, max "
-              f"{torque.max():.2f}; peak speed / no-load speed mean {speed.mean():.2f}, max {speed.max():.2f}; "
-              f"motor-seconds at the torque limit mean {limit.mean():.2f}, max {limit.max():.2f}")
+        print(f"{label}: {len(windows)} falls, {outcomes.count('diverged')} simulations diverged; peak torque / "
+              f"tau_max mean {torque.mean():.2f}, max {torque.max():.2f}; peak speed / no-load speed mean "
+              f"{speed.mean():.2f}, max {speed.max():.2f}; motor-seconds at the torque limit mean {limit.mean():.2f},"
+              f" max {limit.max():.2f}", flush=True)
 
 
 if __name__ == "__main__":

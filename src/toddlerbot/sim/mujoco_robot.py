@@ -180,6 +180,9 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
 
     def _check_stable(self) -> None:
         d = self.data
+        if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo then resets the state to qpos0 silently
+            raise SimulationError("simulation diverged: MuJoCo found a non-finite or huge acceleration and reset the "
+                                  "state")
         if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
             raise SimulationError(f"simulation diverged at t={d.time:.3f} s (non-finite state)")
         speed = np.max(np.abs(d.qvel[6:]))
