@@ -15,7 +15,8 @@ FALL_TILT_RAD = 1.0
 """Torso tilt from upright (angle between its z axis and the world's), rad, beyond which a robot has fallen:
 the simulator's fall detector and the real robot's (from its IMU) use this one threshold."""
 FALL_KP_FRACTION = 0.2
-"""P gains while falling, as a fraction of those asked for (docs/safety.md, "Falling": measured peak torques)."""
+"""P gains while falling, as a fraction of those asked for (docs/hardware.md, "Falling": about a tenth less impact
+torque than full gains, without the extra diverged simulations of 0.05)."""
 LANDED_RATE_RAD_S = 1.0
 """The torso has landed when its angular speed (IMU gyro) stays below this..."""
 LANDED_S = 0.1
