@@ -1,7 +1,8 @@
 """The editor page: viser controls wired to the edited keyframes, the 3D robot, playback and saving.
 
 Layout (side panel, top to bottom): Motion (status line, name, interpolation, save path, Save), Keyframes (table,
-selected keyframe, duration, add/delete/move, mirror), Simulate (play in MuJoCo, result), then one folder of
+selected keyframe, duration, add/delete/move, mirror, where the torso is: upright, on the back or front, or any
+roll and pitch), Simulate (play in MuJoCo, result), then one folder of
 joint sliders per limb, in degrees, over each joint's range from the spec. Every control acts on the selected
 keyframe; the 3D view shows it standing on the floor with its centre of mass and support polygon.
 
@@ -30,7 +31,7 @@ from toddlerbot.motion_editor.mirror import MirrorMap
 from toddlerbot.motion_editor.playback import Playback, simulate
 from toddlerbot.motion_editor.scene import RobotScene
 from toddlerbot.motion_editor.topview import top_view
-from toddlerbot.policies.motions import INTERPOLATIONS, MotionError, load_motion
+from toddlerbot.policies.motions import INTERPOLATIONS, BasePose, MotionError, load_motion
 from toddlerbot.robot.description import RobotDescription
 
 PACKAGE_DIR = Path(toddlerbot.__file__).resolve().parent
@@ -41,6 +42,8 @@ TOP_VIEW_EVERY = 5
 """Redraw the balance top view every this many playback frames (5 per second)."""
 EDIT_ACTIONS = ("Add", "Delete", "Earlier", "Later")
 MIRROR_ACTIONS = ("Left → right", "Right → left", "Swap")
+TORSO_ACTIONS = {"Upright": None, "On back": BasePose(pitch=-np.pi / 2), "On front": BasePose(pitch=np.pi / 2)}
+"""The torso's base pose each Torso button gives the selected keyframe (None: standing upright)."""
 
 
 def limb_groups(description: RobotDescription) -> dict[str, list[str]]:
@@ -114,6 +117,11 @@ class MotionEditor:
             self.mirror_buttons = gui.add_button_group("Mirror", MIRROR_ACTIONS)
             self.mirror_edits = gui.add_checkbox("Mirror slider edits", False,
                                                  hint="Moving a left or right joint moves its partner too")
+            self.torso = gui.add_button_group("Torso", tuple(TORSO_ACTIONS))
+            self.torso_pitch = gui.add_slider("Torso pitch", min=-180.0, max=180.0, step=1.0, initial_value=0.0,
+                                              hint="deg, > 0 leans forward: -90 lies on the back, 90 on the front")
+            self.torso_roll = gui.add_slider("Torso roll", min=-180.0, max=180.0, step=1.0, initial_value=0.0,
+                                             hint="deg, > 0 tips the torso onto its right side")
         with gui.add_folder("Simulate"):
             self.play_button = gui.add_button("Play in simulator", icon=viser.Icon.PLAYER_PLAY)
             self.see_through = gui.add_checkbox("See-through robot", False, hint="Show the CoM inside the body")
@@ -136,6 +144,9 @@ class MotionEditor:
         self.duration.on_update(lambda _: self._set_duration())
         self.edit.on_click(lambda event: self._edit(event.target.value))
         self.mirror_buttons.on_click(lambda event: self._mirror(event.target.value))
+        self.torso.on_click(lambda event: self.set_base(TORSO_ACTIONS[event.target.value]))
+        self.torso_pitch.on_update(lambda _: self._set_tilt())
+        self.torso_roll.on_update(lambda _: self._set_tilt())
         self.play_button.on_click(lambda _: self.play())
         self.see_through.on_update(lambda _: self.scene.see_through(self.see_through.value))
         self.save_button.on_click(lambda _: self.save(self.save_path.value))
@@ -203,6 +214,24 @@ class MotionEditor:
             self.doc.set_pose(self.current, pose)
             self._refresh()
             self._say(f"keyframe {self.current}: mirrored ({action})")
+
+    def set_base(self, base: BasePose | None) -> None:
+        """Where the torso is at the selected keyframe (None: standing upright); the first keyframe's is where Play
+        starts."""
+        with self._lock:
+            self.doc.set_base(self.current, base)
+            self._refresh()
+            self._say(f"keyframe {self.current}: {_torso_words(base)}")
+
+    def _set_tilt(self) -> None:
+        with self._lock:
+            if self._quiet:
+                return
+            roll, pitch = np.deg2rad(self.torso_roll.value), np.deg2rad(self.torso_pitch.value)
+            z = (self.doc.bases[self.current] or BasePose()).z
+            upright = roll == pitch == 0.0 and z is None
+            self.doc.set_base(self.current, None if upright else BasePose(roll=roll, pitch=pitch, z=z))
+            self._refresh(sliders=False)
 
     # -- actions ---------------------------------------------------------------------------------------------
     def play(self, wait: bool = False) -> Playback | None:
@@ -290,16 +319,26 @@ class MotionEditor:
             if sliders:
                 for joint, slider in self.sliders.items():
                     slider.value = round(float(np.rad2deg(pose[doc.joint_index(joint)])), 2)
+                base = doc.bases[i] or BasePose()
+                self.torso_pitch.value = round(float(np.rad2deg(base.pitch)))
+                self.torso_roll.value = round(float(np.rad2deg(base.roll)))
         finally:
             self._quiet = False
-        data = self.poses.pose(pose)
+        data = self.poses.pose(pose, doc.bases[i])
         balance = self.poses.static_balance()
         self.scene.show(data, balance)
         self.balance_view.image = top_view(balance, self.poses.soles(data))
         rows = "\n".join(f"| {'▶' if k == i else ''} {k} | {t:.2f} | {d:.2f} |"
                          for k, (t, d) in enumerate(zip(doc.times, doc.durations)))
         self.table.content = (f"| # | t (s) | duration (s) |\n|---|---|---|\n{rows}\n\n"
-                              f"Keyframe {i}: {balance.describe()} (standing still, both feet flat).")
+                              f"Keyframe {i}: {balance.describe()} ({_torso_words(doc.bases[i])}).")
+
+
+def _torso_words(base: BasePose | None) -> str:
+    if base is None:
+        return "standing still, both feet flat"
+    height = "resting on the floor" if base.z is None else f"torso {base.z * 1000:.0f} mm high"
+    return f"torso at roll {np.rad2deg(base.roll):.0f} deg, pitch {np.rad2deg(base.pitch):.0f} deg, {height}"
 
 
 def open_editor(description: RobotDescription, keyframes: Keyframes, save_path: Path | None, host: str,

@@ -1,7 +1,8 @@
 """Where the robot's weight is: a pose placed on the floor, its centre of mass and its support polygon.
 
-For an edited keyframe (no physics) the robot stands upright with its lowest collision point on the floor, and
-the support polygon is the convex hull of the sole corners within `SOLE_CONTACT_M` of the floor. In a simulated
+For an edited keyframe (no physics) the robot stands upright with its lowest collision point on the floor (or lies
+as the keyframe's base pose says: `robot.floor_pose`), and the support polygon is the convex hull of the sole
+corners within `SOLE_CONTACT_M` of the floor. In a simulated
 run it is the hull of the robot's contact points with the floor. Statically the robot is balanced when the
 CoM's ground projection lies inside the polygon; `margin` is its distance to the nearest edge (negative outside).
 """
@@ -14,8 +15,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from toddlerbot.robot.builder import home_qpos, lowest_point
+from toddlerbot.policies.motions import BasePose
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.floor_pose import place_on_floor
 
 SOLE_CONTACT_M = 0.003
 """A sole corner this close to the floor, m, counts as touching it."""
@@ -53,13 +55,12 @@ class PoseModel:
         self._feet = [self.model.geom(g).id for g in description.handles.feet_geoms]
         self._floor = self.model.geom("floor").id
 
-    def pose(self, joint_pos: np.ndarray) -> mujoco.MjData:
-        """Upright torso, joints at `joint_pos` (rad, `joint_names` order), lowest point on the floor."""
+    def pose(self, joint_pos: np.ndarray, base: BasePose | None = None) -> mujoco.MjData:
+        """Joints at `joint_pos` (rad, `joint_names` order), the torso upright (or as `base` says), lowest point on
+        the floor (or the torso frame at the base's height)."""
         m, d = self.model, self.data
-        d.qpos[:] = home_qpos(m, self.description.transmission, joint_pos)
-        mujoco.mj_kinematics(m, d)
-        d.qpos[2] -= lowest_point(m, d)
-        mujoco.mj_kinematics(m, d)
+        base = base or BasePose()
+        place_on_floor(m, d, self.description.transmission, joint_pos, base.roll, base.pitch, base.z)
         mujoco.mj_comPos(m, d)
         return d
 

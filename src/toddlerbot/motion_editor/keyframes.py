@@ -1,8 +1,10 @@
 """The motion being edited: a list of full-body keyframes with a duration each, and its motion-YAML text.
 
-A keyframe holds every output joint (rad, `RobotDescription.joint_names` order). Its duration is the time, s,
-taken to reach it from the keyframe before (the first keyframe is at t = 0, duration 0). Reordering moves poses
-between positions and leaves the durations where they are, so the motion's timing stays the same.
+A keyframe holds every output joint (rad, `RobotDescription.joint_names` order) and, optionally, where the torso is
+(a `BasePose`: lying on the back or front, or any roll and pitch; None: standing upright). Its duration is the
+time, s, taken to reach it from the keyframe before (the first keyframe is at t = 0, duration 0). Reordering moves
+poses (with their base poses) between positions and leaves the durations where they are, so the motion's timing
+stays the same.
 
 On save, the motion lists the joints it had when loaded plus every joint that leaves the home pose in some
 keyframe; angles are written in degrees with 0.01 deg resolution, and the text is checked with
@@ -17,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 
-from toddlerbot.policies.motions import INTERPOLATIONS, Motion, MotionError, parse_motion
+from toddlerbot.policies.motions import INTERPOLATIONS, BasePose, Motion, MotionError, parse_motion
 from toddlerbot.robot.description import RobotDescription
 
 MIN_DURATION_S = 0.05
@@ -43,6 +45,12 @@ class Keyframes:
     interpolation: str = "smooth"
     listed: tuple[str, ...] = field(default_factory=tuple)
     """Joints the loaded motion listed (kept on save even if they stay at home)."""
+    bases: list[BasePose | None] = field(default_factory=list)
+    """Each keyframe's base pose (None: upright); empty at construction means none gives one."""
+
+    def __post_init__(self) -> None:
+        if not self.bases:
+            self.bases = [None] * len(self.poses)
 
     # -- construction -----------------------------------------------------------------------------------------
     @classmethod
@@ -62,7 +70,7 @@ class Keyframes:
             poses.append(pose)
         durations = [0.0, *np.diff(motion.times).tolist()]
         return cls(description, poses, durations, name=motion.name, text=text, interpolation=motion.interpolation,
-                   listed=motion.joints)
+                   listed=motion.joints, bases=list(motion.bases))
 
     # -- queries ----------------------------------------------------------------------------------------------
     def __len__(self) -> int:
@@ -96,12 +104,17 @@ class Keyframes:
         rng = self.description.joint_range
         self.poses[self._check(i)] = np.clip(np.asarray(pose, dtype=float), rng[:, 0], rng[:, 1])
 
+    def set_base(self, i: int, base: BasePose | None) -> None:
+        """Where the torso is at keyframe i (None: standing upright)."""
+        self.bases[self._check(i)] = base
+
     def insert_after(self, i: int) -> int:
         """A copy of keyframe i right after it (duration: that of keyframe i, or 1 s after the first); returns the
         new keyframe's index."""
         self._check(i)
         duration = self.durations[i] if i > 0 else DEFAULT_DURATION_S
         self.poses.insert(i + 1, self.poses[i].copy())
+        self.bases.insert(i + 1, self.bases[i])
         self.durations.insert(i + 1, duration)
         return i + 1
 
@@ -111,6 +124,7 @@ class Keyframes:
         if len(self) <= 2:
             raise MotionError("a motion needs at least two keyframes: add one before deleting this one")
         del self.poses[i]
+        del self.bases[i]
         del self.durations[i]
         self.durations[0] = 0.0
         return min(i, len(self) - 1)
@@ -123,6 +137,7 @@ class Keyframes:
         if not 0 <= k < len(self):
             return i
         self.poses[i], self.poses[k] = self.poses[k], self.poses[i]
+        self.bases[i], self.bases[k] = self.bases[k], self.bases[i]
         return k
 
     def set_duration(self, i: int, seconds: float) -> None:
@@ -149,8 +164,10 @@ class Keyframes:
         joints = self.saved_joints() or [self.joint_names[0]]
         rng = self.description.joint_range
         frames = []
-        for t, pose in zip(np.round(self.times, 3), self.poses):
-            frame: dict[str, float] = {"t": float(t)}
+        for t, pose, base in zip(np.round(self.times, 3), self.poses, self.bases, strict=True):
+            frame: dict[str, object] = {"t": float(t)}
+            if base is not None:
+                frame["base"] = base_raw(base)
             for j in joints:
                 k = self.joint_names.index(j)
                 frame[j] = _degrees(pose[k], *rng[k])
@@ -185,6 +202,14 @@ class Keyframes:
         lines += [f"interpolation: {raw['interpolation']}", f"joints: {flow(raw['joints'])}", "keyframes:"]
         lines += [f"  - {flow(frame)}" for frame in raw["keyframes"]]
         return "\n".join(lines) + "\n"
+
+
+def base_raw(base: BasePose) -> dict[str, float]:
+    """A base pose as the format writes it: roll and pitch in degrees to 0.01 deg, z in m to 0.1 mm if given."""
+    raw = {"roll": round(float(np.rad2deg(base.roll)), 2), "pitch": round(float(np.rad2deg(base.pitch)), 2)}
+    if base.z is not None:
+        raw["z"] = round(base.z, 4)
+    return raw
 
 
 def _degrees(rad: float, lo: float, hi: float) -> float:

@@ -13,6 +13,12 @@ Format (angles in degrees, times in seconds; see ``motions/*.yaml``)::
 Every keyframe gives every listed joint; times start at 0 and increase; every angle lies within the joint's
 range in the spec. Joint names are the output joints of `RobotDescription.joint_names` (e.g. ``left_knee``,
 ``waist_yaw``), so motions do not depend on gear ratios.
+
+A keyframe may also say where the torso is, ``base: {roll: deg, pitch: deg, z: m}`` (each optional, roll and
+pitch 0 by default): tilted by the IMU's roll and pitch (pitch > 0 leans forward: lying on the back is pitch -90,
+on the front +90), its frame ``z`` m above the floor or, without ``z``, resting on the floor. The first keyframe's
+base is where the motion starts (a get-up motion starts lying: ``get_up_back.yaml``); the others say how the
+editor draws the keyframe. A keyframe without one stands upright on the floor, as every motion did before.
 """
 
 from __future__ import annotations
@@ -32,10 +38,25 @@ MOTIONS_DIR = resources.files("toddlerbot.policies") / "motions"
 MAX_MOTION_BYTES = 1_000_000
 """Largest motion file read, bytes (the packaged ones are under 2 kB)."""
 INTERPOLATIONS = ("smooth", "linear")
+BASE_FIELDS = ("roll", "pitch", "z")
+MAX_BASE_Z_M = 1.0
+"""Highest torso frame a keyframe's base may give, m (the robot stands 0.56 m tall)."""
 
 
 class MotionError(ToddlerbotError):
     """A motion file is malformed or asks for something the robot cannot do."""
+
+
+@dataclass(frozen=True)
+class BasePose:
+    """Where the torso is at a keyframe (the format's ``base``)."""
+
+    roll: float = 0.0
+    """rad; > 0 tips the torso onto its right side."""
+    pitch: float = 0.0
+    """rad; > 0 leans it forward (lying on the back: -pi/2, on the front: +pi/2)."""
+    z: float | None = None
+    """Height of the torso frame above the floor, m; None: the pose rests on the floor."""
 
 
 @dataclass(frozen=True)
@@ -47,10 +68,17 @@ class Motion:
     poses: np.ndarray
     """(k, len(joints)) keyframe angles, rad."""
     interpolation: str
+    bases: tuple[BasePose | None, ...] = ()
+    """Each keyframe's base pose, None where it gives none (empty: none gives one)."""
 
     @property
     def duration(self) -> float:
         return float(self.times[-1])
+
+    @property
+    def start_base(self) -> BasePose | None:
+        """Where the motion starts: the first keyframe's base pose, None for standing upright."""
+        return self.bases[0] if self.bases else None
 
     def at(self, t: float) -> np.ndarray:
         """Joint angles (rad) of the listed joints at time t (clamped to the motion's span)."""
@@ -61,6 +89,13 @@ class Motion:
         if self.interpolation == "smooth":
             s = s * s * (3.0 - 2.0 * s)
         return self.poses[i] + s * (self.poses[i + 1] - self.poses[i])
+
+
+def full_pose(motion: Motion, description: RobotDescription, t: float = 0.0) -> np.ndarray:
+    """Every output joint at time ``t`` of ``motion`` (rad, `joint_names` order): the home pose where it lists none."""
+    pose = np.array(description.home_joint_pos)
+    pose[[description.joint_names.index(j) for j in motion.joints]] = motion.at(t)
+    return pose
 
 
 def builtin_motions() -> list[str]:
@@ -103,7 +138,7 @@ def parse_motion(raw: object, description: RobotDescription, source: str) -> Mot
     frames = raw["keyframes"]
     if not isinstance(frames, list) or len(frames) < 2:
         raise MotionError(f"{source}: 'keyframes' must list at least two keyframes")
-    times, poses = [], []
+    times, poses, bases = [], [], []
     for i, frame in enumerate(frames):
         where = f"{source}: keyframe {i}"
         if not isinstance(frame, dict) or "t" not in frame:
@@ -111,7 +146,7 @@ def parse_motion(raw: object, description: RobotDescription, source: str) -> Mot
         missing = [j for j in joints if j not in frame]
         if missing:
             raise MotionError(f"{where}: missing joint(s) {', '.join(missing)} (every keyframe lists every joint)")
-        extra = [k for k in frame if k != "t" and k not in joints]
+        extra = [k for k in frame if k not in ("t", "base") and k not in joints]
         if extra:
             raise MotionError(f"{where}: joint(s) {', '.join(map(str, extra))} not listed in 'joints'")
         pose = []
@@ -130,7 +165,30 @@ def parse_motion(raw: object, description: RobotDescription, source: str) -> Mot
             raise MotionError(f"{where}: t must be a finite number of seconds, got {quoted(t)}")
         times.append(float(t))
         poses.append(pose)
+        bases.append(None if "base" not in frame else parse_base(frame["base"], where))
     if times[0] != 0.0 or any(b <= a for a, b in itertools.pairwise(times)):
         raise MotionError(f"{source}: keyframe times must start at 0 and increase, got {times}")
     return Motion(name=str(raw.get("name", Path(source).stem)), joints=tuple(joints), times=np.array(times),
-                  poses=np.array(poses), interpolation=interpolation)
+                  poses=np.array(poses), interpolation=interpolation,
+                  bases=tuple(bases) if any(b is not None for b in bases) else ())
+
+
+def parse_base(raw: object, where: str) -> BasePose:
+    """A keyframe's ``base`` mapping (degrees, m), or one line naming ``where`` and the field."""
+    if not isinstance(raw, dict):
+        raise MotionError(f"{where}: base must be a mapping like {{roll: 0, pitch: -90}} (deg; z in m), "
+                          f"got {quoted(raw)}")
+    unknown = [str(k) for k in raw if k not in BASE_FIELDS]
+    if unknown:
+        raise MotionError(f"{where}: base.{unknown[0]} is not a base field; expected {', '.join(BASE_FIELDS)}")
+    values = {}
+    for field, unit, lo, hi in (("roll", "deg", -180.0, 180.0), ("pitch", "deg", -180.0, 180.0),
+                                ("z", "m", 0.0, MAX_BASE_Z_M)):
+        if field not in raw:
+            continue
+        value = raw[field]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+            raise MotionError(f"{where}: base.{field} must be a number of {unit} in [{lo:g}, {hi:g}], "
+                              f"got {quoted(value)}")
+        values[field] = float(value) if field == "z" else float(np.deg2rad(value))
+    return BasePose(**values)

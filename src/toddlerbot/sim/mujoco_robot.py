@@ -87,6 +87,9 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         self._torque = np.zeros(len(self.motor_names))
         self.initial_motor_offset = np.zeros(len(self.motor_names))
         """Motor angles added to the home keyframe at `reset`, rad (a perturbation; zero by default)."""
+        self.start_qpos: np.ndarray | None = None
+        """Where `reset` puts the robot instead of the home keyframe, at rest (MuJoCo qpos, e.g. lying on the floor
+        from `robot.floor_pose.place_on_floor`, where a get-up motion starts); None: the home keyframe."""
         self._gains: tuple[np.ndarray, np.ndarray] | None = None
         self.set_gains(self.default_kp, self.default_kd)
         compile_substeps(self.model, self.data, self._motors, self._drive)  # not in the first (wall-clock) step
@@ -96,6 +99,9 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
     # -- Robot interface -------------------------------------------------------------------------------------
     def reset(self) -> Observation:
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._home_key)
+        if self.start_qpos is not None:
+            self.data.qpos[:] = self.start_qpos
+            self.data.qvel[:] = 0.0
         self.data.qpos[self._qadr] += self.initial_motor_offset
         mujoco.mj_forward(self.model, self.data)
         self._targets = self.data.qpos[self._qadr].copy()
