@@ -20,6 +20,7 @@ from toddlerbot.cli.options import (
 from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir, output_file, source_checkout
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.motions import builtin_motions
 from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig
 from toddlerbot.rl.environments import ENVIRONMENTS
@@ -55,6 +56,9 @@ LsIterationsOption = Annotated[int | None, typer.Option(help="Line-search iterat
 EnvOption = Annotated[str | None, typer.Option(
     "--env", help=f"Registered environment to train: {', '.join(ENVIRONMENTS.names())} (default walk; docs/rl.md "
                   "\"Environments\"; installed packages add more).")]
+MotionOption = Annotated[str | None, typer.Option(
+    help=f"The motion --env track tracks: a built-in ({', '.join(builtin_motions())}) or a motion file (required "
+         "there; docs/rl.md \"Motion tracking\").")]
 BackendOption = Annotated[Literal[("auto", *PHYSICS_BACKENDS)], typer.Option(  # the backends rl.config knows
     help="Physics: cpu (classic MuJoCo on threads), mjx, or auto (mjx with a GPU, else cpu: then the CPU recipe of "
          "docs/rl.md).")]
@@ -96,6 +100,7 @@ WarmStartOption = Annotated[Path | None, typer.Option(
 def train(
     out: OutOption = None,
     env: EnvOption = None,
+    motion: MotionOption = None,
     smoke: SmokeOption = False,
     resume: ResumeOption = None,
     timesteps: TimestepsOption = None,
@@ -130,7 +135,7 @@ def train(
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
                            hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()),
-                           env)
+                           env, motion)
     plan = _plan(out, resume, request)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 

@@ -80,8 +80,9 @@ class RLEnvironment(Env):
             return physics(model, addresses, cfg.n_substeps, cfg.cpu_threads)
         return physics(model, addresses, cfg.n_substeps)
 
-    def terminated(self, frame: Frame) -> jax.Array:
-        """Whether the episode ends after the step that reached ``frame`` (bool scalar)."""
+    def terminated(self, frame: Frame, *reference: jax.Array) -> jax.Array:
+        """Whether the episode ends after the step that reached ``frame`` (bool scalar); ``reference``: what an
+        environment compares the frame with, if anything (``track``: the reference's row it should have reached)."""
         raise NotImplementedError
 
     def record_action_space(self, run_dir: Path) -> None:

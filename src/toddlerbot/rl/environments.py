@@ -15,6 +15,7 @@ if TYPE_CHECKING:
 
 ENVIRONMENTS = Registry("environment", entry_point_group="toddlerbot.environments")
 ENVIRONMENTS.register("walk", "toddlerbot.rl.walk_env:WalkEnv")
+ENVIRONMENTS.register("track", "toddlerbot.rl.track_env:TrackEnv")
 
 
 def environment_class(name: str) -> type[RLEnvironment]:

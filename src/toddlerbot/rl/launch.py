@@ -4,6 +4,7 @@ compiles. Importing it starts no JAX (`is_smoke_run` is asked before the XLA fla
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -46,6 +47,9 @@ class TrainRequest:
     """``NAME=WEIGHT`` overrides of `RewardConfig.weights`."""
     environment: str | None = None
     """The registered environment to train (`toddlerbot.rl.environments`; None: `config.DEFAULT_ENVIRONMENT`)."""
+    motion: str | None = None
+    """The motion a tracking environment tracks (a built-in name or a motion file; ``track`` needs one, the others
+    take none)."""
 
 
 @dataclass(frozen=True)
@@ -68,7 +72,7 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
                   "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
                   "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
                   "num_envs": "--num-envs", "mirror_loss": "--mirror-loss", "reward_weights": "--reward-weight",
-                  "environment": "--env"}
+                  "environment": "--env", "motion": "--motion"}
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
@@ -126,6 +130,7 @@ def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
         raise ToddlerbotError(f"--warm-start {source.run_dir}: a run of environment {source.env.environment!r}; "
                               f"expected {name!r}")
     env_cfg = _environment(source.env if source else env_class.default_config(request.smoke), backend, request)
+    env_cfg = _motion(env_cfg, request)
     recipe = env_class.recipe(backend, request.smoke)
     ppo_cfg, imitation_cfg = replace(recipe.ppo, seed=request.seed), recipe.imitation
     if source:
@@ -150,10 +155,10 @@ def _warm_start_source(request: TrainRequest) -> WarmStartSource | None:
     if request.warm_start is None:
         return None
     if request.motor_params or request.imitation_iterations is not None or request.variant is not None \
-            or request.upper_body_pose is not None or request.reward_weights:
+            or request.upper_body_pose is not None or request.reward_weights or request.motion is not None:
         raise ToddlerbotError("--warm-start: the source run's warm start fixes its --motor-params, "
-                              "--imitation-iterations, --variant, --upper-body-pose and --reward-weight (its "
-                              "critic learned the source's rewards)")
+                              "--imitation-iterations, --variant, --upper-body-pose, --reward-weight and --motion "
+                              "(its critic learned the source's rewards)")
     return warm_start_source(request.warm_start)
 
 
@@ -176,6 +181,30 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
 
     catalogue_with_params(request.motor_params)  # bad files fail here, before anything compiles
     return replace(env_cfg, motor_params=tuple(str(p) for p in request.motor_params))
+
+
+def _motion(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
+    """The request's ``--motion`` in a configuration with a ``motion`` field (required there unless the
+    configuration has one, refused by the others), loaded now so that a bad one fails before anything compiles; a
+    motion file is recorded by its absolute path (a resume may start elsewhere)."""
+    from toddlerbot.policies.motions import MotionError, builtin_motions, load_motion, motion_path
+
+    tracks = "motion" in {f.name for f in dataclasses.fields(env_cfg)}
+    if request.motion is None:
+        if tracks and not env_cfg.motion:
+            raise ToddlerbotError(f"--env {env_cfg.environment}: needs --motion NAME_OR_FILE (built-in: "
+                                  f"{', '.join(builtin_motions())}; or a motion file)")
+        return env_cfg
+    if not tracks:
+        raise ToddlerbotError(f"--motion {request.motion}: the {env_cfg.environment!r} environment tracks no motion")
+    from toddlerbot.rl.environment import training_description
+
+    try:
+        load_motion(request.motion, training_description(env_cfg))
+    except MotionError as exc:
+        raise ToddlerbotError(f"--motion: {exc}") from None
+    builtin = request.motion in builtin_motions()
+    return replace(env_cfg, motion=request.motion if builtin else str(motion_path(request.motion).resolve()))
 
 
 def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:

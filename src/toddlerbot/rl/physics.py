@@ -54,6 +54,8 @@ class Frame(NamedTuple):
     """(2, 3) left/right foot-centre sites, world frame, m."""
     feet_up_z: jax.Array
     """(2,) world-z component of each foot's up axis (1 = flat)."""
+    hands_pos: jax.Array
+    """(2, 3) left/right hand sites, world frame, m."""
     gyro: jax.Array
     """(3,) IMU angular velocity, rad/s."""
     imu_quat: jax.Array
@@ -79,6 +81,7 @@ class Addresses:
     foot_up_axis: int
     """Which axis of a foot site points up at home, and its sign."""
     foot_up_sign: float
+    hand_sites: np.ndarray
     hand_bodies: np.ndarray
     """The bodies holding the hand sites, which the env's pull on the hands acts on."""
     gyro: slice
@@ -91,6 +94,7 @@ class Addresses:
         mujoco.mj_resetDataKeyframe(model, home, model.key("home").id)
         mujoco.mj_forward(model, home)
         foot_sites = np.array([model.site(name).id for name in handles.feet_sites])
+        hand_sites = np.array([model.site(name).id for name in handles.hand_sites])
         up = home.site_xmat[foot_sites[0]].reshape(3, 3)[2]  # world-z components of the site's axes
         axis = int(np.argmax(np.abs(up)))
 
@@ -101,8 +105,7 @@ class Addresses:
         return cls(MotorAddresses.of(model, description.motor_names), model.body(handles.torso).id,
                    model.site(handles.imu_site).id, foot_sites,
                    np.array([model.geom(name).id for name in handles.feet_geoms]), model.geom("floor").id, axis,
-                   float(np.sign(up[axis])),
-                   np.array([model.site_bodyid[model.site(name).id] for name in handles.hand_sites]),
+                   float(np.sign(up[axis])), hand_sites, model.site_bodyid[hand_sites],
                    sensor("imu_gyro"), sensor("imu_quat"))
 
 
@@ -129,6 +132,7 @@ def read_frame(a: Addresses, qpos, qvel, xmat, site_xpos, site_xmat, sensordata,
         qpos=qpos, qvel=qvel, torso_z=xmat[..., a.torso_body, 2, :], imu_z=site_xmat[..., a.imu_site, 2, :],
         feet_pos=site_xpos[..., a.foot_sites, :],
         feet_up_z=a.foot_up_sign * site_xmat[..., a.foot_sites, 2, a.foot_up_axis],
+        hands_pos=site_xpos[..., a.hand_sites, :],
         gyro=sensordata[..., a.gyro], imu_quat=sensordata[..., a.quat], contact=contact,
         self_collision=self_collision, torque=torque,
     )
@@ -141,8 +145,8 @@ def _home(model: mujoco.MjModel) -> mujoco.MjData:
     return data
 
 
-def _frames_of(a: Addresses, datas: list[mujoco.MjData], torque: np.ndarray) -> Frame:
-    """The frames of classic MuJoCo data, stacked (batch first)."""
+def frames_of(a: Addresses, datas: list[mujoco.MjData], torque: np.ndarray) -> Frame:
+    """The frames of classic MuJoCo data, stacked (batch first; ``torque`` (batch, n_motors))."""
     stack = lambda name: np.stack([getattr(d, name) for d in datas])  # noqa: E731
     n = len(datas)
     ncon = [d.ncon for d in datas]
@@ -166,7 +170,13 @@ class MJXPhysics:
         self.home_state = mjx.put_data(model, home)
         """The start state of every episode (computed once with classic MuJoCo: reset compiles no physics)."""
         self.home_frame = jax.tree.map(lambda x: jnp.asarray(x[0], jnp.float32),
-                                       _frames_of(addresses, [home], np.zeros((1, model.nu))))
+                                       frames_of(addresses, [home], np.zeros((1, model.nu))))
+
+    def state_of(self, start: CPUState) -> mjx.Data:
+        """The state of an episode started from a classic MuJoCo state (`CPUState`, one env; e.g. a motion
+        reference's row): the home state with its positions, velocities and solver warm start rounded to float32
+        (a step computes everything else from these)."""
+        return self.home_state.replace(qpos=start.qpos, qvel=start.qvel, qacc_warmstart=start.qacc_warmstart)
 
     def step(self, state: mjx.Data, targets: jax.Array, fields: dict[str, jax.Array] | None,
              actuators: ActuatorArrays, hand_force: jax.Array | None = None) -> tuple[mjx.Data, Frame]:
@@ -244,8 +254,12 @@ class CPUPhysics:
         home = _home(model)
         self.home_state = jax.tree.map(lambda x: jnp.asarray(x[0]), CPUState.of_batch([home]))
         self.home_frame = jax.tree.map(lambda x: jnp.asarray(x[0], jnp.float32),
-                                       _frames_of(addresses, [home], np.zeros((1, model.nu))))
+                                       frames_of(addresses, [home], np.zeros((1, model.nu))))
         self._nominal = {name: np.array(getattr(model, name)) for name in MODEL_FIELDS}
+
+    def state_of(self, start: CPUState) -> CPUState:
+        """As `MJXPhysics.state_of`: here the classic MuJoCo state itself, float64 exactly."""
+        return start
 
     def step(self, state: CPUState, targets: jax.Array, fields: dict[str, jax.Array] | None,
              actuators: ActuatorArrays, hand_force: jax.Array | None = None) -> tuple[CPUState, Frame]:
@@ -302,7 +316,7 @@ class CPUPhysics:
         for d in datas:
             if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo reset the diverged data: end it
                 d.qpos[:] = np.nan
-        return CPUState.of_batch(datas), _frames_of(self.addresses, datas, torque)
+        return CPUState.of_batch(datas), frames_of(self.addresses, datas, torque)
 
 
 BACKENDS = {"mjx": MJXPhysics, "cpu": CPUPhysics}

@@ -92,6 +92,25 @@ def hand_force(key: jax.Array, largest: float) -> jax.Array:
     return jnp.array([length * jnp.cos(angle), length * jnp.sin(angle), up])
 
 
+def push_interval(key: jax.Array, cfg: RandomizationConfig) -> jax.Array:
+    """s until the next push, uniform in `RandomizationConfig.push_interval_s`."""
+    lo, hi = cfg.push_interval_s
+    return jax.random.uniform(key, minval=lo, maxval=hi)
+
+
+def push(key: jax.Array, timer: jax.Array, cfg: RandomizationConfig, enabled: bool,
+         ctrl_dt: float) -> tuple[jax.Array, jax.Array]:
+    """(horizontal velocity kick of the torso (2,) m/s, the push timer after this control step): when an env's
+    timer has run out (and pushes are ``enabled``), a kick of random direction and a speed in the push band, and the
+    next interval; otherwise no kick and the timer counts down."""
+    k_dir, k_mag, k_next = jax.random.split(key, 3)
+    due = (timer <= 0) & enabled
+    angle = jax.random.uniform(k_dir, maxval=2 * jnp.pi)
+    speed = jax.random.uniform(k_mag, minval=cfg.push_velocity_min, maxval=cfg.push_velocity)
+    kick = jnp.where(due, speed, 0.0) * jnp.array([jnp.cos(angle), jnp.sin(angle)])
+    return kick, jnp.where(due, push_interval(k_next, cfg), timer - ctrl_dt)
+
+
 def model_fields(nominal: dict[str, jax.Array], p: DRParams, floor_geom: int, torso_body: int) -> dict[str, jax.Array]:
     """The env's own physical parameters (`toddlerbot.rl.physics.MODEL_FIELDS`): the nominal model's with this
     draw's floor friction, joint damping/armature/friction loss and link masses/inertias. Both physics backends

@@ -171,8 +171,8 @@ class WalkEnv(RLEnvironment):
             "rng": rng, "dr": dr, "time": jnp.zeros(()), "step": jnp.zeros((), jnp.int32), "command": command,
             "ref_yaw": _yaw(frame.qpos[3:7]), "last_action": zeros, "last_last_action": zeros,
             "air_time": jnp.zeros(2), "last_contact": jnp.ones(2), "feet_pos": frame.feet_pos,
-            "push_timer": self._push_interval(k_push), "push": jnp.zeros(2), "avg_vel": jnp.zeros(3),
-            "path_error": jnp.zeros(2),
+            "push_timer": randomization.push_interval(k_push, cfg.randomization), "push": jnp.zeros(2),
+            "avg_vel": jnp.zeros(3), "path_error": jnp.zeros(2),
             "upper_body": self._upper_body_pose(k_cmd), "hand_force": self._hand_force(k_cmd),
             "history": jnp.zeros((cfg.obs.history, self.frame_size)),
         }
@@ -303,21 +303,11 @@ class WalkEnv(RLEnvironment):
         largest = self.cfg.randomization.hand_force if self.cfg.randomize else 0.0
         return randomization.hand_force(jax.random.fold_in(command_key, 2), largest)
 
-    def _push_interval(self, key: jax.Array) -> jax.Array:
-        lo, hi = self.cfg.randomization.push_interval_s
-        return jax.random.uniform(key, minval=lo, maxval=hi)
-
     def _push(self, data, info: dict, key: jax.Array) -> tuple[object, dict]:
         """When the env's push timer runs out, kick the torso horizontally and draw the next interval."""
-        k_dir, k_mag, k_next = jax.random.split(key, 3)
-        due = (info["push_timer"] <= 0) & self.cfg.randomize
-        angle = jax.random.uniform(k_dir, maxval=2 * jnp.pi)
-        band = self.cfg.randomization
-        speed = jax.random.uniform(k_mag, minval=band.push_velocity_min, maxval=band.push_velocity)
-        kick = jnp.where(due, speed, 0.0) * jnp.array([jnp.cos(angle), jnp.sin(angle)])
-        info["push"] = kick
-        info["push_timer"] = jnp.where(due, self._push_interval(k_next), info["push_timer"] - self.cfg.ctrl_dt)
-        return data.replace(qvel=data.qvel.at[0:2].add(kick)), info
+        info["push"], info["push_timer"] = randomization.push(key, info["push_timer"], self.cfg.randomization,
+                                                              self.cfg.randomize, self.cfg.ctrl_dt)
+        return data.replace(qvel=data.qvel.at[0:2].add(info["push"])), info
 
     def _observe(self, frame: Frame, info: dict, key: jax.Array, contact: jax.Array,
                  ref_leg: jax.Array) -> tuple[dict[str, jax.Array], dict]:

@@ -1,0 +1,56 @@
+"""Configuration of the motion-tracking environment (`toddlerbot.rl.track_env`, ``rl train --env track``): an
+`EnvConfig` with the motion, its reference's final hold, what the actor sees of the reference and the deviations
+that end an episode; and its PPO recipes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from toddlerbot.rl import config
+from toddlerbot.rl.config import EnvConfig, ObsConfig
+
+TRACK = "track"
+"""The environment's registered name."""
+
+
+@dataclass(frozen=True)
+class TrackConfig(EnvConfig):
+    """`EnvConfig` of ``track``. Of the walking fields it uses the robot, physics, observation scales and noise,
+    reward weights and randomisation (not the command, the gait or the fall thresholds: the deviations below end
+    an episode). Contacts default to ``all``: a motion may touch the floor with any part of the robot."""
+
+    environment: str = TRACK
+    contacts: str = "all"
+    motion: str = ""
+    """A built-in motion's name (`toddlerbot.policies.motions.builtin_motions`) or a motion file's absolute path
+    (`rl train --motion`; required)."""
+    hold_s: float = 2.0
+    """s the reference holds the motion's final pose after it."""
+    lookahead: tuple[int, ...] = (1, 5, 10)
+    """Control steps ahead at which the actor sees the reference's motor targets."""
+    max_orientation_error: float = 0.8
+    """rad; the episode ends when the torso turns further than this from the reference's orientation..."""
+    max_height_error: float = 0.1
+    """...its height differs by more than this, m..."""
+    max_position_error: float = 0.3
+    """...or it is further than this from the reference's torso horizontally, m."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        band = self.randomization
+        if band.upper_body_pose or band.hand_force:
+            raise ValueError(f"upper-body pose {band.upper_body_pose}, hand force {band.hand_force}: the {TRACK} "
+                             "environment follows the motion's arms (expected 0)")
+        if self.hold_s < 0 or not self.lookahead or min(self.lookahead) < 0:
+            raise ValueError(f"hold_s {self.hold_s}, lookahead {self.lookahead}: expected a hold >= 0 s and at least "
+                             "one look-ahead >= 0 steps")
+
+
+SMOKE_TRACK = replace(TrackConfig(), obs=replace(ObsConfig(), history=3), hold_s=0.5)
+"""The smoke run's configuration, without the motion (a 3-frame history, half a second's hold)."""
+
+CPU = replace(config.CPU, episode_length=500, init_std=0.2)
+"""The CPU recipe's PPO (`config.CPU`: 256 environments) without a warm start: 10 s episodes (the squat and its
+hold are 9 s) and a wider exploration noise than the warm-started walking policy's."""
+FULL = replace(config.FULL, episode_length=500)
+"""The one-GPU configuration with 10 s episodes."""
