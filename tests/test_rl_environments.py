@@ -47,7 +47,7 @@ def test_walk_is_registered_with_its_bundle():
 def test_an_unknown_or_misnamed_environment_is_one_line(monkeypatch, capsys, tmp_path):
     line = one_line_error(*run_main(monkeypatch, capsys, "rl", "train", "--env", "swim", "--smoke", "--out",
                                     tmp_path / "run")[:3:2])
-    assert line == "error: unknown environment 'swim'; expected one of walk" + (", " + NAME if NAME in
+    assert line == "error: unknown environment 'swim'; expected one of walk, track" + (", " + NAME if NAME in
                                                                                 ENVIRONMENTS.names() else "")
     assert not (tmp_path / "run").exists()
     ENVIRONMENTS.register("misnamed-test", StandEnv) if "misnamed-test" not in ENVIRONMENTS else None

@@ -126,8 +126,7 @@ def train(
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
 ) -> None:
-    """Train a registered environment (--env, default walk) with PPO on its recipe (walk's: docs/rl.md; --smoke: a
-    tiny run): checkpoints, a training curve and TensorBoard scalars (--wandb: W&B too)."""
+    """Train an environment (--env, default walk) with PPO on its recipe: checkpoints, curve, TensorBoard, W&B."""
     for limit, count, option in ((minutes, epochs, "--epochs"), (None, timesteps, "--timesteps"),
                                  (None, num_envs, "--num-envs")):
         training_budget(limit, count, option)
