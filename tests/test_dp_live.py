@@ -178,4 +178,5 @@ def test_dp_options_are_checked_before_anything_runs():
     unknown_task = runner.invoke(app, ["sim", "run", "--policy", "dp", "--task", "fly"])
     assert str(unknown_task.exception) == "unknown task 'fly'; expected one of pick, wagon"
     unknown = runner.invoke(app, ["hw", "run", "--port", "/dev/null", "--calibration", "c.yaml", "--policy", "dpx"])
-    assert str(unknown.exception) == "unknown policy 'dpx'; expected one of stand, replay, walk-zmp, walk-rl, dp"
+    assert str(unknown.exception) == ("unknown policy 'dpx'; expected one of stand, replay, walk-zmp, walk-rl, dp, "
+                                      "get-up")

@@ -32,6 +32,7 @@ import numpy as np
 
 from toddlerbot.errors import ToddlerbotError, quoted
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.mirror import mirror_partners
 from toddlerbot.yaml_input import read_yaml
 
 MOTIONS_DIR = resources.files("toddlerbot.policies") / "motions"
@@ -96,6 +97,25 @@ def full_pose(motion: Motion, description: RobotDescription, t: float = 0.0) -> 
     pose = np.array(description.home_joint_pos)
     pose[[description.joint_names.index(j) for j in motion.joints]] = motion.at(t)
     return pose
+
+
+def mirrored(motion: Motion, description: RobotDescription) -> Motion:
+    """The motion reflected left-right (`robot.mirror`: each joint's partner and sign; a base pose's roll changes
+    sign): e.g. a roll from the right side played from the left side."""
+    names = description.joint_names
+    partner, sign = mirror_partners(description, names)
+    listed = {names[partner[names.index(j)]] for j in motion.joints} | set(motion.joints)
+    joints = tuple(j for j in names if j in listed)
+    index = [names.index(j) for j in joints]
+    poses = []
+    for t in motion.times:
+        pose = full_pose(motion, description, float(t))
+        reflected = np.empty_like(pose)
+        reflected[partner] = sign * pose
+        poses.append(reflected[index])
+    bases = tuple(None if b is None else BasePose(-b.roll, b.pitch, b.z) for b in motion.bases)
+    return Motion(f"{motion.name} (mirrored)", joints, motion.times.copy(), np.array(poses), motion.interpolation,
+                  bases)
 
 
 def builtin_motions() -> list[str]:

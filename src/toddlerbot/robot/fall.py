@@ -5,6 +5,10 @@ While the robot falls (its torso tilted beyond `FALL_TILT_RAD` and still turning
 that reach the motors to `FALL_KP_FRACTION` of those asked for: compliant joints at impact instead of servos
 fighting the floor at full stiffness. It restores them once the torso has landed (turning slower than
 `LANDED_RATE_RAD_S` for `LANDED_S`) or is upright again. It reads only the IMU, which every backend has.
+
+A fall starts from upright: the guard is armed by a reading of the torso within `FALL_TILT_RAD` of upright and
+disarmed by a landing, so a robot that turns its torso while it lies (the `get-up` policy pushing itself up) keeps
+the gains its motion asks for, and falling back down from a crouch or from standing lowers them again.
 """
 
 from __future__ import annotations
@@ -44,18 +48,22 @@ class FallGuard:
         self.falling = False
         self._still_steps = 0
         self._restore = False
+        self._armed = False
+        """A reading of the torso upright since the last landing: only then can a fall start."""
 
     def update(self, imu_quat: np.ndarray, imu_ang_vel: np.ndarray) -> None:
         """Advance with the IMU reading after a control step."""
         tilted = tilt(imu_quat) > FALL_TILT_RAD
         turning = float(np.linalg.norm(imu_ang_vel)) > LANDED_RATE_RAD_S
+        self._armed = self._armed or not tilted
         if not self.falling:
-            self.falling = tilted and turning
+            self.falling = self._armed and tilted and turning
             self._still_steps = 0
             return
         self._still_steps = 0 if turning else self._still_steps + 1
         if not tilted or self._still_steps >= self.landed_steps:
             self.falling, self._restore = False, True
+            self._armed = not tilted
 
     def gains(self, kp: np.ndarray | None, default_kp: np.ndarray) -> np.ndarray | None:
         """The P gains to send for ``kp`` asked (None: the backend keeps its gains): lowered while falling, and

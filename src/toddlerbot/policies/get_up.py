@@ -1,0 +1,178 @@
+"""`get-up`: stand a fallen robot up with keyframed motions, knowing which way is down from the IMU alone (so it
+works on the real robot as in the simulator).
+
+An attempt: wait until the torso is still, read how it lies (`policies.lying`); from a side, roll onto the front
+first (``roll_to_front``, mirrored for the other side) and read again; then play ``get_up_back`` or
+``get_up_front`` (blended in from where the joints are), with ankle feedback once it stands on its feet
+(`policies.ankle_balance`), and hold the home pose for `CHECK_S`. The robot stood up when the IMU's uprightness is
+at least `STOOD_UPRIGHTNESS` then; otherwise it tries again, `MAX_ATTEMPTS` in all, and gives up holding the
+joints where they are. Its last targets after a success are the home pose, so a walking policy can take over.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from toddlerbot.policies.ankle_balance import AnkleBalance
+from toddlerbot.policies.base import Action, Policy
+from toddlerbot.policies.lying import Lying, lying_on, up_in_torso, uprightness
+from toddlerbot.policies.motions import Motion, full_pose, load_motion, mirrored
+from toddlerbot.robot.interface import Observation, Robot
+
+MAX_ATTEMPTS = 3
+STOOD_UPRIGHTNESS = 0.9
+"""The IMU's uprightness that counts as standing at the end of an attempt."""
+CHECK_S = 0.5
+"""s of holding the home pose after a motion before checking that the robot stands."""
+STILL_RAD_S = 0.5
+"""The torso is still when the gyro reads less than this (rad/s)..."""
+STILL_S = 0.2
+"""...for this long (s); the policy waits for it, at most `WAIT_MAX_S`, before reading how the robot lies."""
+WAIT_MAX_S = 1.5
+BLEND_S = 0.8
+"""s to move the joints from where they are to a motion's first keyframe."""
+MOTIONS = {"back": "get_up_back", "front": "get_up_front", "right side": "roll_to_front"}
+"""The motion each lying state plays; lying on the left side plays ``roll_to_front`` mirrored."""
+
+
+@dataclass(frozen=True)
+class GetUpStatus:
+    """What the get-up policy reports (`Policy.status`)."""
+
+    attempts: int
+    succeeded: bool
+    done: bool
+    phase: str
+    """wait, roll, get-up, check, stood or gave up."""
+    lying: tuple[str, ...]
+    """How the robot lay at the start of each motion played (back, front, left side, right side, upright)."""
+    stood_at: float | None
+    """s from the hand-over to the check that found it standing; None before."""
+
+    def to_dict(self) -> dict:
+        return {"attempts": self.attempts, "succeeded": self.succeeded, "done": self.done, "phase": self.phase,
+                "lying": list(self.lying), "stood_at_s": None if self.stood_at is None else round(self.stood_at, 3)}
+
+    def describe(self) -> str:
+        """One line for people."""
+        seen = ", then ".join(self.lying) or "not read yet"
+        if self.succeeded:
+            return f"get-up: stood up in {self.stood_at:.2f} s after {self.attempts} attempt(s); lying on {seen}"
+        ended = "gave up" if self.done else f"{self.phase}, attempt {self.attempts}"
+        return f"get-up: {ended}; lying on {seen}"
+
+
+class GetUpPolicy(Policy):
+    name = "get-up"
+    needs_imu = True
+
+    def __init__(self, robot: Robot) -> None:
+        super().__init__(robot)
+        description = robot.description
+        self._motions: dict[Lying, Motion] = {lying: load_motion(name, description) for lying, name in MOTIONS.items()}
+        self._motions["left side"] = mirrored(self._motions["right side"], description)
+        self._balance = {lying: AnkleBalance(description, motion) for lying, motion in self._motions.items()}
+        self._home = self.joint_action(self.home_joint_pos)
+        self.reset(robot.observe())
+
+    # -- the interface the run loop and `--on-fall get-up` rely on ---------------------------------------------
+    @property
+    def done(self) -> bool:
+        """True once it stood up or gave up."""
+        return self._phase in ("stood", "gave up")
+
+    @property
+    def succeeded(self) -> bool:
+        return self._phase == "stood"
+
+    @property
+    def attempts(self) -> int:
+        return self._attempts
+
+    @property
+    def status(self) -> GetUpStatus:
+        return GetUpStatus(self._attempts, self.succeeded, self.done, self._phase, tuple(self._lying),
+                           self._stood_at)
+
+    def reset(self, obs: Observation) -> None:
+        self._start = obs.time
+        self._attempts = 0
+        self._lying: list[str] = []
+        self._stood_at: float | None = None
+        self._after_roll = False
+        self._wait(obs)
+
+    def act(self, obs: Observation, command: np.ndarray) -> Action:
+        elapsed = obs.time - self._phase_start
+        if self._phase == "wait":
+            return self._waiting(obs, elapsed)
+        if self._phase in ("roll", "get-up"):
+            return self._playing(obs, elapsed)
+        if self._phase == "check":
+            return self._checking(obs, elapsed)
+        return self._home if self._phase == "stood" else self._hold
+
+    # -- phases ----------------------------------------------------------------------------------------------
+    def _enter(self, phase: str, obs: Observation) -> None:
+        self._phase, self._phase_start = phase, obs.time
+
+    def _wait(self, obs: Observation) -> None:
+        self._enter("wait", obs)
+        self._still_since: float | None = None
+        self._hold = self.joint_action(obs.joint_pos)
+
+    def _waiting(self, obs: Observation, elapsed: float) -> Action:
+        still = float(np.linalg.norm(obs.imu_ang_vel)) < STILL_RAD_S
+        self._still_since = (self._still_since if self._still_since is not None else obs.time) if still else None
+        settled = self._still_since is not None and obs.time - self._still_since >= STILL_S
+        if not (settled or elapsed >= WAIT_MAX_S):
+            return self._hold
+        lying = lying_on(obs.imu_quat, STOOD_UPRIGHTNESS)
+        if lying == "upright":
+            self._enter("check", obs)
+            return self._home
+        if not self._after_roll:  # a roll and the get-up after it are one attempt
+            self._attempts += 1
+        self._after_roll = False
+        self._play(lying, obs)
+        return self._hold
+
+    def _play(self, lying: Lying, obs: Observation) -> None:
+        self._lying.append(lying)
+        self._motion, self._feedback = self._motions[lying], self._balance[lying]
+        self._from = obs.joint_pos.copy()
+        self._enter("roll" if lying.endswith("side") else "get-up", obs)
+
+    def _playing(self, obs: Observation, elapsed: float) -> Action:
+        motion = self._motion
+        if elapsed < BLEND_S:
+            s = elapsed / BLEND_S
+            start = full_pose(motion, self.robot.description)
+            return self.joint_action(self._from + s * s * (3 - 2 * s) * (start - self._from))
+        t = elapsed - BLEND_S
+        if t > motion.duration:
+            if self._phase == "roll":
+                self._after_roll = True
+                self._wait(obs)
+                return self._hold
+            self._enter("check", obs)
+            return self._home
+        pose = full_pose(motion, self.robot.description, t)
+        pitch = float(-np.arcsin(np.clip(up_in_torso(obs.imu_quat)[0], -1.0, 1.0)))
+        return self.joint_action(pose + self._feedback.correction(t, pitch))
+
+    def _checking(self, obs: Observation, elapsed: float) -> Action:
+        if elapsed < CHECK_S:
+            return self._home
+        if uprightness(obs.imu_quat) >= STOOD_UPRIGHTNESS:
+            self._stood_at = obs.time - self._start
+            self._enter("stood", obs)
+            return self._home
+        if self._attempts >= MAX_ATTEMPTS:
+            self._wait(obs)
+            self._enter("gave up", obs)
+            return self._hold
+        self._wait(obs)
+        return self._hold

@@ -1,0 +1,108 @@
+"""Fallen robots in the simulator and the get-up policy tried on them (`benchmarks/bench_get_up.py` and the tests).
+
+A fallen state: the nominal robot walks with `walk-rl` at a seeded command within its reach, one seeded horizontal
+kick of 1-2 m/s towards its back or its front knocks it over, and it is left `SETTLE_S` with torque on and the last
+targets held. A trial then hands it to the `get-up` policy: it succeeded when, within `LIMIT_S`, the torso stays at
+least `HEIGHT_FRACTION` of its standing height with uprightness at least `UPRIGHTNESS` for `STABLE_S` (the
+simulator's ground truth judges; the policy itself reads only the IMU).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from toddlerbot.locomotion.config import WALK_REACH
+from toddlerbot.policies import make_policy
+from toddlerbot.policies.get_up import GetUpPolicy
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.runtime.robustness import DirectedKick
+from toddlerbot.runtime.runner import run_policy
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+Side = Literal["back", "front"]
+KICK_DIRECTION = {"back": np.pi, "front": 0.0}
+"""Kick direction from the heading, rad: towards the back knocks the robot onto its back."""
+KICK_SPEED = (1.0, 2.0)
+KICK_TIME = (1.5, 2.5)
+"""s of walking before the kick, drawn per seed (a different phase of the gait each time)."""
+FALL_WAIT_S = 3.0
+"""s after the kick within which the robot must have fallen (else the seed gives no fallen state)."""
+SETTLE_S = 1.5
+LIMIT_S = 10.0
+HEIGHT_FRACTION = 0.9
+UPRIGHTNESS = 0.9
+STABLE_S = 0.5
+
+
+@dataclass(frozen=True)
+class Fallen:
+    """A robot knocked over (`fallen_robot`), ready for a get-up trial."""
+
+    robot: MuJoCoRobot
+    seed: int
+    side: Side
+    command: np.ndarray
+    kick_speed: float
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One get-up trial's outcome."""
+
+    seed: int
+    side: Side
+    stood: bool
+    time_to_stand: float | None
+    """s from the hand-over until the torso stood (the start of the stable stretch); None when it did not."""
+    attempts: int
+    longest_over_stall: float
+    """Longest time, s, any motor's torque stayed above its stall torque (motor catalogue) during the trial."""
+    lowered_gain_steps: int
+    """Control steps in which the shared layer's fall guard lowered the gains (it took a get-up move for a fall)."""
+    lying: tuple[str, ...]
+
+
+def fallen_robot(description: RobotDescription, seed: int, side: Side) -> Fallen | None:
+    """The robot of ``seed`` knocked onto its ``side``, settled; None if the kick did not knock it over."""
+    rng = np.random.default_rng([seed, 0 if side == "back" else 1])
+    command = rng.uniform(WALK_REACH.low, WALK_REACH.high)
+    speed, kick_time = rng.uniform(*KICK_SPEED), rng.uniform(*KICK_TIME)
+    robot = MuJoCoRobot(description)
+    kick = DirectedKick(robot, speed, KICK_DIRECTION[side], kick_time)
+    result = run_policy(robot, make_policy("walk-rl", robot), lambda t: command, kick_time + FALL_WAIT_S,
+                        observers=[kick], record_log=False)
+    if not result.fell:
+        return None
+    held = robot.last_targets
+    for _ in range(round(SETTLE_S / robot.control_dt)):
+        robot.step(held)
+    return Fallen(robot, seed, side, command, float(speed))
+
+
+def get_up_trial(fallen: Fallen) -> Trial:
+    """Hand ``fallen.robot`` to the get-up policy for `LIMIT_S` and judge it by the simulator's ground truth."""
+    robot = fallen.robot
+    description = robot.description
+    stall = np.array([model.stall_torque_nm for model in description.motor_models])
+    policy = GetUpPolicy(robot)
+    obs = robot.observe()
+    policy.reset(obs)
+    start, dt = obs.time, robot.control_dt
+    over = np.zeros(len(stall))
+    longest, lowered, standing_since = 0.0, 0, None
+    for _ in range(round(LIMIT_S / dt)):
+        action = policy.act(obs, np.zeros(3))
+        obs = robot.step(action.motor_targets, action.kp, action.kd)
+        over = np.where(np.abs(obs.motor_torque) > stall, over + dt, 0.0)
+        longest = max(longest, float(over.max()))
+        lowered += robot.fall_guard.falling
+        standing = (robot.torso_height() >= HEIGHT_FRACTION * robot.standing_height
+                    and robot.torso_uprightness() >= UPRIGHTNESS)
+        standing_since = (obs.time if standing_since is None else standing_since) if standing else None
+        if standing_since is not None and obs.time - standing_since >= STABLE_S:
+            return Trial(fallen.seed, fallen.side, True, standing_since - start, policy.attempts, longest, lowered,
+                         policy.status.lying)
+    return Trial(fallen.seed, fallen.side, False, None, policy.attempts, longest, lowered, policy.status.lying)
