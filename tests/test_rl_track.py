@@ -23,6 +23,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.motions import full_pose, load_motion
 from toddlerbot.rl import config, track_rewards, train
 from toddlerbot.rl.environments import environment_class
+from toddlerbot.rl.export import export_run
 from toddlerbot.rl.launch import TrainRequest, resume_plan
 from toddlerbot.rl.track_config import SMOKE_TRACK, TrackConfig
 from toddlerbot.rl.track_env import TrackEnv
@@ -186,6 +187,9 @@ def test_track_is_registered_and_trains_one_smoke_epoch_on_the_cpu_backend(tmp_p
     with pytest.raises(ToddlerbotError, match=r"^--motion: a resumed run keeps the settings it started with"):
         resume_plan(run, TrainRequest(motion="wave"))
     assert resume_plan(run, TrainRequest()).resume
+    with pytest.raises(ToddlerbotError, match=rf"^{run}: a run of environment 'track'; rl export writes walk "
+                                              r"policies only$"):
+        export_run(run, tmp_path / "policy.npz")
 
 
 def test_bad_motion_options_are_one_line(monkeypatch, capsys, tmp_path):

@@ -10,7 +10,7 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION, LEG_GROUP
-from toddlerbot.rl.config import EnvConfig, PPOConfig
+from toddlerbot.rl.config import DEFAULT_ENVIRONMENT, EnvConfig, PPOConfig
 from toddlerbot.rl.reference import leg_motor_indices
 from toddlerbot.rl.run_files import (
     ACTION_SPACE,
@@ -78,6 +78,9 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
 
     run_dir = Path(run_dir)
     env_cfg, ppo_cfg = train.load_config(run_dir)
+    if env_cfg.environment != DEFAULT_ENVIRONMENT:
+        raise ToddlerbotError(f"{run_dir}: a run of environment {env_cfg.environment!r}; rl export writes "
+                              f"{DEFAULT_ENVIRONMENT} policies only")
     paths = train.checkpoint_paths(run_dir)
     if checkpoint not in (None, "warm_start"):
         paths = [p for p in paths if p.name == checkpoint]
