@@ -25,9 +25,12 @@ from toddlerbot.rl import config, track_rewards, train
 from toddlerbot.rl.environments import environment_class
 from toddlerbot.rl.export import export_run
 from toddlerbot.rl.launch import TrainRequest, resume_plan
+from toddlerbot.rl.model import training_model
+from toddlerbot.rl.motion_reference import build_reference
 from toddlerbot.rl.track_config import SMOKE_TRACK, TrackConfig
 from toddlerbot.rl.track_env import TrackEnv
 from toddlerbot.rl.track_rewards import TRACK_REWARDS, TrackQuantities
+from toddlerbot.robot.description import RobotDescription
 
 TESTS = Path(__file__).resolve().parent
 SRC = TESTS.parent / "src"
@@ -73,6 +76,25 @@ def test_the_squat_reference_plays_the_motion_upright_then_holds_it(cpu_env):
     assert np.abs(ref.qpos[:, 0:2] - ref.qpos[0, 0:2]).max() < 0.04  # m: it squats where it stands
     feet, hands = ref.end_effectors[:, :2], ref.end_effectors[:, 2:]
     assert np.all(feet[:, :, 2] < -0.2) and np.all(hands[:, 0, 1] > 0.1) and np.all(hands[:, 1, 1] < -0.1)
+
+
+def test_a_motion_that_starts_lying_starts_its_reference_on_the_floor_where_all_contacts_hold_it(tmp_path):
+    """A motion whose first keyframe lies on the back (base pitch -90 degrees) starts its reference there; the
+    whole-body contacts (track's default) hold the torso on the floor, walking's feet-and-hands set lets it sink."""
+    lying = tmp_path / "lie.yaml"
+    lying.write_text("joints: [neck_yaw]\nkeyframes:\n  - {t: 0, base: {pitch: -90}, neck_yaw: 0}\n"
+                     "  - {t: 1, neck_yaw: 0}\n")
+    description = RobotDescription.load()
+    motion = load_motion(str(lying), description)
+    heights = {}
+    for contacts in ("all", "feet_hands"):
+        cfg = TrackConfig(motion=str(lying), contacts=contacts)
+        ref = build_reference(motion, description, training_model(description, cfg), cfg.ctrl_dt, cfg.n_substeps,
+                              cfg.hold_s)
+        assert abs(_uprightness(ref.torso_quat[0])) < 1e-6 and ref.n_steps == 150
+        heights[contacts] = ref.torso_height
+    assert 0.05 < heights["all"][0] < 0.15 and np.ptp(heights["all"]) < 0.005
+    assert heights["feet_hands"].min() < 0.0  # the torso went through the floor
 
 
 def test_reward_terms_are_whole_on_the_reference_and_fall_with_the_error(cpu_env):
