@@ -196,3 +196,33 @@ def test_page_actions_without_a_browser(description, tmp_path):
         assert path is not None and "9 keyframes, 5.00 s" in editor.status.content
     finally:
         editor.server.stop()
+
+
+def test_a_keyframe_lying_on_the_back_is_drawn_on_the_floor_saved_and_moved_with_its_pose(description):
+    from toddlerbot.policies.motions import BasePose
+
+    doc = Keyframes.new(description, name="lie")
+    doc.set_base(0, BasePose(pitch=-90 * DEG))
+    data = PoseModel(description).pose(doc.poses[0], doc.bases[0])
+    torso = data.body(description.handles.torso)
+    assert torso.xmat[6] == pytest.approx(1.0)  # the torso's x axis (its chest) points up
+    assert 0.08 < torso.xpos[2] < 0.12  # resting on its back: the torso box's back face on the floor
+    text = doc.to_yaml()
+    assert "{t: 0.0, base: {roll: 0.0, pitch: -90.0}," in text and "base" not in text.splitlines()[-1]
+    import yaml
+
+    assert parse_motion(yaml.safe_load(text), description, "lie.yaml").start_base.pitch == pytest.approx(-90 * DEG)
+    assert doc.move(0, +1) == 1 and doc.bases == [None, BasePose(pitch=-90 * DEG)]  # the base goes with the pose
+    assert doc.insert_after(1) == 2 and doc.bases[2] == doc.bases[1]
+    assert doc.delete(0) == 0 and len(doc.bases) == 2
+
+
+def test_play_starts_a_motion_lying_down_and_says_whether_it_ended_standing(description):
+    from toddlerbot.policies.motions import BasePose
+
+    doc = Keyframes.new(description, name="lie")
+    doc.set_base(0, BasePose(pitch=90 * DEG))  # lying on its front, holding home: it stays down
+    playback = simulate(description, doc.to_motion("lie"))
+    assert playback.from_lying and not playback.upright and abs(playback.final_uprightness) < 0.2
+    assert playback.times[-1] == pytest.approx(1.02)  # to the motion's end, not stopped by the fall detector
+    assert playback.describe().startswith("ended down (uprightness")

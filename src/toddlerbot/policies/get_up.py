@@ -1,12 +1,12 @@
 """`get-up`: stand a fallen robot up with keyframed motions, knowing which way is down from the IMU alone (so it
 works on the real robot as in the simulator).
 
-An attempt: wait until the torso is still, read how it lies (`policies.lying`); from a side, roll onto the front
-first (``roll_to_front``, mirrored for the other side) and read again; then play ``get_up_back`` or
-``get_up_front`` (blended in from where the joints are), with ankle feedback once it stands on its feet
-(`policies.ankle_balance`), and hold the home pose for `CHECK_S`. The robot stood up when the IMU's uprightness is
-at least `STOOD_UPRIGHTNESS` then; otherwise it tries again, `MAX_ATTEMPTS` in all, and gives up holding the
-joints where they are. Its last targets after a success are the home pose, so a walking policy can take over.
+An attempt: wait until the torso is still, read how it lies (`policies.lying`); from a side, roll towards the
+front first (``roll_to_front``, mirrored for the other side) and read again; then play ``get_up_back`` or
+``get_up_front`` (blended in from where the joints are) and hold the home pose for `CHECK_S`. The robot stood up
+when the IMU's uprightness is at least `STOOD_UPRIGHTNESS` then; otherwise it tries again, `MAX_ATTEMPTS` in all,
+and gives up holding the joints where they are. Its last targets after a success are the home pose, so a walking
+policy can take over.
 """
 
 from __future__ import annotations
@@ -15,9 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from toddlerbot.policies.ankle_balance import AnkleBalance
 from toddlerbot.policies.base import Action, Policy
-from toddlerbot.policies.lying import Lying, lying_on, up_in_torso, uprightness
+from toddlerbot.policies.lying import Lying, lying_on, uprightness
 from toddlerbot.policies.motions import Motion, full_pose, load_motion, mirrored
 from toddlerbot.robot.interface import Observation, Robot
 
@@ -73,7 +72,6 @@ class GetUpPolicy(Policy):
         description = robot.description
         self._motions: dict[Lying, Motion] = {lying: load_motion(name, description) for lying, name in MOTIONS.items()}
         self._motions["left side"] = mirrored(self._motions["right side"], description)
-        self._balance = {lying: AnkleBalance(description, motion) for lying, motion in self._motions.items()}
         self._home = self.joint_action(self.home_joint_pos)
         self.reset(robot.observe())
 
@@ -141,7 +139,7 @@ class GetUpPolicy(Policy):
 
     def _play(self, lying: Lying, obs: Observation) -> None:
         self._lying.append(lying)
-        self._motion, self._feedback = self._motions[lying], self._balance[lying]
+        self._motion = self._motions[lying]
         self._from = obs.joint_pos.copy()
         self._enter("roll" if lying.endswith("side") else "get-up", obs)
 
@@ -159,9 +157,7 @@ class GetUpPolicy(Policy):
                 return self._hold
             self._enter("check", obs)
             return self._home
-        pose = full_pose(motion, self.robot.description, t)
-        pitch = float(-np.arcsin(np.clip(up_in_torso(obs.imu_quat)[0], -1.0, 1.0)))
-        return self.joint_action(pose + self._feedback.correction(t, pitch))
+        return self.joint_action(full_pose(motion, self.robot.description, t))
 
     def _checking(self, obs: Observation, elapsed: float) -> Action:
         if elapsed < CHECK_S:
