@@ -206,9 +206,12 @@ class PPO:
     def epoch(self, ts: TrainingState, env_state: State, key: jax.Array) -> tuple[TrainingState, State, dict]:
         """``updates_per_epoch`` PPO updates; returns the new state, the environments and the epoch's mean
         metrics (floats; ``kl_max`` is the largest per-update mean KL)."""
-        p_ts = jax.tree.map(lambda x: jnp.broadcast_to(x, (self.n_devices, *jnp.shape(x))), ts)
-        p_ts, env_state = _strip_weak_types((p_ts, env_state))  # else every epoch's new dtypes recompile
-        p_ts, env_state, metrics = self._p_epoch(p_ts, env_state, jax.random.split(key, self.n_devices))
+        # every call's arguments placed alike (replicated, or one shard per device), else each new placement
+        # compiles the epoch again, and on several devices is refused
+        devices = jax.local_devices()
+        p_ts = jax.device_put_replicated(_strip_weak_types(ts), devices)
+        keys = jax.device_put_sharded(list(jax.random.split(key, self.n_devices)), devices)
+        p_ts, env_state, metrics = self._p_epoch(p_ts, _strip_weak_types(env_state), keys)
         return jax.tree.map(lambda x: x[0], p_ts), env_state, {k: float(v[0]) for k, v in metrics.items()}
 
     # inside pmap -----------------------------------------------------------------------------------------------
