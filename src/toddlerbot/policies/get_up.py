@@ -73,7 +73,8 @@ class GetUpPolicy(Policy):
         self._motions: dict[Lying, Motion] = {lying: load_motion(name, description) for lying, name in MOTIONS.items()}
         self._motions["left side"] = mirrored(self._motions["right side"], description)
         self._home = self.joint_action(self.home_joint_pos)
-        self.reset(robot.observe())
+        # nothing is read from the robot before `reset` (the hand-over): it may not be running yet
+        self._phase, self._attempts, self._lying, self._stood_at = "wait", 0, [], None
 
     # -- the interface the run loop and `--on-fall get-up` rely on ---------------------------------------------
     @property
