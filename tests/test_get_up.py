@@ -152,3 +152,18 @@ def test_a_robot_that_turns_while_lying_keeps_its_gains_and_a_fall_from_upright_
     guard.update(upright, still)  # stood up: armed again
     guard.update(lying, turning)  # and fell
     np.testing.assert_allclose(guard.gains(kp, kp), FALL_KP_FRACTION * kp)
+
+
+def test_a_run_handed_to_get_up_after_a_kick_walks_on_standing(description):
+    """What `sim run --on-fall get-up` does: the run loop hands the fallen robot to the policy and walks on."""
+    from toddlerbot.runtime.robustness import DirectedKick
+    from toddlerbot.runtime.runner import run_policy
+
+    robot = MuJoCoRobot(description)
+    get_up = make_policy("get-up", robot)
+    command = np.array([0.1, 0.0, 0.0])
+    result = run_policy(robot, make_policy("walk-rl", robot), lambda t: command, 15.0,
+                        observers=[DirectedKick(robot, 1.5, 0.0, 2.0)], recovery=get_up, record_log=False)
+    assert (result.falls, result.recoveries, result.completed) == (1, 1, True)
+    assert get_up.succeeded and get_up.attempts == 1 and get_up.status.lying == ("front",)
+    assert robot.torso_height() > 0.9 * robot.standing_height and robot.torso_uprightness() > 0.9
