@@ -167,3 +167,20 @@ def test_a_run_handed_to_get_up_after_a_kick_walks_on_standing(description):
     assert (result.falls, result.recoveries, result.completed) == (1, 1, True)
     assert get_up.succeeded and get_up.attempts == 1 and get_up.status.lying == ("front",)
     assert robot.torso_height() > 0.9 * robot.standing_height and robot.torso_uprightness() > 0.9
+
+
+def test_a_robot_that_stays_down_is_tried_three_times_then_given_up_holding_still(description):
+    robot = _lying_robot(description, 0, -90)
+    robot.set_gains(np.zeros(description.n_motors), description.default_kd)  # limp: no motion can move it
+    policy = make_policy("get-up", robot)
+    obs = robot.observe()
+    policy.reset(obs)
+    limp = np.zeros(description.n_motors)
+    for _ in range(round(40.0 / DT)):
+        action = policy.act(obs, np.zeros(3))
+        obs = robot.step(action.motor_targets, limp)
+        if policy.done:
+            break
+    assert policy.done and not policy.succeeded and policy.attempts == 3
+    assert policy.status.lying == ("back", "back", "back") and policy.status.describe().startswith("get-up: gave up")
+    np.testing.assert_allclose(policy.act(obs, np.zeros(3)).joint_targets, obs.joint_pos, atol=0.05)

@@ -132,7 +132,10 @@ class GetUpPolicy(Policy):
         if lying == "upright":
             self._enter("check", obs)
             return self._home
-        if not self._after_roll:  # a roll and the get-up after it are one attempt
+        if not (self._after_roll and not lying.endswith("side")):  # a roll and the get-up after it: one attempt
+            if self._attempts >= MAX_ATTEMPTS:
+                self._enter("gave up", obs)
+                return self._hold
             self._attempts += 1
         self._after_roll = False
         self._play(lying, obs)
@@ -167,9 +170,5 @@ class GetUpPolicy(Policy):
             self._stood_at = obs.time - self._start
             self._enter("stood", obs)
             return self._home
-        if self._attempts >= MAX_ATTEMPTS:
-            self._wait(obs)
-            self._enter("gave up", obs)
-            return self._hold
-        self._wait(obs)
+        self._wait(obs)  # then it reads how the robot lies again, and tries again or gives up
         return self._hold
