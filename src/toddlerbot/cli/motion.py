@@ -19,7 +19,8 @@ app = typer.Typer(help="Keyframe motions: edit them in the browser.", no_args_is
 @app.command()
 def edit(
     motion: Annotated[str | None, typer.Argument(
-        help="Motion to open: a built-in (squat, wave, look_around) or a motion YAML file; none: a new motion.")]
+        help="Motion to open: a built-in (squat, wave, look_around, get_up_front, ...) or a motion YAML file; none: a "
+             "new motion.")]
         = None,
     port: Annotated[int, typer.Option("--port", min=0, max=65535,
                                       help="Port to serve the page on (0: any free port; a busy port: the next).")]

@@ -66,11 +66,11 @@ def _accepts(factory: Callable, option: str) -> bool:
 
 
 def _replay(robot: Robot, motion: str | None = None) -> Policy:
-    from toddlerbot.policies.motions import load_motion
+    from toddlerbot.policies.motions import builtin_motions, load_motion
     from toddlerbot.policies.replay import ReplayPolicy
 
     if motion is None:
-        raise ToddlerbotError("policy 'replay' needs --motion (squat, wave, look_around or a motion file)")
+        raise ToddlerbotError(f"policy 'replay' needs --motion ({', '.join(builtin_motions())} or a motion file)")
     return ReplayPolicy(robot, load_motion(motion, robot.description))
 
 

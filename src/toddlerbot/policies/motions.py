@@ -123,7 +123,8 @@ def builtin_motions() -> list[str]:
 
 
 def motion_path(name_or_path: str) -> Path:
-    """A built-in motion name (squat, wave, look_around) or a path to a motion file."""
+    """A built-in motion name (`builtin_motions`: squat, wave, look_around, the get-up motions) or a path to a motion
+    file."""
     if name_or_path in builtin_motions():
         return Path(str(MOTIONS_DIR / f"{name_or_path}.yaml"))
     path = Path(name_or_path)
