@@ -33,7 +33,7 @@ from toddlerbot.hardware.imu import ImuReading
 from toddlerbot.hardware.imu_stream import Pose
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import FALL_TILT_RAD
-from toddlerbot.sim.actuated import MotorAddresses, compile_substeps, step_actuated
+from toddlerbot.sim.actuated import MotorAddresses, compile_substeps, step_one_robot
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
 
@@ -161,6 +161,8 @@ class HilPlant(TorsoGroundTruth):
         """(powered time s, dvx, dvy m/s in the world) of each kick given."""
         self.powered_time = 0.0
         """Simulated seconds since torque first came on: the kicks' clock."""
+        self.retried_steps = 0
+        """Physics batches taken again with more solver iterations after they diverged (`step_one_robot`)."""
         self.params = [m.model.actuator for m in motors]
         self.model = description.model(base="floating", scene=True)
         self.data = mujoco.MjData(self.model)
@@ -259,7 +261,7 @@ class HilPlant(TorsoGroundTruth):
     def advance(self, cmd: Commands, n_steps: int) -> None:
         """One batch of ``n_steps`` physics steps holding the control tables' commands ``cmd``, then the powered
         motion's bookkeeping and the IMU sample (the physics thread's work between two reads of the tables)."""
-        step_actuated([self.model], [self.data], self._motors, cmd.q_target[None], cmd.drive(), n_steps)
+        self.retried_steps += step_one_robot(self.model, self.data, self._motors, cmd.q_target, cmd.drive(), n_steps)[1]
         self.sim_time += n_steps * self.model.opt.timestep
         if self.powered_start is not None or cmd.torque_on.any():
             self.powered_time += n_steps * self.model.opt.timestep

@@ -54,7 +54,8 @@ def _plant_report(plant: HilPlant) -> dict:
             "powered_min_torso_upright": _finite(plant.powered_min_upright),
             "powered_torso_motion": None if motion is None else dict(
                 zip(("dx_m", "dy_m", "yaw_rad"), (round(v, 4) for v in motion), strict=True)),
-            "kicks": [dict(zip(("time_s", "dvx_mps", "dvy_mps"), kick, strict=True)) for kick in plant.kicked]}
+            "kicks": [dict(zip(("time_s", "dvx_mps", "dvy_mps"), kick, strict=True)) for kick in plant.kicked],
+            "retried_steps": plant.retried_steps}
 
 
 def _finite(value: float) -> float:

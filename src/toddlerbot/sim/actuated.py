@@ -74,6 +74,45 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     return torques
 
 
+RETRY_SOLVER_ITERATIONS = 100
+"""Newton and line-search iterations of a control step taken again after MuJoCo found it diverging: the spec's few
+iterations (4/8) suit walking, and a hard impact of the whole body (a fall) can need many more (docs/simulation.md,
+"Falls that diverged")."""
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+DIVERGED_SPEED = 200.0
+"""rad/s (or m/s): a joint of the robot faster than this is numerical blow-up (its motors' no-load speeds are under
+10 rad/s)."""
+
+
+def diverged(data: mujoco.MjData) -> bool:
+    """MuJoCo reset the state after a bad acceleration, or a velocity is non-finite or beyond `DIVERGED_SPEED`."""
+    if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
+        return True
+    speed = np.abs(data.qvel)
+    return not np.all(np.isfinite(speed)) or bool(speed.max(initial=0.0) > DIVERGED_SPEED)
+
+
+def step_one_robot(model: mujoco.MjModel, data: mujoco.MjData, motors: MotorAddresses, targets: np.ndarray,
+                   drive: MotorDrive, n_substeps: int, sensors_last_only: bool = False) -> tuple[np.ndarray, bool]:
+    """`step_actuated` for one robot, taken again from its start with `RETRY_SOLVER_ITERATIONS` when it diverged:
+    MuJoCo found a huge or non-finite acceleration (and reset the state), or a joint ends faster than
+    `DIVERGED_SPEED`. A step that diverges even then is left so, for the caller to report. Returns the motor torques
+    (n_motors,) and whether the step was taken again. A step that does not diverge is exactly `step_actuated`'s."""
+    start = np.empty(mujoco.mj_stateSize(model, _STATE))
+    mujoco.mj_getState(model, data, start, _STATE)
+    torque = step_actuated([model], [data], motors, targets[None], drive, n_substeps, sensors_last_only)[0]
+    if not diverged(data):
+        return torque, False
+    mujoco.mj_setState(model, data, start, _STATE)
+    data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
+    iterations = model.opt.iterations, model.opt.ls_iterations
+    model.opt.iterations = model.opt.ls_iterations = RETRY_SOLVER_ITERATIONS
+    try:
+        return step_actuated([model], [data], motors, targets[None], drive, n_substeps, sensors_last_only)[0], True
+    finally:
+        model.opt.iterations, model.opt.ls_iterations = iterations
+
+
 def compile_substeps(model: mujoco.MjModel, data: mujoco.MjData, motors: MotorAddresses, drive: MotorDrive) -> None:
     """Compile the substep loop for this robot, or load it from numba's disk cache, without stepping
     (`toddlerbot.sim.native.compile_now`): otherwise the first `step_actuated` does it (seconds the first time),

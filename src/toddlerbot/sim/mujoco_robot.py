@@ -26,12 +26,9 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, Robot
-from toddlerbot.sim.actuated import MotorAddresses, compile_substeps, step_actuated
+from toddlerbot.sim.actuated import DIVERGED_SPEED, MotorAddresses, compile_substeps, step_one_robot
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
-
-MAX_JOINT_SPEED = 200.0
-"""rad/s; any faster and the simulation has blown up."""
 
 
 class SimulationError(ToddlerbotError):
@@ -85,6 +82,8 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         self._home_key = m.key("home").id
         self._targets = np.zeros(len(self.motor_names))
         self._torque = np.zeros(len(self.motor_names))
+        self.retried_steps = 0
+        """Control steps taken again with more solver iterations after they diverged (`step_one_robot`)."""
         self.initial_motor_offset = np.zeros(len(self.motor_names))
         """Motor angles added to the home keyframe at `reset`, rad (a perturbation; zero by default)."""
         self.start_qpos: np.ndarray | None = None
@@ -144,8 +143,9 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
     def advance(self, n_substeps: int) -> None:
         """``n_substeps`` physics steps holding the commanded targets (MuJoCo's sensors evaluated in the last:
         the robot owns its model, and only the last substep's are observed)."""
-        self._torque = step_actuated([self.model], [self.data], self._motors, self._targets[None], self._drive,
-                                     n_substeps, sensors_last_only=True)[0]
+        self._torque, retried = step_one_robot(self.model, self.data, self._motors, self._targets, self._drive,
+                                               n_substeps, sensors_last_only=True)
+        self.retried_steps += retried
 
     # -- helpers ---------------------------------------------------------------------------------------------
     def set_gains(self, kp: np.ndarray, kd: np.ndarray) -> None:
@@ -192,8 +192,8 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
             raise SimulationError(f"simulation diverged at t={d.time:.3f} s (non-finite state)")
         speed = np.max(np.abs(d.qvel[6:]))
-        if speed > MAX_JOINT_SPEED:
+        if speed > DIVERGED_SPEED:
             raise SimulationError(
                 f"simulation unstable at t={d.time:.3f} s: a joint moves at {speed:.0f} rad/s "
-                f"(> {MAX_JOINT_SPEED:.0f}); check the gains and targets"
+                f"(> {DIVERGED_SPEED:.0f}); check the gains and targets"
             )
