@@ -198,3 +198,28 @@ def test_walking_policies_refuse_to_run_without_an_imu(tmp_path):
     assert run.returncode == 2 and run.stderr.strip().count("\n") == 0, run.stderr
     assert "policy walk-zmp balances from the IMU: --imu none would run it blind" in run.stderr
     assert report["packets"] == 0  # refused before the bus was touched
+
+
+@pytest.mark.slow
+def test_a_walk_knocked_over_in_hil_gets_up_and_walks_on(tmp_path):
+    """`hw run --on-fall get-up` through the driver: the HIL robot walking with walk-rl is kicked forwards (1.5 m/s,
+    `hw emulate --kick`), falls on its front, the get-up policy stands it up from the IMU alone, and walk-rl walks on
+    to the end of the run (exit 0), upright."""
+    from toddlerbot.robot.fall import FALL_TILT_RAD, tilt
+    from toddlerbot.runtime.log import RunLog
+
+    cal_file, log_file = tmp_path / "emulated.yaml", tmp_path / "run.npz"
+    proc, path = _start_emulator("--hil", "--write-calibration", str(cal_file), "--kick", "2:1.5@0")
+    try:
+        run = _hw_run(path, cal_file, "--imu", "emulator", "--policy", "walk-rl", "--command", "0:0.05,0,0",
+                      "--seconds", "25", "--on-fall", "get-up", "--log", str(log_file))
+    finally:
+        report = _stop_emulator(proc)
+    assert run.returncode == 0 and "walk-rl: 1 falls, got up from 1" in run.stdout, run.stdout + run.stderr
+    assert len(report["kicks"]) == 1 and report["powered_min_torso_upright"] < 0.5  # it did go down
+    log = RunLog.load(log_file)
+    recovering = log.recovering.astype(bool)
+    walking_on = log.time > log.time[recovering].max()
+    assert 2.0 < recovering.sum() * log.control_dt < 15.0  # the get-up's own time, within its 3 attempts
+    assert walking_on.sum() * log.control_dt > 5.0  # walked on for the rest of the run...
+    assert max(tilt(q) for q in log.imu_quat[walking_on]) < FALL_TILT_RAD / 2  # ...upright

@@ -20,7 +20,7 @@ FALL_TILT_RAD = 1.0
 the simulator's fall detector and the real robot's (from its IMU) use this one threshold."""
 FALL_KP_FRACTION = 0.2
 """P gains while falling, as a fraction of those asked for (docs/hardware.md, "Falling": about a tenth less impact
-torque than full gains, without the extra diverged simulations of 0.05)."""
+torque than full gains)."""
 LANDED_RATE_RAD_S = 1.0
 """The torso has landed when its angular speed (IMU gyro) stays below this..."""
 LANDED_S = 0.1
