@@ -159,3 +159,22 @@ def test_without_a_recovery_a_fall_still_stops_the_run(description):
     robot = ScriptedRobot(description, [(UPRIGHT, STILL)] * 4 + [(LYING, STILL)] * 10)
     result = run_policy(robot, HoldHome(robot), seconds=1.0)
     assert (result.falls, result.fell, result.stopped_by, len(robot.sent)) == (1, True, "fall", 5)
+
+
+@pytest.mark.slow
+def test_sim_run_with_on_fall_get_up_stands_up_after_a_kick_and_walks_on():
+    """`sim run --on-fall get-up` as a library call: walk-rl kicked forwards with 1.5 m/s falls on its front, the
+    get-up policy stands it up and walk-rl walks on, upright, to the end of the run."""
+    from toddlerbot.runtime.robustness import DirectedKick
+    from toddlerbot.sessions.sim import sim_session
+
+    session = sim_session("walk-rl", "0:0.05,0,0", seconds=16.0, on_fall="get-up")
+    result = session.run(DirectedKick(session.robot, 1.5, 0.0, 2.0))
+    assert (result.falls, result.recoveries, result.fell) == (1, 1, False), session.recovery.status.describe()
+    log = result.log
+    recovering = log.recovering.astype(bool)
+    walking_on = log.time > log.time[recovering].max()
+    assert 2.0 < recovering.sum() * log.control_dt < 12.0
+    assert walking_on.sum() * log.control_dt > 3.0
+    standing = session.robot.standing_height
+    assert log.base_pos[walking_on, 2].min() > 0.9 * standing  # walking at its height again
