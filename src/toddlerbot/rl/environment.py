@@ -18,6 +18,7 @@ import jax
 import mujoco
 from brax.envs.base import Env
 
+from toddlerbot.rl import randomization
 from toddlerbot.rl.config import EnvConfig, Recipe
 from toddlerbot.rl.physics import BACKENDS, Addresses, Frame
 from toddlerbot.rl.rewards import RewardTerms
@@ -51,6 +52,9 @@ class RLEnvironment(Env):
     """Per-step metrics besides the reward terms, averaged over finished episodes in PPO's epoch records."""
 
     cfg: EnvConfig
+    mj_model: mujoco.MjModel
+    """The training model (`toddlerbot.rl.model.training_model`)."""
+    n_motors: int
 
     @classmethod
     def default_config(cls, smoke: bool = False) -> EnvConfig:
@@ -79,6 +83,14 @@ class RLEnvironment(Env):
         if cfg.backend == "cpu":
             return physics(model, addresses, cfg.n_substeps, cfg.cpu_threads)
         return physics(model, addresses, cfg.n_substeps)
+
+    def draw_randomization(self, key: jax.Array) -> randomization.DRParams:
+        """An episode's domain randomisation (`toddlerbot.rl.randomization`): drawn with ``key`` when the
+        configuration randomises, else the nominal model."""
+        m, cfg = self.mj_model, self.cfg
+        if cfg.randomize:
+            return randomization.sample(key, cfg.randomization, m.nv, m.nbody, self.n_motors)
+        return randomization.nominal(m.nv, m.nbody, self.n_motors)
 
     def terminated(self, frame: Frame, *reference: jax.Array) -> jax.Array:
         """Whether the episode ends after the step that reached ``frame`` (bool scalar); ``reference``: what an

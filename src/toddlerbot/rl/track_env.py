@@ -127,9 +127,7 @@ class TrackEnv(RLEnvironment):
     def reset(self, rng: jax.Array) -> State:
         cfg = self.cfg
         rng, k_dr, k_row, k_push, k_noise = jax.random.split(rng, 5)
-        m = self.mj_model
-        dr = (randomization.sample(k_dr, cfg.randomization, m.nv, m.nbody, self.n_motors) if cfg.randomize
-              else randomization.nominal(m.nv, m.nbody, self.n_motors))
+        dr = self.draw_randomization(k_dr)
         row = jax.random.randint(k_row, (), 0, self.reference.n_steps)
         info = {
             "rng": rng, "dr": dr, "row": row, "last_action": jnp.zeros(self.action_size),

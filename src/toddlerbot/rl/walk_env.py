@@ -161,9 +161,7 @@ class WalkEnv(RLEnvironment):
     def reset(self, rng: jax.Array) -> State:
         cfg = self.cfg
         rng, k_dr, k_cmd, k_push, k_noise = jax.random.split(rng, 5)
-        m = self.mj_model
-        dr = (randomization.sample(k_dr, cfg.randomization, m.nv, m.nbody, self.n_motors) if cfg.randomize
-              else randomization.nominal(m.nv, m.nbody, self.n_motors))
+        dr = self.draw_randomization(k_dr)
         frame = self.physics.home_frame
         command = self._sample_command(k_cmd)
         zeros = jnp.zeros(self.action_size)
