@@ -16,6 +16,7 @@ from toddlerbot.policies import accepts_option, policy_names
 from toddlerbot.robot.builder import Base
 from toddlerbot.robot.description import RobotDescription, load_variant, variant_names
 from toddlerbot.robot.interface import CONTROL_HZ
+from toddlerbot.sessions.recovery import ON_FALL
 
 
 def _registered_variant(name: str | None) -> str | None:
@@ -89,7 +90,7 @@ def check_run_policy(name: str) -> str:
     return name
 
 
-OnFallOption = Annotated[Literal["stop", "get-up"], typer.Option(  # toddlerbot.sessions.recovery.ON_FALL
+OnFallOption = Annotated[Literal[ON_FALL], typer.Option(
     "--on-fall", help="What a fall does: stop (the run ends; on the robot torque goes off, exit 1) or get-up (the "
                       "get-up policy stands the robot up, then the run goes on; falls and recoveries are counted).")]
 AsymmetricOption = Annotated[bool, typer.Option(

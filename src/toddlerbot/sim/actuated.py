@@ -85,11 +85,13 @@ DIVERGED_SPEED = 200.0
 
 
 def diverged(data: mujoco.MjData) -> bool:
-    """MuJoCo reset the state after a bad acceleration, or a velocity is non-finite or beyond `DIVERGED_SPEED`."""
+    """MuJoCo reset the state after a bad acceleration, the state is non-finite, or a velocity is beyond
+    `DIVERGED_SPEED`."""
     if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
         return True
     speed = np.abs(data.qvel)
-    return not np.all(np.isfinite(speed)) or bool(speed.max(initial=0.0) > DIVERGED_SPEED)
+    return not (np.all(np.isfinite(speed)) and np.all(np.isfinite(data.qpos))) or bool(speed.max(initial=0.0) >
+                                                                                  DIVERGED_SPEED)
 
 
 def step_one_robot(model: mujoco.MjModel, data: mujoco.MjData, motors: MotorAddresses, targets: np.ndarray,

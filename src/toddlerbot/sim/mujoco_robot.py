@@ -26,7 +26,7 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, Robot
-from toddlerbot.sim.actuated import DIVERGED_SPEED, MotorAddresses, compile_substeps, step_one_robot
+from toddlerbot.sim.actuated import DIVERGED_SPEED, MotorAddresses, compile_substeps, diverged, step_one_robot
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
 
@@ -186,6 +186,8 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
 
     def _check_stable(self) -> None:
         d = self.data
+        if not diverged(d):
+            return
         if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo then resets the state to qpos0 silently
             raise SimulationError("simulation diverged: MuJoCo found a non-finite or huge acceleration and reset the "
                                   "state")
