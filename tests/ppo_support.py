@@ -76,7 +76,10 @@ def small_run(folder):
     ppo_cfg = PPOConfig(num_envs=8, batch_size=8, policy_hidden=(32, 16), value_hidden=(16,))
     run.mkdir()
     train.save_config(run, env_cfg, ppo_cfg)
-    state, _ = _template(env_cfg, ppo_cfg, RobotDescription.load(), 7)
+    description = RobotDescription.load()
+    legs = len(description.group_names("leg"))
+    actor = env_cfg.obs.history * env_cfg.obs.frame_size(description.n_motors, legs)
+    state, _ = _template(ppo_cfg, {"state": (actor,), "privileged_state": (7,)}, legs)
     policy = state.params.policy
     head = policy["params"]["Dense_0"]
     policy["params"]["Dense_0"] = {**head, "kernel": head["kernel"] * 6.0}

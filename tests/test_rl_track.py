@@ -20,7 +20,9 @@ import jax.numpy as jnp
 
 from cli_support import one_line_error, run_main
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies.motions import full_pose, load_motion
+from toddlerbot.policies.motions import full_pose, load_motion, motion_path
+from toddlerbot.policies.rl_inference import RLPolicyFile
+from toddlerbot.policies.track import TrackController
 from toddlerbot.rl import config, track_rewards, train
 from toddlerbot.rl.environments import environment_class
 from toddlerbot.rl.export import export_run
@@ -209,9 +211,39 @@ def test_track_is_registered_and_trains_one_smoke_epoch_on_the_cpu_backend(tmp_p
     with pytest.raises(ToddlerbotError, match=r"^--motion: a resumed run keeps the settings it started with"):
         resume_plan(run, TrainRequest(motion="wave"))
     assert resume_plan(run, TrainRequest()).resume
-    with pytest.raises(ToddlerbotError, match=rf"^{run}: a run of environment 'track'; rl export writes walk "
-                                              r"policies only$"):
-        export_run(run, tmp_path / "policy.npz")
+    _the_export_plays_as_the_env_trained_it(run, tmp_path / "policy.npz", env_cfg)
+
+
+def _the_export_plays_as_the_env_trained_it(run: Path, out: Path, env_cfg: TrackConfig) -> None:
+    """`rl export` of a track run holds the motion (its tables and its file's text) and the `track` policy's
+    controller, fed the env's sensor readings, builds the env's actor observations and commands its motor targets
+    (the numpy network acting in both)."""
+    export_run(run, out)
+    policy = RLPolicyFile(out)
+    recorded = np.load(run / "action_space.npz")
+    assert policy.environment == "track" and policy.meta["runtime_policy"] == "track"
+    assert policy.motion.name == "squat" and policy.motion.lookahead == env_cfg.lookahead
+    np.testing.assert_array_equal(policy.motion.motor_targets, recorded["motor_targets"])
+    assert policy.meta["motion_yaml"] == motion_path("squat").read_text()
+    np.testing.assert_array_equal(policy.action_motor_index, np.arange(30))
+    with pytest.raises(ToddlerbotError, match=r"a policy of the 'track' environment; walk-rl plays 'walk' policies "
+                                              r"\(play it with --policy track\)"):
+        policy.for_robot(policy.motor_names, 0.02, "walk", "walk-rl")
+    noiseless = replace(env_cfg.obs, noise_motor_pos=0.0, noise_motor_vel=0.0, noise_gyro=0.0, noise_gravity=0.0)
+    env = TrackEnv(replace(env_cfg, randomize=False, cpu_threads=1, obs=noiseless))
+    step = jax.jit(env.step)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(3))
+    controller = TrackController(policy)
+    controller.row = int(state.info["row"])
+    for _ in range(4):
+        sensors = jax.tree.map(np.asarray, state.info["sensors"])
+        obs = controller.observe(sensors.motor_pos, sensors.motor_vel, sensors.gyro, sensors.imu_quat)
+        np.testing.assert_allclose(obs, np.asarray(state.obs["state"]), atol=2e-6)
+        action = policy.action(np.asarray(state.obs["state"]))
+        row = controller.row
+        np.testing.assert_allclose(controller.act(obs), recorded["motor_targets"][row] + 0.25 * action, atol=1e-5)
+        state = step(state, jnp.asarray(action))
+        assert int(state.info["row"]) == controller.row
 
 
 def test_bad_motion_options_are_one_line(monkeypatch, capsys, tmp_path):

@@ -25,7 +25,6 @@ pytest.importorskip("mujoco.mjx")
 from dashboard_support import FAKE_WANDB_DIR, expected_scalars, numbers, read_jsonl, read_scalars  # noqa: E402
 from toddlerbot.policies.rl_inference import RLPolicyFile  # noqa: E402
 from toddlerbot.rl import config, export, train  # noqa: E402
-from toddlerbot.robot.description import RobotDescription  # noqa: E402
 
 pytestmark = pytest.mark.slow
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -50,13 +49,11 @@ def smoke_run(tmp_path_factory):
     _cli("rl", "train", "--smoke", "--out", str(run), "--epochs", "1", "--wandb", "--wandb-mode", "offline",
          cache=root / "xla")
     ckpt1 = train.checkpoint_paths(run)
-    description = RobotDescription.load()
-    first, _ = export.restore_checkpoint(ckpt1[-1], *train.load_config(run), description)
+    first, _ = export.restore_checkpoint(ckpt1[-1], train.load_config(run)[1])
     # --timesteps: the same budget, so the same compiled program; it records the resume as the run's next stage
     _cli("rl", "train", "--resume", str(run), "--wandb", "--timesteps", str(config.SMOKE.num_timesteps),
          cache=root / "xla")
-    final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], *train.load_config(run),
-                                               description)
+    final, history = export.restore_checkpoint(train.checkpoint_paths(run)[-1], train.load_config(run)[1])
     return run, first, ckpt1, final, history
 
 

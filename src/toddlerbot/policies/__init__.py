@@ -88,7 +88,7 @@ def _walk_rl(robot: Robot, weights: str | Path | None = None, symmetric: bool = 
 
 _BUILT_IN = {"stand": "toddlerbot.policies.stand:StandPolicy", "replay": _replay, "walk-zmp": _walk_zmp,
              "walk-rl": _walk_rl, "dp": "toddlerbot.dp.live:dp_policy",
-             "get-up": "toddlerbot.policies.get_up:GetUpPolicy"}
+             "get-up": "toddlerbot.policies.get_up:GetUpPolicy", "track": "toddlerbot.policies.track:TrackPolicy"}
 """``dp`` (a diffusion-policy checkpoint, extra ``[dp]``) is built in the dp package, imported only when chosen."""
 for _name, _factory in _BUILT_IN.items():
     POLICY_REGISTRY.register(_name, _factory)

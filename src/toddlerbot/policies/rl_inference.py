@@ -9,12 +9,15 @@ An exported policy is one ``.npz`` file holding
   or, in files without this entry, ``tanh_normal`` (the output's first half is the pre-tanh mean; the
   deterministic action is ``tanh(mean)``),
 * ``obs_mean`` / ``obs_std``: the observation normalisation learned during training,
-* ``home_motor_pos``: motor angles of the home pose (rad, motor-id order), ``leg_motor_index``: the 12
-  commanded motors, ``motor_names``,
-* ``obs_config``: the `ObsConfig` as JSON, ``meta``: training metadata as JSON,
+* ``home_motor_pos``: motor angles of the home pose (rad, motor-id order), ``leg_motor_index``: the 12 leg
+  motors, ``motor_names``; ``action_motor_index``: the motors the actions command, when not the legs (a tracking
+  policy commands all 30),
+* ``obs_config``: the `ObsConfig` as JSON, ``meta``: training metadata as JSON (``environment``: the registered
+  training environment, ``walk`` when absent; ``runtime_policy``: the registered policy that plays it),
 * for a residual policy (leg targets = gait reference + ``action_scale`` x action), the `GaitReference` arrays
   (``ref_vx``, ``ref_vy``, ``ref_yaw``, ``ref_period``, ``ref_leg_motor_pos``, ``ref_contact``), and for a policy
-  trained with walk-zmp's leg gain schedule, ``kp_stance_scale`` / ``kp_swing_scale`` (`leg_gain_scale`).
+  trained with walk-zmp's leg gain schedule, ``kp_stance_scale`` / ``kp_swing_scale`` (`leg_gain_scale`),
+* for a motion-tracking policy, the motion's tables (`toddlerbot.policies.track_observation.MotionTargets`).
 
 or one ``.onnx`` file (`toddlerbot rl export --format onnx`): the graph maps the raw observation to the
 deterministic action (normalisation, MLP, ``tanh`` or ``clip`` included) and every other array above travels in
@@ -35,6 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.track_observation import MotionTargets
 
 if TYPE_CHECKING:
     from toddlerbot.robot.mirror import Mirror
@@ -215,7 +219,7 @@ ONNX_INDEX = "toddlerbot.policy"
 """Metadata key of an ONNX export's index: JSON ``{"format", "arrays": {name: {"dtype", "shape"}}}``; each array
 is stored under ``toddlerbot.<name>``: text scalars as they are, other arrays as the JSON of ``tolist()``."""
 ONNX_INPUT, ONNX_OUTPUT = "obs", "action"
-"""Names of an ONNX export's input (batch, n_obs) float32 raw observations and output (batch, n_legs) actions."""
+"""Names of an ONNX export's input (batch, n_obs) float32 raw observations and output (batch, n_actions) actions."""
 
 
 def is_network_array(name: str) -> bool:
@@ -392,6 +396,9 @@ class RLPolicyFile:
         try:
             self.home_motor_pos = data["home_motor_pos"].astype(float)
             self.leg_motor_index = data["leg_motor_index"].astype(int)
+            self.action_motor_index = data["action_motor_index"].astype(int) if "action_motor_index" in data \
+                else self.leg_motor_index
+            """The motors the actions command, in action order."""
             self.motor_names = tuple(str(n) for n in data["motor_names"].reshape(-1))
             self.obs_config = ObsConfig.from_json(str(data["obs_config"]))
             self.meta = json.loads(str(data["meta"]))
@@ -402,36 +409,72 @@ class RLPolicyFile:
             self.gain_scales = ((data["kp_stance_scale"].astype(float), data["kp_swing_scale"].astype(float))
                                 if "kp_stance_scale" in data else None)
             """(stance, swing) P-gain factors of `leg_gain_scale` (None: the spec's gains)."""
+            self.environment = str(self.meta.get("environment", "walk"))
+            """The registered environment it was trained in."""
+            self.motion = MotionTargets.from_arrays(data) if "motion_motor_targets" in data else None
+            """The tracked motion's tables (a motion-tracking policy), else None."""
             network = onnx_net if self.format == "onnx" else \
-                NumpyNetwork(data, len(self.leg_motor_index), self.distribution)
+                NumpyNetwork(data, self.n_actions, self.distribution)
         except KeyError as exc:
             raise ToddlerbotError(f"{path}: not an exported RL policy (missing {exc.args[0]!r})") from None
         except (ValueError, TypeError) as exc:  # wrong dtypes, malformed JSON or config fields
             raise ToddlerbotError(f"{path}: malformed exported policy ({' '.join(str(exc).split())})") from None
         if isinstance(network, NumpyNetwork):
             network.check(path)
-        elif network.n_outputs != len(self.leg_motor_index):
+        elif network.n_outputs != self.n_actions:
             raise ToddlerbotError(f"{path}: ONNX output width {network.n_outputs} does not fit "
-                                  f"{len(self.leg_motor_index)} commanded motors")
+                                  f"{self.n_actions} commanded motors")
         self._check_metadata(path)
         self.network = network
         """The action function: `NumpyNetwork` (its arrays: ``kernels``, ``biases``, ``obs_mean``, ``obs_std``)
         or `OnnxNetwork`."""
         self.path = path
-        frame = self.obs_config.frame_size(len(self.home_motor_pos), len(self.leg_motor_index))
-        expected = self.obs_config.history * frame
+        expected = self.n_inputs
         if network.n_inputs != expected:
             raise ToddlerbotError(f"{path}: network input {network.n_inputs} does not match the observation "
-                                  f"config ({expected} = {self.obs_config.history} frames)")
+                                  f"config ({expected} = {self.obs_config.history} frames"
+                                  f"{'' if self.motion is None else ' and the motion ahead'})")
+
+    @property
+    def n_actions(self) -> int:
+        return len(self.action_motor_index)
+
+    @property
+    def n_inputs(self) -> int:
+        """The actor observation's width: a walking policy's history of `obs_frame`s, or a tracking policy's
+        (`toddlerbot.policies.track_observation.track_actor_obs`)."""
+        n_motors = len(self.home_motor_pos)
+        if self.motion is not None:
+            return self.motion.actor_width(self.obs_config.history, n_motors)
+        return self.obs_config.history * self.obs_config.frame_size(n_motors, self.n_actions)
+
+    def for_robot(self, motor_names: tuple[str, ...], control_dt: float, environment: str, policy: str) -> None:
+        """One line unless this file was trained in ``environment`` for these motors at this control period (s);
+        ``policy``: the runtime policy asking."""
+        if self.environment != environment:
+            player = self.meta.get("runtime_policy", "another policy")
+            raise ToddlerbotError(f"{self.path}: a policy of the {self.environment!r} environment; {policy} plays "
+                                  f"{environment!r} policies (play it with --policy {player})")
+        if tuple(self.motor_names) != tuple(motor_names):
+            raise ToddlerbotError(f"{self.path}: trained for motors {self.motor_names[:3]}..., but the robot has "
+                                  f"{tuple(motor_names)[:3]}... ({len(motor_names)} motors)")
+        trained_dt = self.meta.get("ctrl_dt", control_dt)
+        if abs(control_dt - trained_dt) > 1e-9:
+            raise ToddlerbotError(f"{self.path}: trained at a {trained_dt} s control period; the robot runs at "
+                                  f"{control_dt} s")
 
     def _check_metadata(self, path: Path) -> None:
         """Indices and names fit the motors, the home pose is finite."""
-        n_motors, n_legs = len(self.home_motor_pos), len(self.leg_motor_index)
+        n_motors = len(self.home_motor_pos)
         if len(self.motor_names) != n_motors or self.home_motor_pos.shape != (n_motors,):
             raise ToddlerbotError(f"{path}: {len(self.motor_names)} motor names and home pose "
-                                  f"{self.home_motor_pos.shape} do not fit {n_legs} commanded of {n_motors} motors")
-        if self.leg_motor_index.ndim != 1 or np.any((self.leg_motor_index < 0) | (self.leg_motor_index >= n_motors)):
-            raise ToddlerbotError(f"{path}: leg_motor_index must hold motor indices in 0..{n_motors - 1}")
+                                  f"{self.home_motor_pos.shape} do not fit {self.n_actions} commanded of {n_motors} "
+                                  "motors")
+        for name, index in (("leg_motor_index", self.leg_motor_index), ("action_motor_index", self.action_motor_index)):
+            if index.ndim != 1 or np.any((index < 0) | (index >= n_motors)):
+                raise ToddlerbotError(f"{path}: {name} must hold motor indices in 0..{n_motors - 1}")
+        if self.motion is not None:
+            self.motion.check(path, n_motors)
         if not np.all(np.isfinite(self.home_motor_pos)):
             raise ToddlerbotError(f"{path}: home_motor_pos holds non-finite values (NaN or inf)")
 
@@ -457,7 +500,7 @@ class RLPolicyFile:
         return self.network
 
     def action(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic action in [-1, 1]^12 (what the environment applies for the policy's mean) for one
+        """Deterministic action in [-1, 1]^n_actions (what the environment applies for the policy's mean) for one
         observation vector, normalised on the fly."""
         return self.network(obs)
 

@@ -21,6 +21,8 @@ from toddlerbot.robot.mirror import robot_mirror
 
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights"
 DEFAULT_WEIGHTS = SHIPPED_WEIGHTS / "walk_rl.npz"
+WALK_ENVIRONMENT = "walk"
+"""The training environment whose exports this policy plays."""
 """The CPU recipe's policy (docs/rl.md); ``walk_rl_gpu.npz`` beside it is the GPU run's."""
 
 
@@ -63,13 +65,7 @@ class WalkRLPolicy(Policy):
                                       f"with `toddlerbot rl train --variant {variant}` (docs/rl.md), or walk with "
                                       "walk-zmp")
         policy = RLPolicyFile(resolve_weights(weights))
-        if tuple(policy.motor_names) != tuple(robot.motor_names):
-            raise ToddlerbotError(f"{policy.path}: trained for motors {policy.motor_names[:3]}..., but the robot has "
-                                  f"{robot.motor_names[:3]}... ({len(robot.motor_names)} motors)")
-        trained_dt = policy.meta.get("ctrl_dt", robot.control_dt)
-        if abs(robot.control_dt - trained_dt) > 1e-9:
-            raise ToddlerbotError(f"{policy.path}: trained at a {trained_dt} s control period; the robot runs at "
-                                  f"{robot.control_dt} s")
+        policy.for_robot(robot.motor_names, robot.control_dt, WALK_ENVIRONMENT, self.name)
         self.controller = RLController(policy, robot_mirror(robot.description) if symmetric else None)
         low, high = policy.meta.get("command_low"), policy.meta.get("command_high")
         if low is not None and high is not None:

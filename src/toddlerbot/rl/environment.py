@@ -16,8 +16,10 @@ from typing import ClassVar
 
 import jax
 import mujoco
+import numpy as np
 from brax.envs.base import Env
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.rl import randomization
 from toddlerbot.rl.config import EnvConfig, Recipe
 from toddlerbot.rl.physics import BACKENDS, Addresses, Frame
@@ -50,6 +52,9 @@ class RLEnvironment(Env):
     """Default PPO and warm-start settings for ``cpu``, ``mjx`` and ``smoke`` (`recipe`)."""
     step_metrics: ClassVar[tuple[str, ...]] = ()
     """Per-step metrics besides the reward terms, averaged over finished episodes in PPO's epoch records."""
+    runtime_policy: ClassVar[str | None] = None
+    """The registered runtime policy that plays its exports (`rl export`, then `sim run --policy NAME --weights
+    FILE`); None: its runs are not exported."""
 
     cfg: EnvConfig
     mj_model: mujoco.MjModel
@@ -60,6 +65,14 @@ class RLEnvironment(Env):
     def default_config(cls, smoke: bool = False) -> EnvConfig:
         """The configuration of a new run (``smoke``: of the tiny test run)."""
         return cls.config_class()
+
+    @classmethod
+    def write_export(cls, out: Path, arrays: dict[str, np.ndarray], cfg: EnvConfig, meta: dict,
+                     description: RobotDescription, action_space: dict[str, np.ndarray] | None) -> Path:
+        """Write (atomically) the exported policy file of a run: the actor's ``arrays`` (`rl.export.policy_arrays`),
+        the common metadata ``meta`` and what `runtime_policy` needs besides (from the run's ``action_space``
+        record, `record_action_space`)."""
+        raise ToddlerbotError(f"the {cls.name!r} environment has no runtime policy: its runs are not exported")
 
     @classmethod
     def recipe(cls, backend: str, smoke: bool = False) -> Recipe:

@@ -10,7 +10,7 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION, LEG_GROUP
-from toddlerbot.rl.config import DEFAULT_ENVIRONMENT, EnvConfig, PPOConfig
+from toddlerbot.rl.config import EnvConfig, PPOConfig
 from toddlerbot.rl.reference import leg_motor_indices
 from toddlerbot.rl.run_files import (
     ACTION_SPACE,
@@ -61,47 +61,51 @@ def write_policy(path: Path, arrays: dict[str, np.ndarray], env_cfg: EnvConfig, 
     c = env_cfg.command
     meta = {**meta, "command_low": [c.vx[0], c.vy[0], c.yaw[0]], "command_high": [c.vx[1], c.vy[1], c.yaw[1]],
             "variant": description.spec.variant}
-    return atomic_savez(path, dict(
-        **arrays, home_motor_pos=np.asarray(description.home_motor_pos),
-        leg_motor_index=leg_motor_indices(description), motor_names=np.array(description.motor_names),
-        leg_motors=np.array(description.group_names(LEG_GROUP)),
-        obs_config=np.array(env_cfg.obs.to_json()), meta=np.array(json.dumps(meta)),
-    ))
+    return atomic_savez(path, {**arrays, **robot_arrays(description), "obs_config": np.array(env_cfg.obs.to_json()),
+                               "meta": np.array(json.dumps(meta))})
+
+
+def robot_arrays(description: RobotDescription) -> dict[str, np.ndarray]:
+    """What every exported policy records of its robot: the home pose, the motors' names and the leg motors."""
+    return {"home_motor_pos": np.asarray(description.home_motor_pos),
+            "leg_motor_index": leg_motor_indices(description), "motor_names": np.array(description.motor_names),
+            "leg_motors": np.array(description.group_names(LEG_GROUP))}
 
 
 def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None,
                checkpoint: str | None = None) -> Path:
     """Export a checkpoint of a training run (for the run's robot: packaged spec, its variant and params.json):
-    the latest, the named file of ``checkpoints/``, or ``warm_start`` (the DAgger warm start, before PPO)."""
+    the latest, the named file of ``checkpoints/``, or ``warm_start`` (the DAgger warm start, before PPO). The run's
+    environment (`toddlerbot.rl.environments`) adds what its runtime policy needs (`RLEnvironment.write_export`)."""
     from toddlerbot.rl import train  # jax-heavy; keep `write_policy` importable alone
     from toddlerbot.rl.environment import training_description
+    from toddlerbot.rl.environments import environment_class
 
     run_dir = Path(run_dir)
     env_cfg, ppo_cfg = train.load_config(run_dir)
-    if env_cfg.environment != DEFAULT_ENVIRONMENT:
-        raise ToddlerbotError(f"{run_dir}: a run of environment {env_cfg.environment!r}; rl export writes "
-                              f"{DEFAULT_ENVIRONMENT} policies only")
+    environment = environment_class(env_cfg.environment)
     paths = train.checkpoint_paths(run_dir)
     if checkpoint not in (None, "warm_start"):
         paths = [p for p in paths if p.name == checkpoint]
     description = description or training_description(env_cfg)
-    obs_size = _actor_width(env_cfg, description)
     warm = _imitation_record(run_dir)
     if checkpoint == "warm_start":
-        params, normalizer, steps, history = _warm_start_params(run_dir, env_cfg, ppo_cfg, description)
+        params, normalizer, steps, history = _warm_start_params(run_dir, ppo_cfg)
         name, warm = WARM_START, []
     else:
         if not paths:
             raise ToddlerbotError(f"{run_dir}: no checkpoint {checkpoint or ''} to export")
-        state, history = restore_checkpoint(paths[-1], env_cfg, ppo_cfg, description)
+        state, history = restore_checkpoint(paths[-1], ppo_cfg)
         params, normalizer, steps, name = state.params.policy, state.normalizer_params, int(state.env_steps), \
             paths[-1].name
-    arrays = policy_arrays(params, normalizer, ppo_cfg.normalize_observations, obs_size)
+    arrays = policy_arrays(params, normalizer, ppo_cfg.normalize_observations,
+                           np.shape(params["params"]["MLP_0"]["hidden_0"]["kernel"])[0])
     last = history[-1] if history else {}
     stages = train.stages_until(train.training_stages(run_dir), steps)
     record = run_dir / MOTOR_PARAMS_RECORD
-    meta = {"ctrl_dt": env_cfg.ctrl_dt, "reference": run_reference_source(run_dir), "run": run_dir.name,
-            "checkpoint": name, "ppo_env_steps": steps,
+    meta = {"ctrl_dt": env_cfg.ctrl_dt, "environment": env_cfg.environment,
+            "runtime_policy": environment.runtime_policy, "reference": run_reference_source(run_dir),
+            "run": run_dir.name, "checkpoint": name, "ppo_env_steps": steps,
             "imitation_env_steps": warm[-1]["env_steps"] if warm else 0,
             "env_steps": steps + (warm[-1]["env_steps"] if warm else 0),
             "walltime_s": last.get("walltime"), "episode_reward": last.get("episode_reward"),
@@ -122,10 +126,10 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "motor_params": json.loads(read_run_text(record, "motor record")) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None
-    return write_policy(out, arrays, env_cfg, meta, description, action_space)
+    return environment.write_export(out, arrays, env_cfg, meta, description, action_space)
 
 
-def _warm_start_params(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription):
+def _warm_start_params(run_dir: Path, ppo_cfg: PPOConfig):
     """(actor parameters, normaliser, env steps, records) of the run's DAgger warm start."""
 
     from toddlerbot.rl import train
@@ -134,8 +138,8 @@ def _warm_start_params(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, de
     if not path.is_file():
         raise ToddlerbotError(f"{run_dir}: no warm start to export")
     payload = read_payload(path, "warm start")
-    width = _critic_width(path, payload, ("warm", "normalizer", "mean", "privileged_state"), "warm start")
-    state, _ = _template(env_cfg, ppo_cfg, description, width)
+    state, _ = _template(ppo_cfg, *_network_widths(path, payload, ("warm", "normalizer"), ("warm", "policy"),
+                                                   "warm start"))
     template = {"policy": state.params.policy, "value": state.params.value, "normalizer": state.normalizer_params,
                 "env_steps": np.zeros((), np.int64)}
     arrays, records = train.restore_warm_start(path, payload, template)
@@ -152,35 +156,37 @@ def run_reference_source(run_dir: Path) -> str | None:
     return read_run_text(path, "reference record").strip() if path.is_file() else None
 
 
-def _actor_width(env_cfg: EnvConfig, description: RobotDescription) -> int:
-    return env_cfg.obs.history * env_cfg.obs.frame_size(description.n_motors, len(leg_motor_indices(description)))
-
-
-def restore_checkpoint(path: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription):
-    """(TrainingState, metric history) of a checkpoint written with this configuration."""
+def restore_checkpoint(path: Path, ppo_cfg: PPOConfig):
+    """(TrainingState, metric history) of a checkpoint written with this PPO configuration."""
 
     from toddlerbot.rl import train
 
-    # the critic's input width is read back from the checkpoint
-    width = _critic_width(path, read_payload(path), ("state", "normalizer_params", "mean", "privileged_state"))
-    template, _ = _template(env_cfg, ppo_cfg, description, width)
+    # the networks' input and output widths are read back from the checkpoint
+    payload = read_payload(path)
+    widths = _network_widths(path, payload, ("state", "normalizer_params"), ("state", "params", "policy"))
+    template, _ = _template(ppo_cfg, *widths)
     state, _, history = train.load_checkpoint(path, template)
     return state, history
 
 
-def _template(env_cfg: EnvConfig, ppo_cfg: PPOConfig, description: RobotDescription, critic_width: int):
+def _template(ppo_cfg: PPOConfig, obs_size: dict[str, tuple[int, ...]], n_actions: int):
     import jax
 
     from toddlerbot.rl import train
 
-    obs_size = {"state": (_actor_width(env_cfg, description),), "privileged_state": (critic_width,)}
-    networks = train.make_networks(obs_size, len(leg_motor_indices(description)), ppo_cfg)
+    networks = train.make_networks(obs_size, n_actions, ppo_cfg)
     return train._initial_state(networks, train.make_optimizer(ppo_cfg), obs_size, jax.random.PRNGKey(0)), networks
 
 
-def _critic_width(path: Path, payload: dict, keys: tuple[str, ...], what: str = "checkpoint") -> int:
-    """The critic's input width: the length of its normaliser's mean in the checkpoint (or warm start)."""
-    shape = np.shape(payload_entry(path, payload, keys, what))
-    if len(shape) != 1:
-        raise ToddlerbotError(f"{path}: not a {what} of a walking run ({'/'.join(keys)} has shape {shape})")
-    return int(shape[0])
+def _network_widths(path: Path, payload: dict, normalizer: tuple[str, ...], policy: tuple[str, ...],
+                    what: str = "checkpoint") -> tuple[dict[str, tuple[int, ...]], int]:
+    """(the actor's and critic's input widths, the number of actions) of a checkpoint (or warm start): the lengths
+    of its normaliser's means and of its policy's log standard deviations."""
+    widths = []
+    for keys in ((*normalizer, "mean", "state"), (*normalizer, "mean", "privileged_state"),
+                 (*policy, "params", "std_logparam", "log_value")):
+        shape = np.shape(payload_entry(path, payload, keys, what))
+        if len(shape) != 1:
+            raise ToddlerbotError(f"{path}: not a {what} of a training run ({'/'.join(keys)} has shape {shape})")
+        widths.append(int(shape[0]))
+    return {"state": (widths[0],), "privileged_state": (widths[1],)}, widths[2]

@@ -46,7 +46,7 @@ def require_onnx():
 
 def policy_model(policy: RLPolicyFile):
     """The ``onnx.ModelProto`` of an ``.npz`` policy: input ``obs`` (batch, n_obs) float32, output ``action``
-    (batch, n_legs) float32; hidden activation x * (0.5 + 0.5 tanh(x / 2)), written op for op as numpy does."""
+    (batch, n_actions) float32; hidden activation x * (0.5 + 0.5 tanh(x / 2)), written op for op as numpy does."""
     onnx = require_onnx()
     from onnx import TensorProto, helper, numpy_helper
 
@@ -75,8 +75,8 @@ def policy_model(policy: RLPolicyFile):
             h = op("Mul", [h, half], f"layer{i}_tanh_half")
             h = op("Add", [h, half], f"layer{i}_sigmoid")
             x = op("Mul", [x, h], f"layer{i}_swish")
-    n_legs = len(policy.leg_motor_index)
-    mean = op("Slice", [x, const("slice_start", np.array([0], np.int64)), const("slice_end", np.array([n_legs],
+    n_actions = policy.n_actions
+    mean = op("Slice", [x, const("slice_start", np.array([0], np.int64)), const("slice_end", np.array([n_actions],
               np.int64)), const("slice_axis", np.array([1], np.int64))], "mean")
     if policy.distribution == "tanh_normal":
         nodes.append(helper.make_node("Tanh", [mean], [ONNX_OUTPUT], name="tanh_mean"))
@@ -85,12 +85,13 @@ def policy_model(policy: RLPolicyFile):
                                       [ONNX_OUTPUT], name="clip_mean"))
     n_obs = policy.kernels[0].shape[0]
     graph = helper.make_graph(
-        nodes, "toddlerbot_walk_policy",
+        nodes, f"toddlerbot_{policy.environment}_policy",
         [helper.make_tensor_value_info(ONNX_INPUT, TensorProto.FLOAT, ["batch", n_obs])],
-        [helper.make_tensor_value_info(ONNX_OUTPUT, TensorProto.FLOAT, ["batch", n_legs])],
+        [helper.make_tensor_value_info(ONNX_OUTPUT, TensorProto.FLOAT, ["batch", n_actions])],
         initializer=initializers)
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)], producer_name="toddlerbot",
-                              doc_string=f"walk-rl policy exported from {policy.path.name} ({policy.distribution})")
+                              doc_string=f"{policy.environment} policy exported from {policy.path.name} "
+                                         f"({policy.distribution})")
     model.ir_version = IR_VERSION
     helper.set_model_props(model, onnx_metadata(policy.metadata_arrays))
     onnx.checker.check_model(model)
@@ -108,11 +109,11 @@ def random_observations(policy: RLPolicyFile, n: int = 256, seed: int = 0) -> np
 
 
 def recorded_observations(npz_path: Path, steps: int = 50, command=(0.1, 0.0, 0.0)) -> np.ndarray:
-    """The observation vectors `walk-rl` (numpy) gives its network driving the robot in the CPU simulator for
-    ``steps`` control steps at ``command`` (m/s, m/s, rad/s) on the robot variant it was trained for: two per step,
-    the history and its mirror image (the symmetric controller); fewer if it falls. Empty when its motors are not
-    that packaged robot's."""
-    from toddlerbot.policies.walk_rl import WalkRLPolicy
+    """The observation vectors the policy's runtime policy (`walk-rl`, `track`; numpy) gives its network driving the
+    robot in the CPU simulator for ``steps`` control steps at ``command`` (m/s, m/s, rad/s) on the robot variant it
+    was trained for (walk-rl: two per step, the history and its mirror image, the symmetric controller); fewer if it
+    falls. Empty when its motors are not that packaged robot's."""
+    from toddlerbot.policies import make_policy
     from toddlerbot.robot.description import RobotDescription
     from toddlerbot.robot.interface import CONTROL_DT
     from toddlerbot.runtime.runner import run_policy
@@ -123,10 +124,10 @@ def recorded_observations(npz_path: Path, steps: int = 50, command=(0.1, 0.0, 0.
     if tuple(policy_file.motor_names) != tuple(description.motor_names):
         return np.zeros((0, len(policy_file.obs_mean)), np.float32)
     robot = MuJoCoRobot(description, SimConfig(control_dt=policy_file.meta.get("ctrl_dt", CONTROL_DT)))
-    walk = WalkRLPolicy(robot, npz_path)
-    recording = _Recording(walk.controller.policy)
-    walk.controller.policy = recording
-    run_policy(robot, walk, lambda _t: np.asarray(command, float), steps * robot.control_dt)
+    player = make_policy(policy_file.meta.get("runtime_policy", "walk-rl"), robot, weights=npz_path)
+    recording = _Recording(player.controller.policy)
+    player.controller.policy = recording
+    run_policy(robot, player, lambda _t: np.asarray(command, float), steps * robot.control_dt)
     return np.asarray(recording.observations, np.float32)
 
 

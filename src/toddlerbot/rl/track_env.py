@@ -21,6 +21,7 @@ imitation of a keyframe motion (`rl train --env track --motion NAME_OR_FILE`).
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from types import MappingProxyType
 from typing import NamedTuple
@@ -33,10 +34,12 @@ from brax.envs.base import State
 from toddlerbot.actuation.model import ActuatorArrays
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez, atomic_write_text
-from toddlerbot.policies.motions import load_motion
+from toddlerbot.policies.motions import MAX_MOTION_BYTES, load_motion, motion_path
+from toddlerbot.policies.track_observation import MotionTargets, track_actor_obs, track_frame, track_frame_size
 from toddlerbot.rl import config, randomization, track_config
 from toddlerbot.rl.config import Recipe
 from toddlerbot.rl.environment import RLEnvironment, training_description
+from toddlerbot.rl.export import robot_arrays
 from toddlerbot.rl.model import training_model
 from toddlerbot.rl.motion_reference import MotionReference, build_reference, in_torso_frame
 from toddlerbot.rl.observations import Sensors, add_noise, aged_imu, critic_obs, push_frame
@@ -45,6 +48,8 @@ from toddlerbot.rl.precision import use_full_precision
 from toddlerbot.rl.run_files import ACTION_SPACE, REFERENCE_RECORD
 from toddlerbot.rl.track_config import TRACK, TrackConfig
 from toddlerbot.rl.track_rewards import TRACK_REWARDS, TrackQuantities
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.yaml_input import read_text
 
 
 class ReferenceRows(NamedTuple):
@@ -67,6 +72,7 @@ class TrackEnv(RLEnvironment):
     """One robot tracking one motion; vmap it (the training wrappers do) for many."""
 
     name = TRACK
+    runtime_policy = "track"
     config_class = TrackConfig
     reward_terms = TRACK_REWARDS
     recipes = MappingProxyType({"cpu": Recipe(track_config.CPU), "mjx": Recipe(track_config.FULL),
@@ -121,8 +127,8 @@ class TrackEnv(RLEnvironment):
 
     @property
     def frame_size(self) -> int:
-        """Sensed features per history frame: motor angles, speeds, last action, gyro, gravity direction."""
-        return 2 * self.n_motors + self.action_size + 6
+        """Sensed features per history frame (`track_frame`): motor angles, speeds, last action, gyro, gravity."""
+        return track_frame_size(self.n_motors)
 
     def reset(self, rng: jax.Array) -> State:
         cfg = self.cfg
@@ -196,6 +202,22 @@ class TrackEnv(RLEnvironment):
         points = jnp.concatenate([frame.feet_pos, frame.hands_pos])
         return in_torso_frame(frame.qpos[0:3], frame.qpos[3:7], points, xp=jnp)
 
+    @classmethod
+    def write_export(cls, out: Path, arrays: dict[str, np.ndarray], cfg: TrackConfig, meta: dict,
+                     description: RobotDescription, action_space: dict[str, np.ndarray] | None) -> Path:
+        """The motion's motor targets per control step and the look-ahead (`MotionTargets`: the `track` policy plays
+        them), the motion file's text in the metadata (``motion_yaml``)."""
+        if action_space is None or "motor_targets" not in action_space:
+            raise ToddlerbotError(f"{out}: the run holds no record of its motion's reference ({ACTION_SPACE})")
+        motion = MotionTargets(str(action_space["motion"]), action_space["motor_targets"],
+                               int(action_space["motion_steps"]), tuple(cfg.lookahead))
+        text = read_text(motion_path(cfg.motion), "motion file", max_bytes=MAX_MOTION_BYTES)
+        meta = {**meta, "motion": cfg.motion, "motion_yaml": text, "hold_s": cfg.hold_s,
+                "variant": description.spec.variant}
+        return atomic_savez(out, {**arrays, **motion.arrays(), **robot_arrays(description),
+                                  "action_motor_index": np.arange(description.n_motors),
+                                  "obs_config": np.array(cfg.obs.to_json()), "meta": np.array(json.dumps(meta))})
+
     def record_action_space(self, run_dir: Path) -> None:
         """The motion tracked (`REFERENCE_RECORD`) and its reference's tables (`ACTION_SPACE`)."""
         atomic_write_text(run_dir / REFERENCE_RECORD, f"motion {self.cfg.motion}\n")
@@ -208,15 +230,13 @@ class TrackEnv(RLEnvironment):
     # observations --------------------------------------------------------------------------------------------
     def _sensed(self, s: Sensors, gravity: jax.Array, last_action: jax.Array) -> jax.Array:
         obs = self.cfg.obs
-        return jnp.concatenate([s.motor_pos - self.home_motor_pos, s.motor_vel * obs.motor_vel_scale, last_action,
-                                s.gyro * obs.gyro_scale, gravity])
+        return track_frame(s.motor_pos, self.home_motor_pos, s.motor_vel, last_action, s.gyro, gravity,
+                           obs.motor_vel_scale, obs.gyro_scale, xp=jnp)
 
     def _actor_obs(self, info: dict) -> jax.Array:
         """The sensed history, the reference's phase and its motor targets ahead (relative to home)."""
-        n = self.reference.n_steps
-        ahead = jnp.minimum(info["row"] + jnp.asarray(self.cfg.lookahead), n)
-        targets = self.rows.motor_targets[ahead] - self.home_motor_pos
-        return jnp.concatenate([info["history"].reshape(-1), (info["row"] / n)[None], targets.reshape(-1)])
+        return track_actor_obs(info["history"], info["row"], self.rows.motor_targets, self.cfg.lookahead,
+                               self.home_motor_pos, xp=jnp)
 
     def _observe(self, frame: Frame, info: dict, key: jax.Array) -> tuple[dict[str, jax.Array], dict]:
         cfg, ref, row = self.cfg, self.rows, info["row"]

@@ -38,6 +38,7 @@ from toddlerbot.policies.rl_inference import GaitReference, leg_gain_scale, mirr
 from toddlerbot.rl import config, randomization, rewards
 from toddlerbot.rl.config import EnvConfig, Recipe
 from toddlerbot.rl.environment import RLEnvironment, training_description
+from toddlerbot.rl.export import write_policy
 from toddlerbot.rl.model import training_model
 from toddlerbot.rl.observations import Sensors, actor_frame, add_noise, aged_imu, critic_obs, push_frame
 from toddlerbot.rl.physics import MODEL_FIELDS, Addresses, Frame
@@ -67,6 +68,7 @@ class WalkEnv(RLEnvironment):
     """One walking robot; vmap it (the training wrappers do) for many."""
 
     name = "walk"
+    runtime_policy = "walk-rl"
     reward_terms = rewards.WALK_REWARDS
     recipes = MappingProxyType({"cpu": Recipe(config.CPU, config.CPU_IMITATION), "mjx": Recipe(config.FULL),
                                 "smoke": Recipe(config.SMOKE, config.SMOKE_IMITATION)})
@@ -252,6 +254,12 @@ class WalkEnv(RLEnvironment):
         tilt = jnp.arccos(jnp.clip(frame.torso_z[2], -1.0, 1.0))
         height = frame.qpos[2]
         return (height < self.cfg.min_torso_height) | (tilt > self.cfg.max_tilt) | ~jnp.isfinite(height)
+
+    @classmethod
+    def write_export(cls, out: Path, arrays: dict[str, np.ndarray], cfg: EnvConfig, meta: dict,
+                     description: RobotDescription, action_space: dict[str, np.ndarray] | None) -> Path:
+        """`rl.export.write_policy`: the gait reference (residual) and the leg gain schedule, the command ranges."""
+        return write_policy(out, arrays, cfg, meta, description, action_space)
 
     def record_action_space(self, run_dir: Path) -> None:
         """The reference's source (`REFERENCE_RECORD`) and its tables with the leg gain schedule (`ACTION_SPACE`)."""
