@@ -3,21 +3,29 @@ works on the real robot as in the simulator).
 
 An attempt: wait until the torso is still, read how it lies (`policies.lying`); from a side, roll towards the
 front first (``roll_to_front``, mirrored for the other side) and read again; then play ``get_up_back`` or
-``get_up_front`` (blended in from where the joints are) and hold the home pose for `CHECK_S`. The robot stood up
-when the IMU's uprightness is at least `STOOD_UPRIGHTNESS` then; otherwise it tries again, `MAX_ATTEMPTS` in all,
-and gives up holding the joints where they are. Its last targets after a success are the home pose, so a walking
-policy can take over.
+``get_up_front`` (blended in from where the joints are) and hold the home pose for `CHECK_S`. A motion with a
+tracking policy (`rl train --env track`, exported; `trackers`) is played by it after the blend, closed-loop: the
+policy corrects the motion's targets from what the robot senses (`policies.track`); the others open-loop. The
+robot stood up when the IMU's uprightness is at least `STOOD_UPRIGHTNESS` then; otherwise it tries again,
+`MAX_ATTEMPTS` in all, and gives up holding the joints where they are. Its last targets after a success are the
+home pose, so a walking policy can take over.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.base import Action, Policy
 from toddlerbot.policies.lying import Lying, lying_on, uprightness
 from toddlerbot.policies.motions import Motion, full_pose, load_motion, mirrored
+from toddlerbot.policies.rl_inference import RLPolicyFile
+from toddlerbot.policies.track import TRACK_ENVIRONMENT, TrackController
+from toddlerbot.policies.walk_rl import SHIPPED_WEIGHTS
 from toddlerbot.robot.interface import Observation, Robot
 
 MAX_ATTEMPTS = 3
@@ -34,6 +42,12 @@ BLEND_S = 0.8
 """s to move the joints from where they are to a motion's first keyframe."""
 MOTIONS = {"back": "get_up_back", "front": "get_up_front", "right side": "roll_to_front"}
 """The motion each lying state plays; lying on the left side plays ``roll_to_front`` mirrored."""
+
+
+def shipped_trackers() -> dict[str, Path]:
+    """The tracking policies shipped for the get-up motions: ``weights/track_<motion>.npz`` where one exists."""
+    paths = {name: SHIPPED_WEIGHTS / f"track_{name}.npz" for name in MOTIONS.values()}
+    return {name: path for name, path in paths.items() if path.is_file()}
 
 
 @dataclass(frozen=True)
@@ -67,11 +81,21 @@ class GetUpPolicy(Policy):
     name = "get-up"
     needs_imu = True
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: Robot, trackers: Mapping[str, str | Path] | None = None) -> None:
+        """``trackers``: an exported tracking policy per motion name (e.g. ``{"get_up_front": "track.npz"}``), each
+        trained on that motion; None: those shipped (`shipped_trackers`); ``{}``: every motion open-loop."""
         super().__init__(robot)
         description = robot.description
         self._motions: dict[Lying, Motion] = {lying: load_motion(name, description) for lying, name in MOTIONS.items()}
         self._motions["left side"] = mirrored(self._motions["right side"], description)
+        self._trackers = {}
+        for name, path in (shipped_trackers() if trackers is None else trackers).items():
+            tracker = RLPolicyFile(path)
+            tracker.for_robot(robot.motor_names, robot.control_dt, TRACK_ENVIRONMENT, self.name)
+            if name not in MOTIONS.values() or tracker.motion is None or tracker.motion.name != name:
+                raise ToddlerbotError(f"{path}: a tracker for {name!r} must be a tracking policy of that motion, "
+                                      f"one of {', '.join(sorted(MOTIONS.values()))}")
+            self._trackers[name] = tracker
         self._home = self.joint_action(self.home_joint_pos)
         # nothing is read from the robot before `reset` (the hand-over): it may not be running yet
         self._phase, self._attempts, self._lying, self._stood_at = "wait", 0, [], None
@@ -144,6 +168,8 @@ class GetUpPolicy(Policy):
     def _play(self, lying: Lying, obs: Observation) -> None:
         self._lying.append(lying)
         self._motion = self._motions[lying]
+        tracker = self._trackers.get(self._motion.name) if lying != "left side" else None
+        self._tracking = None if tracker is None else TrackController(tracker)
         self._from = obs.joint_pos.copy()
         self._enter("roll" if lying.endswith("side") else "get-up", obs)
 
@@ -161,6 +187,9 @@ class GetUpPolicy(Policy):
                 return self._hold
             self._enter("check", obs)
             return self._home
+        if self._tracking is not None:
+            targets = self._tracking.step(obs.motor_pos, obs.motor_vel, obs.imu_ang_vel, obs.imu_quat)
+            return Action(motor_targets=targets, joint_targets=self.transmission.motor_to_joint(targets))
         return self.joint_action(full_pose(motion, self.robot.description, t))
 
     def _checking(self, obs: Observation, elapsed: float) -> Action:

@@ -258,6 +258,9 @@ class PPOConfig:
     init_std: float = 0.5
     """Initial standard deviation of the state-independent Gaussian policy (unsquashed; the env clips actions
     to [-1, 1])."""
+    init_action_scale: float = 1.0
+    """Factor on the fresh actor's output layer (`train.scaled_action_head`): below 1 its first mean actions are
+    near zero (a residual policy trained without a warm start starts on its reference)."""
     entropy_cost: float = 5e-4
     clipping_epsilon: float = 0.2
     policy_hidden: tuple[int, ...] = (512, 256, 128)

@@ -138,6 +138,17 @@ def _initial_state(networks: ppo_networks.PPONetworks, optimizer: optax.Gradient
                          env_steps=jnp.zeros((), jnp.int32))
 
 
+def scaled_action_head(state: TrainingState, scale: float) -> TrainingState:
+    """``state`` with the actor's output layer (the action means) multiplied by ``scale``, so that a fresh policy's
+    mean actions are near zero: a residual policy without a warm start then starts on its reference."""
+    if scale == 1.0:
+        return state
+    policy = state.params.policy
+    head = jax.tree.map(lambda x: x * scale, policy["params"]["Dense_0"])
+    policy = {**policy, "params": {**policy["params"], "Dense_0": head}}
+    return state.replace(params=state.params.replace(policy=policy))
+
+
 class PPO:
     """Brax's PPO pieces (networks, loss with GAE, running observation statistics, rollouts) assembled into one
     ``pmap``-ed training epoch over all local devices, for any Brax ``Env`` whose observation is a dict with
@@ -196,7 +207,8 @@ class PPO:
         return jnp.mean(jnp.sum(jnp.square(action - self.env.mirror_action(mirrored)), axis=-1))
 
     def initial_state(self, key: jax.Array) -> TrainingState:
-        return _initial_state(self.networks, self.optimizer, self.obs_size, key)
+        return scaled_action_head(_initial_state(self.networks, self.optimizer, self.obs_size, key),
+                                  self.cfg.init_action_scale)
 
     def reset(self, key: jax.Array) -> State:
         """Fresh batched environments, split over the devices."""

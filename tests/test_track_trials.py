@@ -1,0 +1,70 @@
+"""Trials of a motion on the CPU simulator (`toddlerbot.rl.track_trials`): open-loop replay against an exported
+tracking policy, judged against the motion's reference."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("jax")
+
+from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION
+from toddlerbot.policies.track import TrackPolicy
+from toddlerbot.rl.track_env import TrackEnv
+from toddlerbot.rl.track_trials import CONDITIONS, MotionTrials
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+
+NOMINAL = CONDITIONS[0]
+
+
+@pytest.fixture(scope="module")
+def trials():
+    return MotionTrials(RobotDescription.load(), "get_up_front")
+
+
+def constant_policy(path, trials: MotionTrials, action: float):
+    """An exported tracking policy of ``trials``' motion whose action is ``action`` on every motor, always."""
+    description, cfg = trials.description, trials.cfg
+    n = description.n_motors
+    width = cfg.obs.history * (3 * n + 6) + 1 + len(cfg.lookahead) * n
+    arrays = {"distribution": np.array(ACTION_DISTRIBUTION), "action_std": np.full(n, 0.1, np.float32),
+              "layer0_kernel": np.zeros((width, 8), np.float32), "layer0_bias": np.zeros(8, np.float32),
+              "layer1_kernel": np.zeros((8, n), np.float32), "layer1_bias": np.full(n, action, np.float32),
+              "obs_mean": np.zeros(width, np.float32), "obs_std": np.ones(width, np.float32)}
+    meta = {"ctrl_dt": cfg.ctrl_dt, "environment": "track", "runtime_policy": "track"}
+    return TrackEnv.write_export(path, arrays, cfg, meta, description, trials.reference.arrays())
+
+
+def test_a_zero_residual_tracker_plays_what_replay_plays_and_the_front_get_up_completes(trials, tmp_path):
+    """The `track` policy commands the reference's targets step for step (zero actions: the open-loop motion), so
+    the two players' trials agree (to the replay's own rounding of its clock, amplified by the contacts); the
+    nominal robot lying on its front gets up, within 0.01 rad of the reference's joints and 0.02 rad of its torso
+    orientation on average."""
+    zero = constant_policy(tmp_path / "zero.npz", trials, 0.0)
+    replay = trials.trial("replay", NOMINAL, 0)
+    tracked = trials.trial("track", NOMINAL, 0, zero)
+    assert replay.completed and replay.stood and replay.left_at is None
+    assert replay.motor_rmse < 0.01 and replay.orientation_error < 0.02
+    assert tracked.completed and abs(tracked.motor_rmse - replay.motor_rmse) < 1e-3
+    assert abs(tracked.orientation_error - replay.orientation_error) < 5e-3
+
+
+def test_a_tracker_that_leaves_the_reference_does_not_complete(trials, tmp_path):
+    """+0.25 rad on every motor throughout: the robot leaves the reference (and the trial says when)."""
+    bent = constant_policy(tmp_path / "bent.npz", trials, 1.0)
+    trial = trials.trial("track", NOMINAL, 0, bent)
+    assert not trial.completed and trial.left_at is not None and trial.motor_rmse > 0.1
+
+
+def test_the_track_policy_refuses_a_walking_policy_and_plays_its_motion_to_the_end(trials, tmp_path):
+    zero = constant_policy(tmp_path / "zero.npz", trials, 0.0)
+    robot = MuJoCoRobot(trials.description)
+    policy = TrackPolicy(robot, zero)
+    policy.reset(robot.observe())
+    for _ in range(trials.reference.n_steps):
+        assert not policy.done
+        policy.act(robot.observe(), np.zeros(3))
+    assert policy.done and policy.status.to_dict() == {"motion": "get_up_front", "step": trials.reference.n_steps,
+                                                       "steps": trials.reference.n_steps, "done": True}
+    assert json.loads(str(np.load(zero)["meta"]))["motion"] == "get_up_front"
