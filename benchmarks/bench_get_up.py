@@ -7,7 +7,8 @@ simulator's ground truth judges; the policy reads only the IMU). Printed per sid
 fell, time to stand (median, max), attempts used, the longest time any motor stayed above its stall torque, the
 control steps with the fall guard's lowered gains, how the robots lay, and the machine.
 
-Run: PYTHONPATH=src python benchmarks/bench_get_up.py [--seeds 20] [--first-seed 0]
+Run: PYTHONPATH=src python benchmarks/bench_get_up.py [--seeds 20] [--first-seed 0] [--sides front]
+     [--tracker get_up_front=POLICY.npz | --open-loop]  (default: the shipped trackers, if any)
 """
 
 from __future__ import annotations
@@ -37,7 +38,8 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
-def side_figures(description: RobotDescription, side: str, seeds: range) -> str:
+def side_figures(description: RobotDescription, side: str, seeds: range,
+                 trackers: dict[str, str] | None = None) -> str:
     trials, diverged, skipped = [], [], collections.Counter()
     for seed in seeds:
         try:
@@ -49,7 +51,7 @@ def side_figures(description: RobotDescription, side: str, seeds: range) -> str:
             skipped["the kick did not knock it over"] += 1
             continue
         try:
-            trials.append(get_up_trial(fallen))
+            trials.append(get_up_trial(fallen, trackers))
         except SimulationError:
             diverged.append(seed)
     stood = [t for t in trials if t.stood]
@@ -72,13 +74,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--sides", nargs="+", choices=("back", "front"), default=("back", "front"))
+    parser.add_argument("--tracker", action="append", default=[], metavar="MOTION=POLICY",
+                        help="play MOTION with this exported tracking policy (repeatable)")
+    parser.add_argument("--open-loop", action="store_true", help="play every motion open-loop (no shipped tracker)")
     args = parser.parse_args()
     description = RobotDescription.load()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    print(f"machine: {cpu_model()}, {os.cpu_count()} cores; {args.seeds} seeds per side")
-    for side in ("back", "front"):
+    trackers = dict(item.split("=", 1) for item in args.tracker) if args.tracker or args.open_loop else None
+    played = "open-loop" if trackers == {} else f"trackers {trackers}" if trackers else "the shipped trackers"
+    print(f"machine: {cpu_model()}, {os.cpu_count()} cores; {args.seeds} seeds per side; {played}")
+    for side in args.sides:
         started = time.perf_counter()
-        print(side_figures(description, side, seeds))
+        print(side_figures(description, side, seeds, trackers))
         print(f"  ({time.perf_counter() - started:.0f} s of wall time)")
 
 

@@ -8,6 +8,9 @@ import pytest
 
 pytest.importorskip("jax")
 
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.policies.get_up import GetUpPolicy
+from toddlerbot.policies.get_up_trials import fallen_robot, get_up_trial
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION
 from toddlerbot.policies.track import TrackPolicy
 from toddlerbot.rl.track_env import TrackEnv
@@ -68,3 +71,15 @@ def test_the_track_policy_refuses_a_walking_policy_and_plays_its_motion_to_the_e
     assert policy.done and policy.status.to_dict() == {"motion": "get_up_front", "step": trials.reference.n_steps,
                                                        "steps": trials.reference.n_steps, "done": True}
     assert json.loads(str(np.load(zero)["meta"]))["motion"] == "get_up_front"
+
+
+def test_get_up_plays_the_front_motion_with_its_tracker_and_refuses_a_tracker_of_another_motion(trials, tmp_path):
+    """A robot knocked onto its front while walking stands up with the front motion played by a (zero-residual)
+    tracker, on one attempt; a tracker named for a motion it was not trained on is one line."""
+    zero = constant_policy(tmp_path / "zero.npz", trials, 0.0)
+    fallen = fallen_robot(trials.description, 0, "front")
+    trial = get_up_trial(fallen, {"get_up_front": zero})
+    assert trial.stood and trial.attempts == 1 and trial.lying == ("front",) and trial.longest_over_stall < 1.0
+    with pytest.raises(ToddlerbotError, match=r"zero.npz: a tracker for 'get_up_back' must be a tracking policy of "
+                                              r"that motion, one of get_up_back, get_up_front, roll_to_front$"):
+        GetUpPolicy(MuJoCoRobot(trials.description), {"get_up_back": zero})

@@ -9,7 +9,9 @@ simulator's ground truth judges; the policy itself reads only the IMU).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -82,12 +84,13 @@ def fallen_robot(description: RobotDescription, seed: int, side: Side) -> Fallen
     return Fallen(robot, seed, side, command, float(speed))
 
 
-def get_up_trial(fallen: Fallen) -> Trial:
-    """Hand ``fallen.robot`` to the get-up policy for `LIMIT_S` and judge it by the simulator's ground truth."""
+def get_up_trial(fallen: Fallen, trackers: Mapping[str, str | Path] | None = None) -> Trial:
+    """Hand ``fallen.robot`` to the get-up policy (with ``trackers``, `GetUpPolicy`'s: None the shipped ones) for
+    `LIMIT_S` and judge it by the simulator's ground truth."""
     robot = fallen.robot
     description = robot.description
     stall = np.array([model.stall_torque_nm for model in description.motor_models])
-    policy = GetUpPolicy(robot)
+    policy = GetUpPolicy(robot, trackers)
     obs = robot.observe()
     policy.reset(obs)
     start, dt = obs.time, robot.control_dt
