@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -40,6 +41,11 @@ ImagenetOption = Annotated[Path | None, typer.Option(help="Local torchvision Res
                                                           "the appendix config's encoder from.")]
 CheckpointEveryOption = Annotated[int, typer.Option(min=1, help="Save checkpoint.pt every this many steps (and at "
                                                                 "the end).")]
+LogEveryOption = Annotated[int, typer.Option(min=1, help="Record the losses (metrics, TensorBoard, progress bar) every "
+                                                         "this many steps (and at the end).")]
+BatchSizeOption = Annotated[int | None, typer.Option(min=1, help="Global batch of a new run (under torchrun: all "
+                                                                 "processes together, split evenly); default: the "
+                                                                 "preset's.")]
 
 
 @app.command()
@@ -54,25 +60,40 @@ def train(
     threads: Annotated[int, typer.Option(min=1, help="CPU threads for torch.")] = 2,
     device: Annotated[str, typer.Option(help="Torch device to train on: cpu, cuda, cuda:1, ...")] = "cpu",
     checkpoint_every: CheckpointEveryOption = 500,
+    log_every: LogEveryOption = 50,
+    batch_size: BatchSizeOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
 ) -> None:
     """Train on the dataset's episodes (validation episodes held out), with a progress bar, a loss curve and
-    TensorBoard scalars (OUT/tensorboard; --wandb: also Weights & Biases)."""
+    TensorBoard scalars (OUT/tensorboard; --wandb: also Weights & Biases). Launched by torchrun with several
+    processes it trains data-parallel (DistributedDataParallel: gloo on the CPU, NCCL with --device cuda, one GPU
+    per process); rank 0 alone writes OUT."""
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before any work
     require_torch()
+    from toddlerbot.dp.distributed import launched_rank
     from toddlerbot.dp.train import TrainSchedule, train_on_dataset
 
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
+    if resume and batch_size is not None:
+        raise ToddlerbotError("--batch-size sets a new run's batch; a resumed run keeps its own (drop --batch-size)")
     training_budget(minutes, steps)
     output_dir(out, "--out", [dataset, imagenet_weights])
+    preset = PRESETS[config] if batch_size is None else replace(PRESETS[config], batch_size=batch_size)
+    main = launched_rank() == 0  # under torchrun only rank 0 prints
+
+    def opened(windows: int) -> None:
+        if main:
+            console.print(f"dataset {dataset}: {windows} windows; run directory {out}")
+
     result = train_on_dataset(
-        dataset, PRESETS[config], out, threads,
-        on_open=lambda windows: console.print(f"dataset {dataset}: {windows} windows; run directory {out}"),
-        minutes=minutes, resume=resume, schedule=TrainSchedule(max_steps=steps, checkpoint_every=checkpoint_every),
+        dataset, preset, out, threads, on_open=opened, minutes=minutes, resume=resume,
+        schedule=TrainSchedule(max_steps=steps, log_every=log_every, checkpoint_every=checkpoint_every),
         imagenet_weights=imagenet_weights, device=device, dashboards=sinks)
+    if not main:
+        return
     last = result.history[-1] if result.history else {}
     val = last.get("val_loss")
     console.print(f"step {result.step}: train loss {last.get('train_loss', float('nan')):.4f}, validation loss "

@@ -60,20 +60,29 @@ class MinMaxNormalizer(nn.Module):
         return y * self.half_range + self.centre
 
 
-def crop_images(images: torch.Tensor, size: int, random: bool) -> torch.Tensor:
-    """Square crops (N, 3, size, size) of images (N, 3, H, W): a random one per image in training (offsets from
-    torch's global generator), the centre one at inference."""
+def crop_offsets(n: int, height: int, width: int, size: int) -> torch.Tensor:
+    """Random (top, left) offsets (n, 2) of square ``size`` crops in (height, width) images, from torch's global
+    generator (all tops, then all lefts)."""
+    tops = torch.randint(0, height - size + 1, (n,))
+    lefts = torch.randint(0, width - size + 1, (n,))
+    return torch.stack([tops, lefts], dim=-1)
+
+
+def crop_images(images: torch.Tensor, size: int, random: bool, offsets: torch.Tensor | None = None) -> torch.Tensor:
+    """Square crops (N, 3, size, size) of images (N, 3, H, W): a random one per image in training (``offsets``
+    (N, 2) top/left, else drawn by `crop_offsets`), the centre one at inference."""
     n, _, height, width = images.shape
     if size <= 0 or (size == height and size == width):
         return images
     if not random:
         top, left = (height - size) // 2, (width - size) // 2
         return images[:, :, top:top + size, left:left + size]
-    tops = torch.randint(0, height - size + 1, (n,)).to(images.device)
-    lefts = torch.randint(0, width - size + 1, (n,)).to(images.device)
-    offsets = torch.arange(size, device=images.device)
-    rows = (tops[:, None] + offsets)[:, None, :, None]  # (n, 1, size, 1)
-    cols = (lefts[:, None] + offsets)[:, None, None, :]  # (n, 1, 1, size)
+    if offsets is None:
+        offsets = crop_offsets(n, height, width, size)
+    tops, lefts = offsets.to(images.device).unbind(-1)
+    span = torch.arange(size, device=images.device)
+    rows = (tops[:, None] + span)[:, None, :, None]  # (n, 1, size, 1)
+    cols = (lefts[:, None] + span)[:, None, None, :]  # (n, 1, 1, size)
     batch = torch.arange(n, device=images.device)[:, None, None, None]
     channels = torch.arange(images.shape[1], device=images.device)[None, :, None, None]
     return images[batch, channels, rows, cols]  # one gather for all crops

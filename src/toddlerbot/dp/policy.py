@@ -7,13 +7,15 @@ dataset units, ``observation.images.head`` (B, n_obs, 3, H, W) uint8, ``action``
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import nn
 from torch.nn import functional as F
 
 from toddlerbot.dp.config import DPConfig
 from toddlerbot.dp.encoders import ResNet18Encoder, SmallCNNEncoder
-from toddlerbot.dp.normalize import MinMaxNormalizer, crop_images, images_to_unit
+from toddlerbot.dp.normalize import MinMaxNormalizer, crop_images, crop_offsets, images_to_unit
 from toddlerbot.dp.scheduler import NoiseSchedule
 from toddlerbot.dp.unet import ConditionalUnet1D
 
@@ -26,6 +28,20 @@ def normal_noise(shape: torch.Size | tuple[int, ...], generator: torch.Generator
     validation and inference noise the same whether the network runs on the CPU or a GPU)."""
     source = generator.device if generator is not None else device
     return torch.randn(shape, generator=generator, device=source).to(device)
+
+
+@dataclass(frozen=True)
+class TrainingDraws:
+    """The random draws of one training step for b windows: the noise added to each action chunk (b, horizon,
+    action_dim), its diffusion step (b,) and, with random crops, each image's crop offsets (b, n_obs, 2). Drawn for
+    the whole (global) batch, so data-parallel processes that take their `part` use the draws one process would."""
+
+    noise: torch.Tensor
+    steps: torch.Tensor
+    crops: torch.Tensor | None = None
+
+    def part(self, rows: slice) -> TrainingDraws:
+        return TrainingDraws(self.noise[rows], self.steps[rows], None if self.crops is None else self.crops[rows])
 
 
 def build_encoder(config: DPConfig) -> nn.Module | None:
@@ -53,8 +69,9 @@ class DiffusionPolicy(nn.Module):
         self.schedule = NoiseSchedule(config.train_timesteps, config.beta_schedule, config.clip_sample,
                                       config.prediction)
 
-    def condition(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
-        """Observation features (B, n_obs * (state_dim [+ image_feature_dim])): normalised state, encoded images."""
+    def condition(self, batch: dict[str, torch.Tensor], crops: torch.Tensor | None = None) -> torch.Tensor:
+        """Observation features (B, n_obs * (state_dim [+ image_feature_dim])): normalised state, encoded images
+        (``crops`` (B, n_obs, 2): the training crops' offsets, else drawn here)."""
         state = batch[STATE]
         n = self.config.n_obs_steps
         if state.ndim != 3 or state.shape[1:] != (n, self.config.state_dim):
@@ -64,25 +81,47 @@ class DiffusionPolicy(nn.Module):
             images = batch[IMAGE]
             b = images.shape[0]
             flat = images_to_unit(images.reshape(b * n, *images.shape[2:]))
-            flat = crop_images(flat, self.config.crop_size, random=self.training)
+            flat = crop_images(flat, self.config.crop_size, random=self.training,
+                               offsets=None if crops is None else crops.reshape(b * n, 2))
             features.append(self.encoder(flat).reshape(b, n, -1))
         return torch.cat(features, dim=-1).flatten(1)
 
-    def loss(self, batch: dict[str, torch.Tensor], generator: torch.Generator | None = None) -> torch.Tensor:
-        """Denoising MSE (of the noise or the clean sample, ``config.prediction``) over the non-padded actions."""
+    def draw(self, batch: dict[str, torch.Tensor], size: int | None = None,
+             generator: torch.Generator | None = None) -> TrainingDraws:
+        """The random draws of a training step for ``size`` windows shaped like ``batch``'s (default: its own
+        size): noise and steps from ``generator`` (else the device's global one), crop offsets (in training, with
+        ``crop_size``) from torch's global CPU generator."""
+        cfg = self.config
+        b = batch[ACTION].shape[0] if size is None else size
+        device = batch[ACTION].device
+        noise = normal_noise((b, cfg.horizon, cfg.action_dim), generator, device)
+        source = generator.device if generator is not None else device
+        steps = torch.randint(0, cfg.train_timesteps, (b,), generator=generator, device=source).to(device)
+        crops = None
+        if self.training and self.encoder is not None and cfg.crop_size > 0:
+            height, width = batch[IMAGE].shape[-2:]
+            if (height, width) != (cfg.crop_size, cfg.crop_size):
+                crops = crop_offsets(b * cfg.n_obs_steps, height, width, cfg.crop_size).view(b, cfg.n_obs_steps, 2)
+        return TrainingDraws(noise, steps, crops)
+
+    def forward(self, batch: dict[str, torch.Tensor], draws: TrainingDraws) -> tuple[torch.Tensor, torch.Tensor]:
+        """The denoising loss's terms: the squared error (of the noise or the clean sample, ``config.prediction``)
+        summed over the non-padded actions, and their count (a data-parallel loss divides by the global count)."""
         x0 = self.action_norm.normalize(batch[ACTION].float())
-        b = x0.shape[0]
-        noise = normal_noise(x0.shape, generator, x0.device)
-        source = generator.device if generator is not None else x0.device
-        t = torch.randint(0, self.config.train_timesteps, (b,), generator=generator, device=source).to(x0.device)
-        pred = self.unet(self.schedule.add_noise(x0, noise, t), t, self.condition(batch))
-        err = F.mse_loss(pred, self.schedule.training_target(x0, noise), reduction="none")
+        pred = self.unet(self.schedule.add_noise(x0, draws.noise, draws.steps), draws.steps,
+                         self.condition(batch, draws.crops))
+        err = F.mse_loss(pred, self.schedule.training_target(x0, draws.noise), reduction="none")
         if ACTION_PAD in batch:
             mask = ~batch[ACTION_PAD].to(torch.bool)
         else:
             mask = torch.ones(x0.shape[:2], dtype=torch.bool, device=x0.device)
         weights = mask.unsqueeze(-1).expand_as(err).float()
-        return (err * weights).sum() / weights.sum().clamp(min=1.0)
+        return (err * weights).sum(), weights.sum()
+
+    def loss(self, batch: dict[str, torch.Tensor], generator: torch.Generator | None = None) -> torch.Tensor:
+        """Denoising MSE (of the noise or the clean sample, ``config.prediction``) over the non-padded actions."""
+        total, count = self(batch, self.draw(batch, generator=generator))
+        return total / count.clamp(min=1.0)
 
     @torch.no_grad()
     def sample(self, batch: dict[str, torch.Tensor], generator: torch.Generator | None = None,

@@ -5,10 +5,15 @@ A run directory holds ``checkpoint.pt`` (latest, resumable), ``config.json`` (th
 ``split.json`` (the episodes of each side), ``metrics.json`` (the history), ``metrics.jsonl`` (the same records,
 written as they come), ``tensorboard/`` (them as TensorBoard scalars ``dp/<key>``, `toddlerbot.metrics`) and
 ``loss_curve.png``.
+
+Launched by ``torchrun`` with several processes, `train` runs data-parallel (`toddlerbot.dp.distributed`): every
+rank draws the same global batch of windows and the same noise, steps and crops, and trains on its share of them
+under DistributedDataParallel; rank 0 alone writes the run directory.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import time
@@ -37,6 +42,7 @@ from toddlerbot.dp.data import (
     split_by_episode,
     value_ranges,
 )
+from toddlerbot.dp.distributed import DataParallel, batch_rows, join
 from toddlerbot.dp.ema import EMA
 from toddlerbot.dp.imagenet import load_imagenet_weights
 from toddlerbot.dp.plot import plot_loss_curve
@@ -84,8 +90,12 @@ def _batch(dataset: WindowDataset, indices: list[int], keys: tuple[str, ...],
     return {k: v.to(device, non_blocking=True) for k, v in gather(dataset, indices, keys).items()}
 
 
-def _mean(losses: list[torch.Tensor]) -> float:
-    return float(np.mean(torch.stack(losses).cpu().double().numpy()))
+def _mean(losses: list[torch.Tensor], parallel: DataParallel | None) -> float:
+    """Mean training loss since the last record, over all ranks (each rank's loss is its share of the global one)."""
+    mean = torch.stack(losses).double().mean()
+    if parallel is not None:
+        mean = parallel.sum(mean) / parallel.world_size
+    return float(mean)
 
 
 @torch.no_grad()
@@ -107,7 +117,9 @@ def validation_loss(state: TrainingState, dataset: WindowDataset, batches: int) 
 
 
 def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool, imagenet_weights: Path | None,
-           device: torch.device):
+           device: torch.device, world_size: int, writes: bool):
+    """The training state (new, or the checkpoint's), the split and the global batch; ``writes``: this process writes
+    the run directory (rank 0)."""
     if len(dataset) == 0:
         raise DatasetError("the window dataset is empty")
     sample = dataset[0]
@@ -120,12 +132,14 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
             raise DatasetError(f"{checkpoint}: trained on state/action dims {config.state_dim}/{config.action_dim}, "
                                f"the dataset has {state_dim}/{action_dim}")
     train_set, val_set, split = split_by_episode(dataset, config.val_fraction, config.seed)
+    global_batch = min(config.batch_size, len(train_set))
+    batch_rows(global_batch, world_size, 0)  # refused before anything is written
     split_file = run_dir / "split.json"
     if resume:
         saved = json.loads(read_text(split_file, "episode split", DatasetError)) if split_file.is_file() else None
         if saved != split:
             raise DatasetError(f"{split_file}: the dataset's episodes differ from the run being resumed")
-        return state, train_set, val_set, split
+        return state, train_set, val_set, split, global_batch
     if checkpoint.exists():
         raise CheckpointError(f"{checkpoint}: a run already exists here; resume it (--resume) or choose another "
                               "directory")
@@ -137,10 +151,11 @@ def _start(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool
             raise DPConfigError(f"ImageNet weights need encoder resnet18 (the config has {config.encoder})")
         load_imagenet_weights(state.policy.encoder, imagenet_weights)
         state.ema = EMA(state.policy, config.ema_decay)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.json", json.dumps(json.loads(config.to_json()), indent=2) + "\n")
-    atomic_write_text(split_file, json.dumps(split) + "\n")
-    return state, train_set, val_set, split
+    if writes:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(run_dir / "config.json", json.dumps(json.loads(config.to_json()), indent=2) + "\n")
+        atomic_write_text(split_file, json.dumps(split) + "\n")
+    return state, train_set, val_set, split, global_batch
 
 
 def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes: float | None = None,
@@ -156,24 +171,46 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
     ``config``'s state/action dims are taken from the dataset; on resume the checkpoint's config is used.
     Each record (``step``, ``train_loss``, ``val_loss``, ``learning_rate``, ``steps_per_s``, ``seconds``) goes to
     ``metrics.jsonl``, TensorBoard (``dashboards`` default) and, with ``dashboards.wandb``, W&B, at x = its step.
+    Under a launcher with ``WORLD_SIZE`` > 1 (torchrun) the run is data-parallel (`toddlerbot.dp.distributed`):
+    ``config.batch_size`` is the global batch, split evenly over the processes; only rank 0 writes files, validates
+    and holds the records (``history``).
     """
     schedule = schedule or TrainSchedule()
     if minutes is not None:
         schedule = replace(schedule, minutes=minutes)
     if schedule.max_steps is None and schedule.minutes is None:
         raise ValueError("train needs minutes or schedule.max_steps")
-    run_dir = Path(out_dir)
-    weights = None if imagenet_weights is None else Path(imagenet_weights)
     target = torch.device(device)
     if target.type == "cuda":
         if not torch.cuda.is_available():
             raise DPConfigError(f"device {device!r}: torch {torch.__version__} sees no CUDA GPU")
         torch.backends.cuda.matmul.allow_tf32 = torch.backends.cudnn.allow_tf32 = True
-    state, train_set, val_set, split = _start(dataset, config, run_dir, resume, weights, target)
+    parallel = join(target)
+    try:
+        return _train(dataset, config, Path(out_dir), resume, schedule, show_progress,
+                      None if imagenet_weights is None else Path(imagenet_weights),
+                      target if parallel is None else parallel.device, dashboards, parallel)
+    finally:
+        if parallel is not None:
+            parallel.leave()
+
+
+def _train(dataset: WindowDataset, config: DPConfig, run_dir: Path, resume: bool, schedule: TrainSchedule,
+           show_progress: bool, weights: Path | None, target: torch.device, dashboards: Dashboards | None,
+           parallel: DataParallel | None) -> TrainResult:
+    main = parallel is None or parallel.main
+    state, train_set, val_set, split, global_batch = _start(
+        dataset, config, run_dir, resume, weights, target, 1 if parallel is None else parallel.world_size, main)
     cfg = state.policy.config
     keys = batch_keys(cfg.uses_images)
     n_train = len(train_set)
-    batch_size = min(cfg.batch_size, n_train)
+    rows = slice(None) if parallel is None else parallel.rows(global_batch)
+    model: torch.nn.Module = state.policy
+    if parallel is not None:
+        parallel.agree("(training windows, validation windows, step, episode split)",
+                       (n_train, len(val_set), state.step, split))
+        model = parallel.wrap(state.policy)  # rank 0's weights on every rank
+        parallel.broadcast(state.ema.model)
     started = time.perf_counter()
     deadline = None if schedule.minutes is None else started + 60.0 * schedule.minutes
     checkpoint = run_dir / CHECKPOINT
@@ -182,29 +219,45 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
 
     def record() -> None:
         nonlocal since
-        now = time.perf_counter()
-        entry = {"step": state.step, "train_loss": _mean(losses),
-                 "val_loss": validation_loss(state, val_set, schedule.val_batches),
-                 "learning_rate": float(state.optimizer.param_groups[0]["lr"]),
-                 "steps_per_s": (state.step - since[0]) / max(now - since[1], 1e-9), "seconds": now - started}
-        state.history.append(entry)
-        metrics.log("dp", entry, step=state.step)
+        train_loss = _mean(losses, parallel)  # every rank takes part
         losses.clear()
+        if main:
+            now = time.perf_counter()
+            entry = {"step": state.step, "train_loss": train_loss,
+                     "val_loss": validation_loss(state, val_set, schedule.val_batches),
+                     "learning_rate": float(state.optimizer.param_groups[0]["lr"]),
+                     "steps_per_s": (state.step - since[0]) / max(now - since[1], 1e-9), "seconds": now - started}
+            state.history.append(entry)
+            metrics.log("dp", entry, step=state.step)
         since = (state.step, time.perf_counter())  # validation time is not training time
 
+    def time_is_up() -> bool:
+        if deadline is None:
+            return False
+        up = time.perf_counter() >= deadline
+        return up if parallel is None else parallel.decide(up)  # all ranks stop at the same step
+
     state.policy.train()
-    with MetricsLogger.open(run_dir, {"dp": "metrics.jsonl"}, dashboards, job_type="dp-train",
-                            config=json.loads(cfg.to_json())) as metrics:
+    logger = (MetricsLogger.open(run_dir, {"dp": "metrics.jsonl"}, dashboards, job_type="dp-train",
+                                 config=json.loads(cfg.to_json())) if main else contextlib.nullcontext())
+    with logger as metrics:
         with Progress(TextColumn("dp train"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
-                      disable=not show_progress) as bar:
+                      disable=not (show_progress and main)) as bar:
             task = bar.add_task("train", total=schedule.max_steps, completed=state.step, info="")
             while True:
                 if schedule.max_steps is not None and state.step >= schedule.max_steps:
                     break
-                if deadline is not None and time.perf_counter() >= deadline:
+                if time_is_up():
                     break
-                indices = torch.randperm(n_train, generator=state.data_rng)[:batch_size].tolist()
-                loss = state.policy.loss(_batch(train_set, indices, keys, target))
+                # every rank draws the whole global batch and its noise, and trains on its own rows of them
+                indices = torch.randperm(n_train, generator=state.data_rng)[:global_batch].tolist()
+                batch = _batch(train_set, indices[rows], keys, target)
+                draws = state.policy.draw(batch, global_batch).part(rows)
+                total, count = model(batch, draws)
+                if parallel is None:
+                    loss = total / count.clamp(min=1.0)
+                else:  # DDP averages gradients over ranks: this rank's share of the global mean
+                    loss = total * parallel.world_size / parallel.sum(count).clamp(min=1.0)
                 state.optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 state.optimizer.step()
@@ -213,18 +266,20 @@ def train(dataset: WindowDataset, config: DPConfig, out_dir: str | Path, minutes
                 losses.append(loss.detach())
                 if state.step % schedule.log_every == 0:
                     record()
-                    last = state.history[-1]
-                    val = "-" if last["val_loss"] is None else f"{last['val_loss']:.4f}"
-                    bar.update(task, info=f"step {state.step} loss {last['train_loss']:.4f} val {val}")
-                if state.step % schedule.checkpoint_every == 0:
+                    if main:
+                        last = state.history[-1]
+                        val = "-" if last["val_loss"] is None else f"{last['val_loss']:.4f}"
+                        bar.update(task, info=f"step {state.step} loss {last['train_loss']:.4f} val {val}")
+                if main and state.step % schedule.checkpoint_every == 0:
                     save_checkpoint(checkpoint, state)
                 bar.update(task, completed=state.step)
         if losses:
             record()
-    save_checkpoint(checkpoint, state)
-    atomic_write_text(run_dir / "metrics.json", json.dumps(state.history, indent=1) + "\n")
-    if state.history:
-        plot_loss_curve(state.history, run_dir / "loss_curve.png")
+    if main:
+        save_checkpoint(checkpoint, state)
+        atomic_write_text(run_dir / "metrics.json", json.dumps(state.history, indent=1) + "\n")
+        if state.history:
+            plot_loss_curve(state.history, run_dir / "loss_curve.png")
     return TrainResult(run_dir, checkpoint, state.step, list(state.history), split)
 
 
