@@ -13,6 +13,8 @@ from toddlerbot.policies.get_up import GetUpPolicy
 from toddlerbot.policies.get_up_trials import fallen_robot, get_up_trial
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION
 from toddlerbot.policies.track import TrackPolicy
+from toddlerbot.policies.walk_rl import SHIPPED_WEIGHTS
+from toddlerbot.rl.track_config import TrackConfig
 from toddlerbot.rl.track_env import TrackEnv
 from toddlerbot.rl.track_trials import CONDITIONS, MotionTrials
 from toddlerbot.robot.description import RobotDescription
@@ -83,3 +85,13 @@ def test_get_up_plays_the_front_motion_with_its_tracker_and_refuses_a_tracker_of
     with pytest.raises(ToddlerbotError, match=r"zero.npz: a tracker for 'get_up_back' must be a tracking policy of "
                                               r"that motion, one of get_up_back, get_up_front, roll_to_front$"):
         GetUpPolicy(MuJoCoRobot(trials.description), {"get_up_back": zero})
+
+
+def test_a_tracker_of_a_built_in_motion_ships_beside_the_walking_policies(tmp_path):
+    """`rl export --ship` of a track run writes ``weights/track_<motion>.npz`` (where `get-up` finds it); a motion
+    file or a variant ships nothing."""
+    cfg = TrackConfig(motion="get_up_front")
+    assert TrackEnv.shipped_export(cfg) == SHIPPED_WEIGHTS / "track_get_up_front.npz"
+    with pytest.raises(ToddlerbotError, match=r"^--ship: only trackers of a built-in motion on the packaged robot "
+                                              r"ship \(this run: motion '/x/my.yaml', variant None\)$"):
+        TrackEnv.shipped_export(TrackConfig(motion="/x/my.yaml"))

@@ -21,7 +21,6 @@ from toddlerbot.cli.output import console
 from toddlerbot.cli.output_paths import output_dir, output_file, source_checkout
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.motions import builtin_motions
-from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig
 from toddlerbot.rl.environments import ENVIRONMENTS
 from toddlerbot.rl.launch import TrainRequest
@@ -248,10 +247,12 @@ def _export_target(run: Path, out: Path | None, export_format: str, ship: bool) 
         raise ToddlerbotError(f"{run}: not a training run directory (an .npz is already the numpy export; "
                               "--format onnx converts it)")
     if ship:
+        from toddlerbot.rl.environments import environment_class
         from toddlerbot.rl.train import load_config
 
         if out is not None:
             raise ToddlerbotError("--ship writes the package's shipped policy; drop --out")
-        out = default_weights(load_config(run)[0].variant)
+        env_cfg = load_config(run)[0]
+        out = environment_class(env_cfg.environment).shipped_export(env_cfg)
         source_checkout("--ship")
     return output_file(out or run / "policy.npz", "--out", inputs, into_package=ship)

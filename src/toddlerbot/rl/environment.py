@@ -75,6 +75,12 @@ class RLEnvironment(Env):
         raise ToddlerbotError(f"the {cls.name!r} environment has no runtime policy: its runs are not exported")
 
     @classmethod
+    def shipped_export(cls, cfg: EnvConfig) -> Path:
+        """Where `rl export --ship` puts a run's policy in the package (the file its runtime policy loads by
+        default)."""
+        raise ToddlerbotError(f"the {cls.name!r} environment ships no policy")
+
+    @classmethod
     def recipe(cls, backend: str, smoke: bool = False) -> Recipe:
         """The default PPO and warm-start settings on a resolved physics backend (``smoke``: the tiny run's)."""
         return cls.recipes["smoke" if smoke else backend]

@@ -34,8 +34,9 @@ from brax.envs.base import State
 from toddlerbot.actuation.model import ActuatorArrays
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez, atomic_write_text
-from toddlerbot.policies.motions import MAX_MOTION_BYTES, load_motion, motion_path
+from toddlerbot.policies.motions import MAX_MOTION_BYTES, builtin_motions, load_motion, motion_path
 from toddlerbot.policies.track_observation import MotionTargets, track_actor_obs, track_frame, track_frame_size
+from toddlerbot.policies.walk_rl import SHIPPED_WEIGHTS
 from toddlerbot.rl import config, randomization, track_config
 from toddlerbot.rl.config import Recipe
 from toddlerbot.rl.environment import RLEnvironment, training_description
@@ -217,6 +218,15 @@ class TrackEnv(RLEnvironment):
         return atomic_savez(out, {**arrays, **motion.arrays(), **robot_arrays(description),
                                   "action_motor_index": np.arange(description.n_motors),
                                   "obs_config": np.array(cfg.obs.to_json()), "meta": np.array(json.dumps(meta))})
+
+    @classmethod
+    def shipped_export(cls, cfg: TrackConfig) -> Path:
+        """``track_<motion>.npz`` beside the shipped walking policies, for a built-in motion on the packaged robot
+        (the get-up policy plays the get-up motions' with them, `policies.get_up.shipped_trackers`)."""
+        if cfg.motion not in builtin_motions() or cfg.variant is not None:
+            raise ToddlerbotError(f"--ship: only trackers of a built-in motion on the packaged robot ship (this run: "
+                                  f"motion {cfg.motion!r}, variant {cfg.variant!r})")
+        return SHIPPED_WEIGHTS / f"track_{cfg.motion}.npz"
 
     def record_action_space(self, run_dir: Path) -> None:
         """The motion tracked (`REFERENCE_RECORD`) and its reference's tables (`ACTION_SPACE`)."""

@@ -35,6 +35,7 @@ from brax.envs.base import State
 from toddlerbot.actuation.model import ActuatorArrays
 from toddlerbot.files import atomic_savez, atomic_write_text
 from toddlerbot.policies.rl_inference import GaitReference, leg_gain_scale, mirror_frame, mirror_leg_action
+from toddlerbot.policies.walk_rl import default_weights
 from toddlerbot.rl import config, randomization, rewards
 from toddlerbot.rl.config import EnvConfig, Recipe
 from toddlerbot.rl.environment import RLEnvironment, training_description
@@ -260,6 +261,11 @@ class WalkEnv(RLEnvironment):
                      description: RobotDescription, action_space: dict[str, np.ndarray] | None) -> Path:
         """`rl.export.write_policy`: the gait reference (residual) and the leg gain schedule, the command ranges."""
         return write_policy(out, arrays, cfg, meta, description, action_space)
+
+    @classmethod
+    def shipped_export(cls, cfg: EnvConfig) -> Path:
+        """``walk_rl.npz``, or ``walk_rl_<variant>.npz`` for a variant (`policies.walk_rl.default_weights`)."""
+        return default_weights(cfg.variant)
 
     def record_action_space(self, run_dir: Path) -> None:
         """The reference's source (`REFERENCE_RECORD`) and its tables with the leg gain schedule (`ACTION_SPACE`)."""
