@@ -134,14 +134,15 @@ def test_rl_export_writes_beside_the_run_and_never_into_the_package(tmp_path, mo
 def test_rl_export_ship_writes_the_shipped_policy_only_from_a_source_checkout(tmp_path, monkeypatch, capsys):
     from cli_support import one_line_error, run_main
     from ppo_support import small_run
-    from toddlerbot.cli import output_paths, rl
+    from toddlerbot.cli import output_paths
     from toddlerbot.policies.rl_inference import RLPolicyFile
+    from toddlerbot.rl import walk_env
 
     run = small_run(tmp_path)
     installed = tmp_path / "site-packages" / "toddlerbot"  # a wheel install: no checkout around it
     (installed / "policies" / "weights").mkdir(parents=True)
     monkeypatch.setattr(output_paths, "PACKAGE_DIR", installed)
-    monkeypatch.setattr(rl, "default_weights", lambda variant: installed / "policies" / "weights" / "walk_rl.npz")
+    monkeypatch.setattr(walk_env, "default_weights", lambda variant: installed / "policies" / "weights" / "walk_rl.npz")
     code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, "--ship")
     assert "--ship writes into the package at" in one_line_error(code, err) and "not in a source checkout" in err
     assert not (installed / "policies" / "weights" / "walk_rl.npz").exists()
@@ -151,7 +152,7 @@ def test_rl_export_ship_writes_the_shipped_policy_only_from_a_source_checkout(tm
     (checkout / ".git").mkdir()
     (checkout / "pyproject.toml").write_text("[project]\nname = 'toddlerbot'\n")
     monkeypatch.setattr(output_paths, "PACKAGE_DIR", package)
-    monkeypatch.setattr(rl, "default_weights", lambda variant: package / "policies" / "weights" / "walk_rl.npz")
+    monkeypatch.setattr(walk_env, "default_weights", lambda variant: package / "policies" / "weights" / "walk_rl.npz")
     code, _, err = run_main(monkeypatch, capsys, "rl", "export", run, "--ship")
     assert code == 0, err
     assert RLPolicyFile(package / "policies" / "weights" / "walk_rl.npz").meta["ppo_env_steps"] == 4096
