@@ -20,7 +20,14 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 from toddlerbot.policies import policy_names
 
-app = typer.Typer(help="Evaluate policies in simulation (appendix Table 7).", no_args_is_help=True)
+app = typer.Typer(help="Evaluate policies in simulation, or logged runs (appendix Table 7).", no_args_is_help=True)
+
+LogOption = Annotated[Path | None, typer.Option(
+    help="A run log (hw run --log, sim run --log): the errors of that run, from its ground-truth pose or from "
+         "--mocap; nothing is simulated.")]
+MocapOption = Annotated[Path | None, typer.Option(
+    help="The motion capture of the --log run as CSV: header time,x,y,z,qw,qx,qy,qz (s, m, unit quaternion; world "
+         "z up), aligned to the log on its IMU gyro (docs/hardware.md, \"Table 7 on the real robot\").")]
 
 
 @app.command()
@@ -39,10 +46,36 @@ def tracking(
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
     motor_params: MotorParamsOption = None,
     asymmetric: AsymmetricOption = False,
+    log: LogOption = None,
+    mocap: MocapOption = None,
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
-    (exit code 1 if the robot fell)."""
-    from toddlerbot.runtime.tracking import evaluate_policy, plot_velocity_tracking
+    (exit code 1 if the robot fell); with --log, the same errors of a logged run."""
+    from toddlerbot.runtime.tracking import plot_velocity_tracking
+
+    if log is None and mocap is None:
+        result, title, truth = _simulated(policy, commands, seconds, weights, plot, motor_params, asymmetric,
+                                          as_json)
+    else:
+        simulation = {"--commands": commands, "--seconds": seconds, "--weights": weights,
+                      "--motor-params": motor_params, "--asymmetric": asymmetric or None}
+        given = [name for name, value in simulation.items() if value is not None]
+        result, title, truth = _logged(log, mocap, plot, given)
+    summary = result.summary() | truth
+    if plot is not None:
+        plot_velocity_tracking(result, title, plot)
+    if as_json:
+        print(json_text(summary))
+    else:
+        _print(title, summary, plot)
+    if summary["falls"]:
+        raise typer.Exit(1)
+
+
+def _simulated(policy: str, commands: str | None, seconds: float | None, weights: Path | None, plot: Path | None,
+               motor_params: list[Path] | None, asymmetric: bool, quiet: bool):
+    """The policy's tracking in the simulator, its title, and no ground-truth figures (the simulator's)."""
+    from toddlerbot.runtime.tracking import evaluate_policy
 
     if policy not in policy_names():
         raise ToddlerbotError(f"--policy: unknown policy {policy!r}; expected one of {', '.join(policy_names())}")
@@ -51,18 +84,30 @@ def tracking(
     if plot is not None:
         output_file(plot, "--plot", [weights, *robot.files])
     description = robot.description()
-    with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not as_json else _null():
+    with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not quiet else _null():
         result = evaluate_policy(description, policy, schedule_text, seconds, weights,
                                  **symmetric_option(policy, asymmetric))
-    summary = result.summary()
+    return result, policy, {}
+
+
+def _logged(log: Path | None, mocap: Path | None, plot: Path | None, simulation_options: list[str]):
+    """The logged run's tracking from its ground truth or the capture, its title, and where the ground truth came
+    from (the capture's alignment)."""
+    from toddlerbot.runtime.log import RunLog
+    from toddlerbot.runtime.mocap import log_tracking, read_capture
+
+    if log is None:
+        raise ToddlerbotError("--mocap needs --log RUN.npz: the run log of the run the capture watched")
+    if simulation_options:
+        raise ToddlerbotError(f"--log scores a logged run; {', '.join(simulation_options)} set up a simulated one: "
+                              "give one or the other")
     if plot is not None:
-        plot_velocity_tracking(result, policy, plot)
-    if as_json:
-        print(json_text(summary))
-    else:
-        _print(policy, summary, plot)
-    if summary["falls"]:
-        raise typer.Exit(1)
+        output_file(plot, "--plot", [log, mocap])
+    run = RunLog.load(log)
+    result, alignment = log_tracking(run, str(log), None if mocap is None else read_capture(mocap))
+    truth = {"ground_truth": str(mocap or log)} | ({} if alignment is None else {
+        "mocap_offset_s": alignment.offset_s, "mocap_correlation": alignment.correlation})
+    return result, f"{run.policy} ({log.name})", truth
 
 
 def _schedule(commands: str | None, seconds: float | None) -> tuple[str, float]:
@@ -77,12 +122,17 @@ def _schedule(commands: str | None, seconds: float | None) -> tuple[str, float]:
     return commands or DEFAULT_COMMANDS, seconds
 
 
-def _print(policy: str, summary: dict, plot: Path | None) -> None:
+def _print(title: str, summary: dict, plot: Path | None) -> None:
     from toddlerbot.runtime.tracking import TABLE7_SIM
 
-    console.print(f"[bold]{policy}[/]: position {summary['position_m']:.3f} m, linear velocity "
+    simulated = "ground_truth" not in summary
+    truth = "" if simulated else f"; ground truth {summary['ground_truth']}" + (
+        f", offset {summary['mocap_offset_s']:+.3f} s, correlation {summary['mocap_correlation']:.2f}"
+        if "mocap_offset_s" in summary else "")
+    console.print(f"[bold]{title}[/]: position {summary['position_m']:.3f} m, linear velocity "
                   f"{summary['lin_vel_mps']:.3f} m/s, angular velocity {summary['ang_vel_radps']:.3f} rad/s, "
-                  f"falls {summary['falls']} ({summary['duration_s']:.1f} s simulated)")
+                  f"falls {summary['falls']} ({summary['duration_s']:.1f} s {'simulated' if simulated else 'logged'}"
+                  f"{truth})", highlight=False)
     console.print("appendix Table 7 (simulation): {:.3f} m, {:.3f} m/s, {:.3f} rad/s".format(*TABLE7_SIM))
     if plot is not None:
         console.print(f"plot: {plot}")
