@@ -4,9 +4,9 @@ Modules, one job each: ``config`` (plain-data configuration), ``normalize`` (min
 one uint8 -> float image conversion), ``encoders`` (ResNet-18 with GroupNorm, small CNN), ``imagenet`` (local
 ImageNet weights -> GroupNorm ResNet), ``unet`` (conditional 1-D U-Net with FiLM), ``scheduler`` (DDPM/DDIM),
 ``policy`` (the network + noise schedule), ``ema``, ``checkpoint``, ``data`` (window-dataset protocol, split by
-episode, dataset adapter), ``train``, ``chunker`` and ``runner`` (10 Hz chunks -> 50 Hz targets, worker thread),
-``evaluate`` (closed-loop success on a simulated task), ``live`` (a checkpoint as a runtime policy for
-``sim run``/``hw run --policy dp``).
+episode, dataset adapter), ``train`` (with ``distributed``: data-parallel under torchrun), ``chunker`` and
+``runner`` (10 Hz chunks -> 50 Hz targets, worker thread), ``evaluate`` (closed-loop success on a simulated task),
+``live`` (a checkpoint as a runtime policy for ``sim run``/``hw run --policy dp``).
 ``chunker`` and ``runner`` need only numpy.
 """
 
