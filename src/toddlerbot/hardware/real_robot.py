@@ -181,9 +181,9 @@ class TrackedRealRobot(RealRobot, GroundTruth):
     """A `RealRobot` watched by motion capture (`mocap`, set before the run: `StreamMocap` of the HIL emulator): the
     runner logs the torso pose it reports as ground truth, so the run's tracking errors are computed as in the
     simulator. The pose is the one reported when the observation was taken, as the simulator's is its last
-    observation's: read when the runner asked for it (after the policy had computed: 20-40 ms on a loaded 2-core VM)
-    it was that much newer than the logged IMU reading. Falls are still the IMU's (`Robot.fallen`): motion capture
-    only watches."""
+    observation's: read when the runner asked for it, after the policy had computed (walk-rl: a median 0.6 ms, up to
+    12 ms on a loaded 2-core VM), it was that much newer than the logged IMU reading. Falls are still the IMU's
+    (`Robot.fallen`): motion capture only watches."""
 
     mocap: StreamMocap
     _pose: Pose | None = None
