@@ -90,6 +90,11 @@ MirrorLossOption = Annotated[float | None, typer.Option(
 RewardWeightOption = Annotated[list[str] | None, typer.Option(
     help="Override a reward term's weight, NAME=WEIGHT (repeatable; e.g. path_xy=5 for the position-tracking term "
          "that is off by default: docs/rl.md \"Rewards\").")]
+CompileCacheOption = Annotated[bool, typer.Option(
+    "--compile-cache/--no-compile-cache",
+    help="Keep compiled programs in JAX's persistent compilation cache (~/.cache/toddlerbot/jax, or the folder "
+         "TODDLERBOT_COMPILE_CACHE names; TODDLERBOT_COMPILE_CACHE=off also turns it off), so that a second run or a "
+         "resume of the same configuration loads them instead of compiling (docs/rl.md).")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
@@ -124,6 +129,7 @@ def train(
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
+    compile_cache: CompileCacheOption = True,
 ) -> None:
     """Train an environment (--env, default walk) with PPO on its recipe: checkpoints, curve, TensorBoard, W&B."""
     for limit, count, option in ((minutes, epochs, "--epochs"), (None, timesteps, "--timesteps"),
@@ -134,7 +140,7 @@ def train(
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
                            hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()),
                            env, motion)
-    plan = _plan(out, resume, request)
+    plan = _plan(out, resume, request, compile_cache)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 
 
@@ -150,8 +156,9 @@ def _report(run_dir: Path, history: list[dict]) -> None:
                   f"({last['sps']:.0f} steps/s), reward/step {last['step_reward']:.3f}; curve {png}")
 
 
-def _plan(out: Path | None, resume: Path | None, request: TrainRequest):
-    """The training plan, JAX started with the smoke run's XLA flags where the run is (or resumes) a smoke run."""
+def _plan(out: Path | None, resume: Path | None, request: TrainRequest, compile_cache: bool = True):
+    """The training plan, JAX started with the smoke run's XLA flags where the run is (or resumes) a smoke run, and
+    with its persistent compilation cache on or off."""
     import os
 
     from toddlerbot.rl.config import SMOKE_XLA_FLAGS
@@ -160,6 +167,9 @@ def _plan(out: Path | None, resume: Path | None, request: TrainRequest):
     if request.smoke or (resume is not None and is_smoke_run(resume)):  # before JAX starts its CPU backend
         os.environ.setdefault("XLA_FLAGS", SMOKE_XLA_FLAGS)
     _require_jax()
+    from toddlerbot.rl.compilation import use_compile_cache
+
+    console.print(use_compile_cache(compile_cache).describe())  # before anything compiles
     if resume is not None:
         return resume_plan(resume, request)
     if request.imitation_iterations:

@@ -40,6 +40,7 @@ from flax import serialization
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_bytes, atomic_write_text
 from toddlerbot.metrics import Dashboards, MetricsLogger
+from toddlerbot.rl.compilation import compile_clock
 from toddlerbot.rl.config import (
     DEFAULT_ENVIRONMENT,
     CommandConfig,
@@ -412,10 +413,12 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     continues from its actor, critic and normaliser. ``max_epochs`` / ``time_limit_s`` stop this call early
     (after a checkpoint; an epoch is not started when the previous one's duration says it would end past the
     limit); ``resume`` continues from there. Records hold ``walltime``: seconds since the run started, every
-    phase included (summed over resumed calls). Every record goes through one `MetricsLogger`: the JSON lines,
-    the TensorBoard scalars ``ppo/<key>`` and ``dagger/<key>`` in ``tensorboard/`` and, with
-    ``dashboards.wandb``, W&B (``dashboards`` default: JSON lines and TensorBoard). Their x axis is the run's
-    environment steps, the warm start's included (as in ``training_curve.png``)."""
+    phase included (summed over resumed calls); ``compile_s``: seconds JAX spent compiling PPO's programs since the
+    previous record (in a call's first record: the environments' reset and the epoch, from the persistent cache
+    where it has them), which ``epoch_seconds`` and ``sps`` (training alone) exclude. Every record goes through
+    one `MetricsLogger`: the JSON lines, the TensorBoard scalars ``ppo/<key>`` and ``dagger/<key>`` in
+    ``tensorboard/`` and, with ``dashboards.wandb``, W&B (``dashboards`` default: JSON lines and TensorBoard). Their
+    x axis is the run's environment steps, the warm start's included (as in ``training_curve.png``)."""
     t_start = time.perf_counter()
     use_full_precision()
     run_dir = Path(run_dir)
@@ -466,6 +469,8 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
     evaluator = _evaluator(env, ppo.make_policy, cfg, key) if cfg.num_eval_envs > 0 else None
 
     key, k_env = jax.random.split(key)
+    clock = compile_clock()
+    compiled = clock.seconds()  # from here on PPO's programs (the warm start's are not)
     env_state = ppo.reset(k_env)
     device = describe_device(env)
     warm_steps = _warm_start_env_steps(run_dir)
@@ -477,16 +482,18 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
             break
         epochs_run += 1
         key, k_epoch = jax.random.split(key)
-        t0 = time.perf_counter()
+        t0, compiling = time.perf_counter(), clock.seconds()
         ts, env_state, epoch_metrics = ppo.epoch(ts, env_state, k_epoch)
-        last_epoch = time.perf_counter() - t0
+        now = clock.seconds()
+        last_epoch = time.perf_counter() - t0 - (now - compiling)  # training alone: its compilation excluded
         steps = int(ts.env_steps)
-        record = {"env_steps": steps, "epoch_seconds": last_epoch,
+        record = {"env_steps": steps, "epoch_seconds": last_epoch, "compile_s": now - compiled,
                   "walltime": prior_walltime + time.perf_counter() - t_start, "device": device,
                   "sps": ppo.updates_per_epoch * cfg.env_steps_per_update / last_epoch, **epoch_metrics}
         if evaluator is not None:
             eval_metrics = evaluator.run_evaluation((ts.normalizer_params, ts.params.policy, ts.params.value), {})
             record.update({k: float(v) for k, v in eval_metrics.items() if np.ndim(v) == 0})
+        compiled = now
         history.append(record)
         save_checkpoint(run_dir, ts, key, history)
         metrics.log("ppo", record, step=warm_steps + steps)
