@@ -34,8 +34,9 @@ def main() -> None:
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     print(f"machine: {cpu_model()}, {os.cpu_count()} cores; motion {args.motion}; policy {args.weights}; "
           f"seeds {seeds.start}-{seeds.stop - 1}")
-    print("| condition | player | completed | stood | motor RMSE, rad (median) | orientation error, rad (median) |")
-    print("|---|---|---|---|---|---|")
+    print("| condition | player | completed | stood | motor RMSE, rad (median) | tilt error, rad (median) | "
+          "final heading error, rad (median of abs) |")
+    print("|---|---|---|---|---|---|---|")
     for condition in CONDITIONS:
         for player in ("replay", "track"):
             runs = [trials.trial(player, condition, seed, args.weights) for seed in seeds]
@@ -43,7 +44,8 @@ def main() -> None:
             stood = sum(r.stood for r in runs)
             print(f"| {condition.name} | {player} | {completed}/{len(runs)} | {stood}/{len(runs)} | "
                   f"{np.median([r.motor_rmse for r in runs]):.3f} | "
-                  f"{np.median([r.orientation_error for r in runs]):.3f} |", flush=True)
+                  f"{np.median([r.tilt_error for r in runs]):.3f} | "
+                  f"{np.median([abs(r.heading_error) for r in runs]):.3f} |", flush=True)
     print(f"({time.perf_counter() - started:.0f} s of wall time)")
 
 

@@ -66,8 +66,11 @@ class MotionTrial:
     stood: bool
     motor_rmse: float
     """RMS of the motor angles' error against the reference over the trial, rad."""
-    orientation_error: float
-    """Mean torso orientation error against the reference over the trial, rad."""
+    tilt_error: float
+    """Mean angle between the torso's up axis and the reference's over the trial, rad: the orientation error
+    without the heading, which the policy cannot sense (its IMU reading is the gravity direction and the gyro)."""
+    heading_error: float
+    """The torso's heading at the end against the reference's (standing), rad, in [-pi, pi]."""
 
 
 class MotionTrials:
@@ -100,7 +103,7 @@ class MotionTrials:
         rng = np.random.default_rng([seed, 3])
         kick_row = round(rng.uniform(0.5, self.motion.duration) / cfg.ctrl_dt)
         kick = condition.kick_speed * np.array([np.cos(angle := rng.uniform(0, 2 * np.pi)), np.sin(angle)])
-        squared, turned, left_at = [], [], None
+        squared, tilted, left_at = [], [], None
         for row in range(1, ref.n_steps + 1):
             action = policy.act(obs, np.zeros(3))
             obs = robot.step(action.motor_targets, action.kp, action.kd)
@@ -109,7 +112,7 @@ class MotionTrials:
             quat = robot.base_quat
             error = 2.0 * np.arccos(np.clip(abs(float(np.dot(quat, ref.torso_quat[row]))), 0.0, 1.0))
             squared.append(np.mean((obs.motor_pos - self._ref_motor_pos[row]) ** 2))
-            turned.append(error)
+            tilted.append(np.arccos(np.clip(np.dot(up_axis(quat), up_axis(ref.torso_quat[row])), -1.0, 1.0)))
             pos = robot.base_pos
             left = (error > cfg.max_orientation_error or abs(pos[2] - ref.torso_height[row]) > cfg.max_height_error
                     or np.linalg.norm(pos[:2] - ref.qpos[row, 0:2]) > cfg.max_position_error)
@@ -117,5 +120,19 @@ class MotionTrials:
                 left_at = row * cfg.ctrl_dt
         stood = (robot.torso_height() >= HEIGHT_FRACTION * robot.standing_height
                  and robot.torso_uprightness() >= UPRIGHTNESS)
+        heading = heading_of(robot.base_quat) - heading_of(ref.torso_quat[-1])
         return MotionTrial(player, condition.name, seed, left_at is None and stood, left_at, stood,
-                           float(np.sqrt(np.mean(squared))), float(np.mean(turned)))
+                           float(np.sqrt(np.mean(squared))), float(np.mean(tilted)),
+                           float(np.angle(np.exp(1j * heading))))
+
+
+def up_axis(quat: np.ndarray) -> np.ndarray:
+    """The torso's z axis in the world frame, of its orientation (w, x, y, z)."""
+    w, x, y, z = quat
+    return np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+
+
+def heading_of(quat: np.ndarray) -> float:
+    """The torso's heading (the direction of its x axis in the floor plane), rad, of a torso near upright."""
+    w, x, y, z = quat
+    return float(np.arctan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z)))
