@@ -22,6 +22,7 @@ from toddlerbot.cli.output_paths import output_dir, output_file, source_checkout
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies.motions import builtin_motions
 from toddlerbot.rl.config import PHYSICS_BACKENDS, RandomizationConfig
+from toddlerbot.rl.distributed import Processes
 from toddlerbot.rl.environments import ENVIRONMENTS
 from toddlerbot.rl.launch import TrainRequest
 from toddlerbot.rl.onnx_export import EXPORT_FORMATS
@@ -95,6 +96,14 @@ CompileCacheOption = Annotated[bool, typer.Option(
     help="Keep compiled programs in JAX's persistent compilation cache (~/.cache/toddlerbot/jax, or the folder "
          "TODDLERBOT_COMPILE_CACHE names; TODDLERBOT_COMPILE_CACHE=off also turns it off), so that a second run or a "
          "resume of the same configuration loads them instead of compiling (docs/rl.md).")]
+CoordinatorOption = Annotated[str | None, typer.Option(
+    help="Train over several processes or machines (jax.distributed): HOST:PORT of process 0's coordinator, the "
+         "same for every process, with --num-processes and --process-id (under SLURM's srun or Open MPI's mpirun JAX "
+         "reads all three from the environment); docs/rl.md \"Training on several GPUs or machines\".")]
+NumProcessesOption = Annotated[int | None, typer.Option(
+    help="How many processes train together (--coordinator; 1: this one alone).")]
+ProcessIdOption = Annotated[int | None, typer.Option(
+    help="This process's number, 0 to --num-processes - 1; process 0 alone writes the run directory.")]
 WarmStartOption = Annotated[Path | None, typer.Option(
     help="Start PPO from this run's DAgger warm start (with its environment, networks and exploration noise) "
          "instead of making one: the teacher runs on CPU cores, so make it once and train on a GPU from it.")]
@@ -110,10 +119,8 @@ def train(
     timesteps: TimestepsOption = None,
     num_envs: NumEnvsOption = None,
     seed: Annotated[int, seed_option("PRNG seed.")] = 0,
-    minutes: MinutesOption = None,
-    epochs: EpochsOption = None,
-    solver_iterations: SolverIterationsOption = None,
-    ls_iterations: LsIterationsOption = None,
+    minutes: MinutesOption = None, epochs: EpochsOption = None,
+    solver_iterations: SolverIterationsOption = None, ls_iterations: LsIterationsOption = None,
     backend: BackendOption = "auto",
     imitation_iterations: ImitationIterationsOption = None,
     motor_params: MotorParamsOption = None,
@@ -126,28 +133,33 @@ def train(
     imu_age: ImuAgeOption = None,
     mirror_loss: MirrorLossOption = None,
     reward_weight: RewardWeightOption = None,
-    tensorboard: TensorBoardOption = True,
-    wandb: WandbOption = False,
-    wandb_mode: WandbModeOption = None,
+    tensorboard: TensorBoardOption = True, wandb: WandbOption = False, wandb_mode: WandbModeOption = None,
     compile_cache: CompileCacheOption = True,
+    coordinator: CoordinatorOption = None, num_processes: NumProcessesOption = None, process_id: ProcessIdOption = None,
 ) -> None:
     """Train an environment (--env, default walk) with PPO on its recipe: checkpoints, curve, TensorBoard, W&B."""
     for limit, count, option in ((minutes, epochs, "--epochs"), (None, timesteps, "--timesteps"),
                                  (None, num_envs, "--num-envs")):
         training_budget(limit, count, option)
     sinks = dashboards(tensorboard, wandb, wandb_mode)  # a missing package fails here, before anything compiles
+    processes = Processes(coordinator, num_processes, process_id)  # checked before anything starts
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
                            hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()),
                            env, motion)
-    plan = _plan(out, resume, request, compile_cache)
+    plan = _plan(out, resume, request, compile_cache, processes)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 
 
 def _report(run_dir: Path, history: list[dict]) -> None:
-    """The run's training curve and closing line."""
+    """The run's training curve and closing line (process 0's; the others' closing line only)."""
     if not history:
         raise ToddlerbotError(f"{run_dir}: no epoch ran (limits too tight?)")
+    from toddlerbot.rl.distributed import is_main
+
+    if not is_main():
+        console.print(f"done: {history[-1]['env_steps']:,} env steps; process 0 wrote {run_dir}")
+        return
     from toddlerbot.rl.plot import write_run_curve
 
     png = write_run_curve(run_dir, history)
@@ -156,38 +168,53 @@ def _report(run_dir: Path, history: list[dict]) -> None:
                   f"({last['sps']:.0f} steps/s), reward/step {last['step_reward']:.3f}; curve {png}")
 
 
-def _plan(out: Path | None, resume: Path | None, request: TrainRequest, compile_cache: bool = True):
+def _plan(out: Path | None, resume: Path | None, request: TrainRequest, compile_cache: bool = True,
+          processes: Processes | None = None):
     """The training plan, JAX started with the smoke run's XLA flags where the run is (or resumes) a smoke run, and
-    with its persistent compilation cache on or off."""
+    with its persistent compilation cache on or off; joined to the run's other processes where it has several (their
+    plans write nothing: process 0's does)."""
     import os
 
     from toddlerbot.rl.config import SMOKE_XLA_FLAGS
     from toddlerbot.rl.launch import is_smoke_run, new_run_plan, resume_plan
 
+    processes = processes or Processes()
+    if processes.wanted() and out is None and resume is None:
+        raise ToddlerbotError("--out: a run of several processes needs its run directory named (the same folder for "
+                              "every process)")
     if request.smoke or (resume is not None and is_smoke_run(resume)):  # before JAX starts its CPU backend
         os.environ.setdefault("XLA_FLAGS", SMOKE_XLA_FLAGS)
     _require_jax()
+    from toddlerbot.rl.distributed import is_main, join
+
+    joined = join(processes)  # before anything touches JAX's devices
+    if joined:
+        console.print(joined)
+    write = is_main()
     from toddlerbot.rl.compilation import use_compile_cache
 
     console.print(use_compile_cache(compile_cache).describe())  # before anything compiles
     if resume is not None:
-        return resume_plan(resume, request)
+        return resume_plan(resume, request, write)
     if request.imitation_iterations:
         training_budget(None, request.imitation_iterations, "--imitation-iterations")
     run_dir = out or Path("runs/rl") / datetime.now().strftime("%Y%m%d-%H%M%S")
-    return new_run_plan(output_dir(run_dir, "--out", default=out is None), request)  # the default's folder is made
+    if write:
+        run_dir = output_dir(run_dir, "--out", default=out is None)  # the default's folder is made
+    return new_run_plan(run_dir, request, write)
 
 
 def _train_with_progress(plan, minutes: float | None, epochs: int | None, sinks) -> list[dict]:
     """`rl.train.train` with a progress bar of the DAgger warm start, then of PPO."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from toddlerbot.rl.distributed import is_main
     from toddlerbot.rl.train import train as run_training
 
     console.print(f"run directory: {plan.run_dir}")
 
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
-                  TimeElapsedColumn(), console=console) as bar:
+                  TimeElapsedColumn(), console=console, disable=not is_main()) as bar:  # process 0's bar alone
         task = bar.add_task("compiling + training", total=None, info="")
 
         def progress(done: int, total: int, m: dict) -> None:

@@ -81,10 +81,11 @@ STAGE_OPTIONS = {"push_velocity": "--push-velocity", "push_interval": "--push-in
 budget, ``--timesteps``, does)."""
 
 
-def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
+def resume_plan(run_dir: Path, request: TrainRequest, write: bool = True) -> TrainPlan:
     """Continue the run in `run_dir` from its last checkpoint. `STAGE_OPTIONS` and `--timesteps` start its next
     stage (a curriculum: say harder or more frequent pushes from here on); options that would change anything else
-    are refused."""
+    are refused. ``write`` False: the options are checked, the run's configuration is left to process 0 of a run of
+    several processes (`toddlerbot.rl.distributed`)."""
     if not (run_dir / CONFIG).is_file():
         raise ToddlerbotError(f"{run_dir}: no training run to resume (config.json missing)")
     changed = [option for field, option in KEPT_ON_RESUME.items()
@@ -93,11 +94,11 @@ def resume_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
         raise ToddlerbotError(f"{'/'.join(changed)}: a resumed run keeps the settings it started "
                               f"with (only {', '.join(STAGE_OPTIONS.values())} and --timesteps start a next stage)")
     if request.timesteps is not None or any(getattr(request, field) is not None for field in STAGE_OPTIONS):
-        _next_stage(run_dir, request)
+        _next_stage(run_dir, request, write)
     return TrainPlan(run_dir, resume=True)
 
 
-def _next_stage(run_dir: Path, request: TrainRequest) -> None:
+def _next_stage(run_dir: Path, request: TrainRequest, write: bool) -> None:
     """config.json takes the new `STAGE_OPTIONS` and step budget (checked first), and its `stages` list the stage
     that starts at the last checkpoint, so that an export knows which pushes trained which checkpoint."""
     from toddlerbot.rl import train
@@ -110,15 +111,18 @@ def _next_stage(run_dir: Path, request: TrainRequest) -> None:
     if ppo_cfg.num_timesteps <= start:
         raise ToddlerbotError(f"--timesteps {ppo_cfg.num_timesteps}: the run is already at {start} PPO env steps; "
                               "expected more")
+    if not write:
+        return
     earlier = [stage for stage in train.training_stages(run_dir) if stage["from_env_steps"] < start]
     train.save_config(run_dir, env_cfg, ppo_cfg, train.load_imitation_config(run_dir),
                       [*earlier, train.training_stage(start, env_cfg, ppo_cfg)])
 
 
-def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
+def new_run_plan(run_dir: Path, request: TrainRequest, write: bool = True) -> TrainPlan:
     """A new run in `run_dir` of the requested environment: its recipe on the resolved backend (e.g. the CPU
     recipe, the one-GPU configuration or the smoke run), or the `--warm-start` run's environment, networks and warm
-    start (copied into `run_dir`), then the overrides."""
+    start (copied into `run_dir`), then the overrides. ``write`` False: nothing is written into `run_dir` (the
+    processes of a run but process 0, `toddlerbot.rl.distributed`)."""
     from toddlerbot.rl.environment import resolve_backend
     from toddlerbot.rl.train import adopt_warm_start
 
@@ -141,9 +145,9 @@ def new_run_plan(run_dir: Path, request: TrainRequest) -> TrainPlan:
         except ValueError as exc:
             raise ToddlerbotError(f"--imitation-iterations {request.imitation_iterations}: {exc}") from None
     ppo_cfg = _ppo_overrides(ppo_cfg, request)
-    if source:
+    if source and write:
         adopt_warm_start(source.run_dir, run_dir)
-    if request.smoke:
+    if request.smoke and write:
         run_dir.mkdir(parents=True, exist_ok=True)
         atomic_write_text(run_dir / SMOKE_MARKER, "this run uses the --smoke configuration\n")
     return TrainPlan(run_dir, False, env_cfg, ppo_cfg, imitation_cfg)

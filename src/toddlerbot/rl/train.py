@@ -6,9 +6,10 @@ checkpoints the whole `TrainingState`: network parameters, Adam optimiser state,
 the step counter, plus the PRNG key and the metric history. ``resume`` continues a run bit-for-bit from its
 last checkpoint except for the environments, which start fresh episodes.
 
-Devices: the epoch is ``jax.pmap``-ed over all local JAX devices (``num_envs`` is split between them and
-gradients are averaged with ``pmean``), so several GPUs on one host are used without changes. Select devices
-with ``CUDA_VISIBLE_DEVICES``.
+Devices: the epoch is ``jax.pmap``-ed over all JAX devices (``num_envs`` is split between them and gradients and
+normaliser statistics are averaged with ``pmean``), so several GPUs on one host are used without changes (select
+them with ``CUDA_VISIBLE_DEVICES``), and with `toddlerbot.rl.distributed` the devices of several processes and
+machines: each process steps the envs of its own devices, and process 0 alone writes the run directory.
 
 Run directory layout: ``config.json``, ``checkpoints/step_<n>.msgpack``, ``metrics.jsonl``,
 ``training_curve.png``, ``tensorboard/`` (the same metrics as TensorBoard scalars, `toddlerbot.metrics`).
@@ -40,6 +41,7 @@ from flax import serialization
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_bytes, atomic_write_text
 from toddlerbot.metrics import Dashboards, MetricsLogger
+from toddlerbot.rl import distributed
 from toddlerbot.rl.compilation import compile_clock
 from toddlerbot.rl.config import (
     DEFAULT_ENVIRONMENT,
@@ -163,9 +165,13 @@ class PPO:
 
     def __init__(self, env: Env, cfg: PPOConfig) -> None:
         self.env, self.cfg = env, cfg
-        self.n_devices = jax.local_device_count()
-        if cfg.num_envs % self.n_devices:
-            raise ToddlerbotError(f"num_envs {cfg.num_envs} is not divisible by the {self.n_devices} JAX devices")
+        # num_envs / (every process's devices) envs on each device; this process steps those of its own devices, the
+        # rows `_mine` of a per-device batch (`toddlerbot.rl.distributed`)
+        self.n_devices, n_global = jax.local_device_count(), jax.device_count()
+        if cfg.num_envs % n_global:
+            processes = f" of {jax.process_count()} processes" if jax.process_count() > 1 else ""
+            raise ToddlerbotError(f"num_envs {cfg.num_envs} is not divisible by the {n_global} JAX devices{processes}")
+        self._mine = slice(distributed.first_local_device(), distributed.first_local_device() + self.n_devices)
         self.train_env = wrap_for_training(env, cfg.episode_length)
         self.obs_size = env.observation_size
         self.networks = make_networks(self.obs_size, env.action_size, cfg)
@@ -212,9 +218,9 @@ class PPO:
                                   self.cfg.init_action_scale)
 
     def reset(self, key: jax.Array) -> State:
-        """Fresh batched environments, split over the devices."""
-        keys = jax.random.split(key, self.cfg.num_envs)
-        return self._p_reset(keys.reshape(self.n_devices, self.cfg.num_envs // self.n_devices, -1))
+        """Fresh batched environments, split over the devices (this process's share of them)."""
+        keys = jax.random.split(key, self.cfg.num_envs).reshape(jax.device_count(), -1, *key.shape)
+        return self._p_reset(keys[self._mine])
 
     def epoch(self, ts: TrainingState, env_state: State, key: jax.Array) -> tuple[TrainingState, State, dict]:
         """``updates_per_epoch`` PPO updates; returns the new state, the environments and the epoch's mean
@@ -223,9 +229,9 @@ class PPO:
         # compiles the epoch again, and on several devices is refused
         devices = jax.local_devices()
         p_ts = jax.device_put_replicated(_strip_weak_types(ts), devices)
-        keys = jax.device_put_sharded(list(jax.random.split(key, self.n_devices)), devices)
+        keys = jax.device_put_sharded(list(jax.random.split(key, jax.device_count())[self._mine]), devices)
         p_ts, env_state, metrics = self._p_epoch(p_ts, _strip_weak_types(env_state), keys)
-        return jax.tree.map(lambda x: x[0], p_ts), env_state, {k: float(v[0]) for k, v in metrics.items()}
+        return jax.tree.map(_first_local, p_ts), env_state, {k: float(_first_local(v)) for k, v in metrics.items()}
 
     # inside pmap -----------------------------------------------------------------------------------------------
     def _minibatch_step(self, carry, data, normalizer):
@@ -422,6 +428,8 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
     t_start = time.perf_counter()
     use_full_precision()
     run_dir = Path(run_dir)
+    distributed.wait_for_main("rl-train-plan")  # the others read what process 0 alone wrote (a resume's next stage)
+    main = distributed.is_main()
     if resume:
         env_cfg, ppo_cfg = load_config(run_dir)
         imitation_cfg = load_imitation_config(run_dir)
@@ -430,16 +438,20 @@ def train(run_dir: Path, env_cfg: EnvConfig | None = None, ppo_cfg: PPOConfig | 
         imitation_cfg = imitation_cfg or ImitationConfig()
     cfg = ppo_cfg
     env = env or environment_class(env_cfg.environment)(env_cfg)
-    if not resume:
+    if not resume and main:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, env.cfg, ppo_cfg, imitation_cfg)
         env.record_action_space(run_dir)
         if env.cfg.motor_params:
             record = motor_params_record(env.cfg.motor_params)
             atomic_write_text(run_dir / MOTOR_PARAMS_RECORD, json.dumps(record, indent=1))
-    config = json.loads(read_run_text(run_dir / CONFIG, "training configuration"))
-    with MetricsLogger.open(run_dir, {"ppo": METRICS_RECORD, "dagger": IMITATION_RECORD}, dashboards,
-                            job_type="rl-train", config=config) as metrics:
+    if main:
+        config = json.loads(read_run_text(run_dir / CONFIG, "training configuration"))
+        logger = MetricsLogger.open(run_dir, {"ppo": METRICS_RECORD, "dagger": IMITATION_RECORD}, dashboards,
+                                    job_type="rl-train", config=config)
+    else:
+        logger = MetricsLogger([])  # the other processes write nothing
+    with logger as metrics:
         return _train(run_dir, env, cfg, resume, progress, max_epochs, time_limit_s, imitation_cfg,
                       imitation_progress, metrics, t_start)
 
@@ -449,6 +461,7 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
            imitation_progress: Callable[[dict], None] | None, metrics: MetricsLogger,
            t_start: float) -> tuple[TrainingState, list[dict]]:
     ppo = PPO(env, cfg)
+    distributed.agree("training configuration", json.dumps([asdict(env.cfg), asdict(cfg)], default=str))
 
     key = jax.random.PRNGKey(cfg.seed)
     key, k_init = jax.random.split(key)
@@ -466,7 +479,9 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
         ts = _from_warm_start(ts, warm, ppo)
     elif resume:
         raise ToddlerbotError(f"{run_dir}: no checkpoint to resume from")
-    evaluator = _evaluator(env, ppo.make_policy, cfg, key) if cfg.num_eval_envs > 0 else None
+    ts, key = distributed.from_main((ts, key))  # one state in every process, whichever copy of a file each read
+    main = distributed.is_main()
+    evaluator = _evaluator(env, ppo.make_policy, cfg, key) if cfg.num_eval_envs > 0 and main else None
 
     key, k_env = jax.random.split(key)
     clock = compile_clock()
@@ -477,8 +492,8 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
     epochs_run, last_epoch = 0, 0.0
     while int(ts.env_steps) < ppo.total_steps:
         elapsed = time.perf_counter() - t_start
-        if (max_epochs is not None and epochs_run >= max_epochs) or (
-                time_limit_s is not None and elapsed + last_epoch > time_limit_s):
+        if distributed.decide((max_epochs is not None and epochs_run >= max_epochs) or (
+                time_limit_s is not None and elapsed + last_epoch > time_limit_s)):  # process 0's clock
             break
         epochs_run += 1
         key, k_epoch = jax.random.split(key)
@@ -495,7 +510,8 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
             record.update({k: float(v) for k, v in eval_metrics.items() if np.ndim(v) == 0})
         compiled = now
         history.append(record)
-        save_checkpoint(run_dir, ts, key, history)
+        if main:
+            save_checkpoint(run_dir, ts, key, history)
         metrics.log("ppo", record, step=warm_steps + steps)
         if progress:
             progress(steps, ppo.total_steps, record)
@@ -508,6 +524,8 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
 def describe_device(env: RLEnvironment) -> str:
     """What trains: JAX's devices, and for the CPU physics backend the CPU and its threads."""
     jax_devices = f"{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
+    if jax.process_count() > 1:
+        jax_devices = f"{jax.process_count()} processes, each {jax_devices}"
     if env.backend != "cpu":
         return jax_devices
     return f"CPU: {_cpu_name()}, {os.cpu_count()} cores; physics on {env.physics.threads} threads"
@@ -538,8 +556,9 @@ def _warm_start(run_dir: Path, env: RLEnvironment, ppo: PPO, cfg: ImitationConfi
         warm = WarmStart(arrays["policy"], arrays["value"], arrays["normalizer"], int(arrays["env_steps"]), history)
         return warm, warm.history[-1]["walltime"] if warm.history else 0.0
     deadline = None if time_limit_s is None else t_start + time_limit_s
-    log = run_dir / IMITATION_RECORD
-    log.unlink(missing_ok=True)  # an interrupted warm start starts over
+    main = distributed.is_main()  # every process makes it (the same work at once); process 0 writes it
+    if main:
+        (run_dir / IMITATION_RECORD).unlink(missing_ok=True)  # an interrupted warm start starts over
 
     def record(m: dict) -> None:
         metrics.log("dagger", m, step=m["env_steps"])
@@ -551,7 +570,9 @@ def _warm_start(run_dir: Path, env: RLEnvironment, ppo: PPO, cfg: ImitationConfi
     arrays = {"policy": warm.policy, "value": warm.value, "normalizer": warm.normalizer,
               "env_steps": np.asarray(warm.env_steps, np.int64)}
     state = serialization.to_state_dict(jax.device_get(arrays))
-    atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state, "history": json.dumps(warm.history)}))
+    if main:
+        atomic_write_bytes(path, serialization.msgpack_serialize({"warm": state,
+                                                                  "history": json.dumps(warm.history)}))
     return warm, 0.0  # made in this call: its time is part of this call's wall time
 
 
@@ -608,6 +629,12 @@ def _from_warm_start(ts: TrainingState, warm: WarmStart, ppo: PPO) -> TrainingSt
     """PPO's first state: the warm start's networks and normaliser, a fresh optimiser."""
     params = ppo_losses.PPONetworkParams(policy=warm.policy, value=warm.value)
     return ts.replace(params=params, optimizer_state=ppo.optimizer.init(params), normalizer_params=warm.normalizer)
+
+
+def _first_local(x: jax.Array) -> jax.Array:
+    """The first of this process's rows of a replicated ``pmap`` output (of several processes, only its own rows are
+    addressable)."""
+    return jnp.reshape(x.addressable_shards[0].data, x.shape[1:])
 
 
 def _strip_weak_types(tree):
