@@ -4,6 +4,9 @@
     PYTHONPATH=src python benchmarks/bench_rl.py            # inference only (seconds)
     PYTHONPATH=src python benchmarks/bench_rl.py --env      # + env compile and throughput, MJX vs the CPU
                                                             #   backend in the same run (minutes)
+    PYTHONPATH=src python benchmarks/bench_rl.py --ppo-epochs 3 --backend mjx --smoke [--compile-cache]
+                                                            # PPO epochs of a recipe: each epoch's compile time
+                                                            #   and training time apart (only)
     PYTHONPATH=src python benchmarks/bench_rl.py --tracking walk-rl walk-zmp [--weights F.npz]  # Table 7 errors
                                                             #   on the default and held-out schedules (only)
     PYTHONPATH=src python benchmarks/bench_rl.py --curves recipe=runs/rl/cpu_walk ...   # learning curves (only)
@@ -21,6 +24,7 @@ import os
 import platform
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -98,8 +102,6 @@ def bench_env(mjx_batches: tuple[int, ...], cpu_batches: tuple[int, ...], steps:
     """Env steps/s of the jitted, vmapped environment step (compilation excluded) for each physics backend, in one
     run so the ratio is measured under the same load: MJX (JAX on this machine's CPU) and classic MuJoCo on
     threads. Default env (residual walking reference, domain randomisation, pushes), zero actions."""
-    from dataclasses import replace
-
     import jax
     import jax.numpy as jnp
 
@@ -137,6 +139,41 @@ def bench_env(mjx_batches: tuple[int, ...], cpu_batches: tuple[int, ...], steps:
                   f"time); load average {os.getloadavg()[0]:.1f}", flush=True)
     if "mjx" in rates and "cpu" in rates:
         print(f"CPU backend / MJX (best batch of each, this run): {rates['cpu'] / rates['mjx']:.2f}x")
+
+
+def bench_ppo_epochs(backend: str, epochs: int, smoke: bool, compile_cache: bool) -> None:
+    """``epochs`` PPO epochs of the walk environment's recipe on ``backend`` (the smoke run's, with its XLA flags,
+    or the full one): per epoch the seconds JAX spent compiling and the seconds of training apart, so that a second
+    compilation shows. With ``compile_cache`` the persistent cache is used (run twice: cold, then warm)."""
+    import jax
+
+    from toddlerbot.rl import train
+    from toddlerbot.rl.compilation import compile_clock, use_compile_cache
+    from toddlerbot.rl.environments import environment_class
+
+    print(use_compile_cache(compile_cache).describe())
+    clock = compile_clock()
+    env_class = environment_class("walk")
+    env_cfg = env_class.default_config(smoke)
+    t0 = time.perf_counter()
+    env = env_class(replace(env_cfg, backend=backend))
+    recipe = env_class.recipe(backend, smoke)
+    ppo = train.PPO(env, recipe.ppo)
+    print(f"{backend} backend, {'smoke' if smoke else 'full'} recipe: {recipe.ppo.num_envs} envs, "
+          f"{ppo.updates_per_epoch * recipe.ppo.env_steps_per_update} env steps per epoch; environment built in "
+          f"{time.perf_counter() - t0:.1f} s", flush=True)
+    compiled, t0 = clock.seconds(), time.perf_counter()
+    ts = ppo.initial_state(jax.random.PRNGKey(0))
+    env_state = jax.block_until_ready(ppo.reset(jax.random.PRNGKey(1)))
+    print(f"initial state and reset: compile {clock.seconds() - compiled:.1f} s, "
+          f"total {time.perf_counter() - t0:.1f} s", flush=True)
+    for i in range(epochs):
+        compiled, t0 = clock.seconds(), time.perf_counter()
+        ts, env_state, _ = ppo.epoch(ts, env_state, jax.random.PRNGKey(10 + i))
+        wall, compiling = time.perf_counter() - t0, clock.seconds() - compiled
+        steps = ppo.updates_per_epoch * recipe.ppo.env_steps_per_update
+        print(f"epoch {i + 1}: compile {compiling:.1f} s, training {wall - compiling:.2f} s "
+              f"({steps / (wall - compiling):.0f} env steps/s); load average {os.getloadavg()[0]:.1f}", flush=True)
 
 
 HELD_OUT_SCHEDULES = {
@@ -202,8 +239,6 @@ SETTINGS = (  # (contacts, Newton iterations, line-search iterations, Jacobian, 
 
 
 def _config(setting: tuple):
-    from dataclasses import replace
-
     from toddlerbot.rl.config import EnvConfig
 
     contacts, iterations, ls_iterations, jacobian, loops = setting
@@ -289,16 +324,29 @@ def main() -> None:
     parser.add_argument("--curves", nargs="+", default=None, metavar="LABEL=RUN",
                         help="plot the learning curves of these training runs (only)")
     parser.add_argument("--out", default="docs/figures/rl_learning_curves.png", help="figure of --curves")
+    parser.add_argument("--ppo-epochs", type=int, default=0, metavar="N",
+                        help="run N PPO epochs of the walk recipe: compile and training time per epoch (only)")
+    parser.add_argument("--backend", choices=("mjx", "cpu"), default="mjx", help="physics of --ppo-epochs")
+    parser.add_argument("--smoke", action="store_true", help="--ppo-epochs of the smoke recipe (its XLA flags)")
+    parser.add_argument("--compile-cache", action="store_true",
+                        help="--ppo-epochs with the persistent compilation cache (default: off, a cold compile)")
     parser.add_argument("--stand-envs", type=int, default=8)
     parser.add_argument("--stand-seconds", type=float, default=10.0)
     args = parser.parse_args()
-    if args.env or args.settings is not None:
+    if args.smoke:
+        from toddlerbot.rl.config import SMOKE_XLA_FLAGS
+
+        os.environ.setdefault("XLA_FLAGS", SMOKE_XLA_FLAGS)  # before JAX starts, as `rl train --smoke` does
+    if args.env or args.settings is not None or args.ppo_epochs:
         from toddlerbot.rl.precision import use_full_precision
 
         use_full_precision()  # as training does, before anything compiles
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.processor() or 'cpu'}")
     if args.curves:
         curves(args.curves, args.out)
+        return
+    if args.ppo_epochs:
+        bench_ppo_epochs(args.backend, args.ppo_epochs, args.smoke, args.compile_cache)
         return
     if args.tracking is not None:
         bench_tracking(args.tracking or ["walk-rl"], args.weights, args.plots, args.asymmetric)
