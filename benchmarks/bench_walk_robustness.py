@@ -7,12 +7,16 @@ and `--seeds` seeds, on the robot of `--variant`;
 prints a table of falls (falls / trials per cell) and the totals per condition. Trials run in `--workers`
 subprocesses that print one JSON line per trial (nothing is pickled between processes).
 
+`--terrain NAME[:KEY=VALUE,...]` (repeatable; `toddlerbot.sim.terrain`, e.g. `rough:height=0.02`,
+`slope:degrees=-10`) adds a terrain axis: every condition is walked on each terrain, drawn from the trial's seed, and
+a column is a (condition, terrain) pair. With `--terrain` the conditions default to `nominal` alone.
+
 `--kick-grid SPEED` instead kicks once per trial, in 8 directions around the heading x 6 moments of one gait
 cycle (`runtime.robustness.kick_grid`), standing and walking half the forward reach, and prints which fall.
 
 Run: PYTHONPATH=src python benchmarks/bench_walk_robustness.py [--policy walk-zmp|walk-rl] [--weights F.npz]
      [--variant gripper] [--seeds 3] [--seconds 8] [--workers 2] [--conditions nominal,perturbed,"posed 0.3"]
-     [--kick-grid 0.3]
+     [--kick-grid 0.3] [--terrain rough:height=0.02 --terrain slope:degrees=10]
 """
 
 from __future__ import annotations
@@ -24,10 +28,12 @@ import subprocess
 import sys
 import time
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies import make_policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.robustness import conditions, directed_kick_trial, kick_grid, reach_commands, run_trial
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+from toddlerbot.sim.terrain import parse_terrain
 
 
 def _policy_factory(args):
@@ -42,11 +48,21 @@ def _label(args) -> str:
     return args.policy + (f" ({args.weights})" if args.weights else "") + (" asymmetric" if args.asymmetric else "")
 
 
+def _columns(args, names):
+    """(condition, terrain text or None) of every column of the table."""
+    return [(name, terrain) for name in names for terrain in (args.terrain or [None])]
+
+
+def _column_label(name, terrain) -> str:
+    return name if terrain is None else f"{name} {terrain}"
+
+
 def _jobs(args, names, description):
-    """(command, condition, seed) of every trial; the commands span the policy's reach."""
+    """(command, condition, seed, terrain) of every trial; the commands span the policy's reach."""
     reach = _reach(args, description)
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    return [(c, name, seed) for name in names for c in reach_commands(reach) for seed in seeds]
+    return [(c, name, seed, terrain) for name, terrain in _columns(args, names) for c in reach_commands(reach)
+            for seed in seeds]
 
 
 def _grid_jobs(args, description):
@@ -85,11 +101,12 @@ def worker(args, names) -> None:
     """Run every `--workers`-th trial starting at `--worker` and print each as a JSON line."""
     description = RobotDescription.load(variant=args.variant)
     by_name = {c.name: c for c in conditions()}
-    for i, (command, name, seed) in enumerate(_jobs(args, names, description)):
+    for i, (command, name, seed, terrain) in enumerate(_jobs(args, names, description)):
         if i % args.workers != args.worker:
             continue
-        trial = run_trial(description, _policy_factory(args), command, by_name[name], seed, args.seconds)
-        print(json.dumps({"command": trial.command, "condition": name, "seed": seed,
+        trial = run_trial(description, _policy_factory(args), command, by_name[name], seed, args.seconds,
+                          None if terrain is None else parse_terrain(terrain))
+        print(json.dumps({"command": trial.command, "condition": name, "seed": seed, "terrain": terrain,
                           "fall_time": trial.fall_time}), flush=True)
 
 
@@ -109,9 +126,16 @@ def main() -> None:
                         help="one kick of SPEED m/s per trial over directions x gait phases instead")
     parser.add_argument("--asymmetric", action="store_true",
                         help="walk-rl without its mirror image (docs/rl.md \"Mirror symmetry\")")
+    parser.add_argument("--terrain", action="append", default=None, metavar="NAME[:KEY=VALUE,...]",
+                        help="walk every condition on this terrain too (repeatable), drawn from the trial's seed")
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    names = args.conditions.split(",") if args.conditions else \
+    for text in args.terrain or []:
+        try:
+            parse_terrain(text)
+        except ToddlerbotError as exc:
+            parser.error(str(exc))
+    names = args.conditions.split(",") if args.conditions else ["nominal"] if args.terrain else \
         [c.name for c in conditions() if args.variant or not c.upper_body_pose]
     unknown = set(names) - {c.name for c in conditions()}
     if unknown:
@@ -130,21 +154,23 @@ def main() -> None:
         print_grid(args, rows, wall)
         return
     description = RobotDescription.load(variant=args.variant)
-    commands = list(dict.fromkeys(tuple(c) for c, _, _ in _jobs(args, names, description)))
+    commands = list(dict.fromkeys(tuple(c) for c, _, _, _ in _jobs(args, names, description)))
+    columns = _columns(args, names)
     robot = f"{_label(args)} ({description.spec.variant or 'base robot'})"
     print(f"{robot}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall, {args.workers} workers)")
-    width = max(len(n) for n in names) + 2
-    print("command (vx, vy, yaw)".ljust(24) + "".join(n.rjust(width) for n in names))
+    width = max(len(_column_label(*c)) for c in columns) + 2
+    print("command (vx, vy, yaw)".ljust(24) + "".join(_column_label(*c).rjust(width) for c in columns))
+    in_column = lambda r, c: (r["condition"], r.get("terrain")) == c  # noqa: E731
     for command in commands:
         cells = []
-        for name in names:
-            trials = [r for r in rows if tuple(r["command"]) == command and r["condition"] == name]
+        for column in columns:
+            trials = [r for r in rows if tuple(r["command"]) == command and in_column(r, column)]
             cells.append(f"{sum(r['fall_time'] is not None for r in trials)}/{len(trials)}".rjust(width))
         print(f"({command[0]:+.3f}, {command[1]:+.3f}, {command[2]:+.2f})".ljust(24) + "".join(cells))
     totals = []
-    for name in names:
-        trials = [r for r in rows if r["condition"] == name]
+    for column in columns:
+        trials = [r for r in rows if in_column(r, column)]
         totals.append(f"{sum(r['fall_time'] is not None for r in trials)}/{len(trials)}".rjust(width))
     print("all".ljust(24) + "".join(totals))
 

@@ -29,6 +29,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text, json_text
 from toddlerbot.policies import policy_names
 from toddlerbot.robot.interface import CONTROL_HZ
+from toddlerbot.sim.terrain import parse_terrain, terrain_names
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -62,6 +63,12 @@ CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --
 SeedOpt = Annotated[int, seed_option(help="For --task: scene seed (the cube's pose).")]
 ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch "
                                                  "(default 1).")]
+TerrainOpt = Annotated[str | None, typer.Option("--terrain", help=f"The ground: NAME[:KEY=VALUE,...], NAME one of "
+                                                f"{', '.join(terrain_names())}, e.g. rough:height=0.02 or "
+                                                "slope:degrees=-10 (docs/simulation.md, \"Terrain\"). Default: "
+                                                "the flat floor.")]
+TerrainSeedOpt = Annotated[int, seed_option(help="For --terrain: the seed its ground is drawn from.",
+                                            flag="--terrain-seed")]
 
 
 @app.command()
@@ -72,7 +79,8 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,
         checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = None, spec: SpecOption = None,
         variant: VariantOption = None, motor_params: MotorParamsOption = None,
-        asymmetric: AsymmetricOption = False, on_fall: OnFallOption = "stop") -> None:
+        asymmetric: AsymmetricOption = False, on_fall: OnFallOption = "stop", terrain: TerrainOpt = None,
+        terrain_seed: TerrainSeedOpt = 0) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.sessions.sim import sim_session
 
@@ -81,15 +89,16 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
                    "threads": threads}, {"--log": log, "--video": video, "--snapshot": snapshot,
                                          "--summary-json": summary_json},
                    [command_file, motion, weights, checkpoint, *robot_options.files])
-    schedule = _schedule(command, command_file)
+    schedule, ground = _schedule(command, command_file), terrain and parse_terrain(terrain)
     description, base = robot_options.load()
     if base != "floating":  # the simulator's robot stands on the floor; a fixed base is for `model build`
         raise ToddlerbotError(f"sim run simulates the floating robot; --variant selects a {base} base "
                               "(use a floating variant: floating, gripper)")
     _check_control_rate(control_hz, description.spec.simulation.timestep)
     session = sim_session(policy, schedule, seconds, description, control_hz, realtime, task, seed,
-                          camera if video or snapshot else None, viewer, on_fall, motion=motion, weights=weights,
-                          checkpoint=checkpoint, threads=threads, **symmetric_option(policy, asymmetric))
+                          camera if video or snapshot else None, viewer, on_fall, ground, terrain_seed, motion=motion,
+                          weights=weights, checkpoint=checkpoint, threads=threads,
+                          **symmetric_option(policy, asymmetric))
     with RunProgress(f"simulating {policy}", round(seconds / session.robot.control_dt)) as progress:
         result = session.run(progress, log_path=log)
     for path in session.write_video(video, snapshot):

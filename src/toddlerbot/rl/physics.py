@@ -18,6 +18,8 @@ definition, whatever the backend.
 from __future__ import annotations
 
 import copy
+import functools
+import operator
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -34,6 +36,7 @@ from toddlerbot.actuation.model import ActuatorArrays, friction_excess, motor_to
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.actuated import MotorAddresses, step_actuated
 from toddlerbot.sim.motor_drive import MotorDrive
+from toddlerbot.sim.terrain import ground_geoms
 
 MODEL_FIELDS = ("geom_friction", "dof_damping", "dof_armature", "dof_frictionloss", "body_mass", "body_inertia")
 """Model parameters domain randomisation changes per env (`toddlerbot.rl.randomization.model_fields`)."""
@@ -61,9 +64,9 @@ class Frame(NamedTuple):
     imu_quat: jax.Array
     """(4,) IMU orientation, w x y z."""
     contact: jax.Array
-    """(2,) left/right foot sole touching the floor (penetrating contact), 0/1."""
+    """(2,) left/right foot sole touching the ground (the floor or a terrain; penetrating contact), 0/1."""
     self_collision: jax.Array
-    """Number of penetrating robot-robot contacts."""
+    """Number of penetrating robot-robot contacts (neither geom is the ground)."""
     torque: jax.Array
     """(n_motors,) motor torques of the last substep, N*m."""
 
@@ -78,6 +81,8 @@ class Addresses:
     foot_sites: np.ndarray
     foot_geoms: np.ndarray
     floor_geom: int
+    ground_geoms: tuple[int, ...]
+    """The floor and, on a terrain, its height field (`toddlerbot.sim.terrain.ground_geoms`)."""
     foot_up_axis: int
     """Which axis of a foot site points up at home, and its sign."""
     foot_up_sign: float
@@ -104,20 +109,22 @@ class Addresses:
 
         return cls(MotorAddresses.of(model, description.motor_names), model.body(handles.torso).id,
                    model.site(handles.imu_site).id, foot_sites,
-                   np.array([model.geom(name).id for name in handles.feet_geoms]), model.geom("floor").id, axis,
+                   np.array([model.geom(name).id for name in handles.feet_geoms]), model.geom("floor").id,
+                   tuple(sorted(ground_geoms(model))), axis,
                    float(np.sign(up[axis])), hand_sites, model.site_bodyid[hand_sites],
                    sensor("imu_gyro"), sensor("imu_quat"))
 
 
 def contact_state(a: Addresses, contact_geom, contact_dist, xp=jnp, env=None, n_envs: int = 1):
-    """(left/right foot sole touching the floor as 0/1, number of penetrating robot-robot contacts) from contacts
+    """(left/right foot sole touching the ground as 0/1, number of penetrating robot-robot contacts) from contacts
     as (ncon, 2) geom pairs and (ncon,) distances, for one env, or with ``env`` (ncon,) naming each contact's env,
-    for ``n_envs`` envs at once (numpy: classic MuJoCo's contacts of a batch, concatenated)."""
+    for ``n_envs`` envs at once (numpy: classic MuJoCo's contacts of a batch, concatenated). The ground is the floor
+    and a terrain's height field alike."""
     g1, g2 = contact_geom[:, 0], contact_geom[:, 1]
     touching = contact_dist < 0.0
-    floor = a.floor_geom
-    feet = [touching & (((g1 == floor) & (g2 == f)) | ((g2 == floor) & (g1 == f))) for f in a.foot_geoms.tolist()]
-    robot = touching & (g1 != floor) & (g2 != floor)
+    ground1, ground2 = (functools.reduce(operator.or_, [g == k for k in a.ground_geoms]) for g in (g1, g2))
+    feet = [touching & ((ground1 & (g2 == f)) | (ground2 & (g1 == f))) for f in a.foot_geoms.tolist()]
+    robot = touching & ~ground1 & ~ground2
     if env is None:
         return xp.stack([xp.any(f) for f in feet]).astype(xp.float32), xp.sum(robot).astype(xp.float32)
     count = lambda mask: np.bincount(env[mask], minlength=n_envs)  # noqa: E731

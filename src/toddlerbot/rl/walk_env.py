@@ -11,7 +11,10 @@ imitation, 50 Hz control.
   so a zero action walks the reference; otherwise home + ``action_scale`` * action. The other 18 motors hold the
   home pose. With ``teacher_gains`` the leg P gains follow walk-zmp's stance/swing schedule.
 * Episodes: `PPOConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
-  torso falls below ``min_torso_height`` or tilts more than ``max_tilt`` (`WalkEnv.terminated`).
+  torso falls below ``min_torso_height`` above the ground or tilts more than ``max_tilt`` (`WalkEnv.terminated`).
+* Ground: the flat floor, or a terrain (`toddlerbot.sim.terrain`, given to the constructor with its seed) in the
+  training model; torso and feet heights are then heights above the ground under them (`WalkEnv.height_above_ground`;
+  on the flat floor the absolute heights, untouched).
 * Rewards: `toddlerbot.rl.rewards.WALK_REWARDS` (Table 6 and the path term, each beside its weight).
 * Default training: the CPU recipe (DAgger warm start from walk-zmp, then PPO), the one-GPU configuration, and the
   smoke run (`WalkEnv.recipes`).
@@ -49,6 +52,7 @@ from toddlerbot.rl.run_files import ACTION_SPACE, REFERENCE_RECORD
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.mirror import Mirror, robot_mirror
 from toddlerbot.robot.upper_body import upper_body_mask
+from toddlerbot.sim.terrain import Ground, TerrainSpec
 
 
 def _yaw_quat(yaw: jax.Array) -> jax.Array:
@@ -82,12 +86,13 @@ class WalkEnv(RLEnvironment):
         return config.smoke_env_config() if smoke else EnvConfig()
 
     def __init__(self, cfg: EnvConfig | None = None, description: RobotDescription | None = None,
-                 reference: GaitReference | None = None, gain_scales: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> None:
+                 reference: GaitReference | None = None, gain_scales: tuple[np.ndarray, np.ndarray] | None = None,
+                 terrain: TerrainSpec | None = None, terrain_seed: int = 0) -> None:
         """``description``: the robot (by default `training_description`; a given one must be of the same
         variant and carry the same params.json files). ``reference``: an imitation table (default: the ZMP walk).
         ``gain_scales``: (stance (n_motors,), swing (2, n_motors)) factors on the spec's P gains (default, with
-        ``cfg.teacher_gains``: walk-zmp's)."""
+        ``cfg.teacher_gains``: walk-zmp's). ``terrain``: the ground every env walks on, drawn from
+        ``terrain_seed`` (None: the flat floor)."""
         use_full_precision()
         cfg = self.resolved_config(cfg or EnvConfig())
         if description is None:
@@ -108,8 +113,10 @@ class WalkEnv(RLEnvironment):
             cfg = replace(cfg, obs=replace(cfg.obs, gait_period=reference.period))
         self.cfg = cfg
         """The configuration with the gait period, the backend and the reward weights resolved (save this one)."""
-        model = training_model(description, cfg)
+        model = training_model(description, cfg, terrain, terrain_seed)
         self.mj_model = model
+        self.ground = Ground.of(model)
+        """The terrain's ground heights, None on the flat floor."""
         self.addresses = Addresses.of(model, description)
         self.physics = self.make_physics(model, self.addresses, cfg)
         self._nominal = {name: jnp.asarray(getattr(model, name)) for name in MODEL_FIELDS}
@@ -130,6 +137,8 @@ class WalkEnv(RLEnvironment):
         self.gain_scales = tuple(np.asarray(g, dtype=np.float32) for g in gain_scales)
         a = self.addresses
         self.floor_geom, self.torso_body, self.foot_sites = a.floor_geom, a.torso_body, a.foot_sites
+        # the draw's friction is the ground's: the floor's, and a terrain's too
+        self._friction_geoms = a.floor_geom if self.ground is None else np.asarray(a.ground_geoms)
         self.motor_qadr, self.motor_dadr = a.motors.qpos, a.motors.dof
 
     # Brax Env interface -------------------------------------------------------------------------------------
@@ -224,7 +233,8 @@ class WalkEnv(RLEnvironment):
             leg_pos=qpos[self.motor_qadr][self.leg_index], ref_leg_pos=ref_leg,
             home_leg_pos=jnp.asarray(self.home_motor_pos[self.leg_index]), contact=contact,
             ref_contact=jnp.round(ref_contact), first_contact=first_contact, air_time=air_time,
-            feet_height=frame.feet_pos[:, 2], feet_vel_xy=(frame.feet_pos - info["feet_pos"])[:, :2] / cfg.ctrl_dt,
+            feet_height=self.height_above_ground(frame.feet_pos),
+            feet_vel_xy=(frame.feet_pos - info["feet_pos"])[:, :2] / cfg.ctrl_dt,
             feet_up_z=frame.feet_up_z, feet_lateral_distance=lateral,
             roll=jnp.arctan2(gravity[1], -gravity[2]), pitch=jnp.arcsin(jnp.clip(-gravity[0], -1.0, 1.0)),
             self_collision=frame.self_collision, action=action, last_action=info["last_action"],
@@ -250,10 +260,17 @@ class WalkEnv(RLEnvironment):
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=fallen.astype(jnp.float32),
                              metrics={**state.metrics, **terms}, info=info)
 
+    def height_above_ground(self, points: jax.Array) -> jax.Array:
+        """Heights (m) of world points (..., 3) above the ground under them; on the flat floor their z itself."""
+        if self.ground is None:
+            return points[..., 2]
+        return points[..., 2] - self.ground.height(points[..., 0], points[..., 1], xp=jnp)
+
     def terminated(self, frame: Frame) -> jax.Array:
-        """A fall: the torso below ``min_torso_height``, tilted beyond ``max_tilt``, or its height not finite."""
+        """A fall: the torso below ``min_torso_height`` above the ground, tilted beyond ``max_tilt``, or its height
+        not finite."""
         tilt = jnp.arccos(jnp.clip(frame.torso_z[2], -1.0, 1.0))
-        height = frame.qpos[2]
+        height = self.height_above_ground(frame.qpos[:3])
         return (height < self.cfg.min_torso_height) | (tilt > self.cfg.max_tilt) | ~jnp.isfinite(height)
 
     @classmethod
@@ -289,7 +306,7 @@ class WalkEnv(RLEnvironment):
     # helpers -------------------------------------------------------------------------------------------------
     def model_fields(self, dr: randomization.DRParams) -> dict[str, jax.Array]:
         """The env's randomised model parameters (both backends apply them)."""
-        return randomization.model_fields(self._nominal, dr, self.floor_geom, self.torso_body)
+        return randomization.model_fields(self._nominal, dr, self._friction_geoms, self.torso_body)
 
     def _sample_command(self, key: jax.Array) -> jax.Array:
         """A random command: stand still, turn in place, walk along one axis, or anywhere in the box."""
@@ -340,7 +357,7 @@ class WalkEnv(RLEnvironment):
         privileged = {
             "lin_vel": _rotate_z(frame.qvel[0:3], -yaw), "contact": contact,
             "leg_error": ref_leg - sensors.motor_pos[self.leg_index], "push": info["push"],
-            "air_time": info["air_time"], "torso_height": frame.qpos[2:3],
+            "air_time": info["air_time"], "torso_height": self.height_above_ground(frame.qpos[:3])[None],
             "floor_friction": info["dr"].floor_friction[None], "avg_vel": info["avg_vel"],
         }
         if cfg.reward.weights.get("path_xy"):  # only then: the critics of runs without the term keep their shape

@@ -1,6 +1,7 @@
 """How often a walking policy falls across its command reach under seeded perturbations (`sim.perturbation`).
 
-A trial walks one constant command for a few seconds on a perturbed robot, optionally kicked; what is reported and
+A trial walks one constant command for a few seconds on a perturbed robot, optionally kicked, on the flat floor or a
+seeded terrain (`sim.terrain`); what is reported and
 asserted is the count of falls over many trials, never one trajectory (walking is chaotic: the last bit of a
 floating-point sum can decide a marginal step). `benchmarks/bench_walk_robustness.py` prints the full table.
 """
@@ -8,7 +9,7 @@ floating-point sum can decide a marginal step). `benchmarks/bench_walk_robustnes
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from toddlerbot.robot.upper_body import random_upper_body_pose
 from toddlerbot.runtime.runner import RunObserver, Step, run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.sim.perturbation import Perturbation, perturbed_robot
+from toddlerbot.sim.terrain import TerrainSpec
 
 PolicyFactory = Callable[[Robot], Policy]
 
@@ -137,6 +139,8 @@ class Trial:
     """s, None when the robot walked the whole trial."""
     displacement: tuple[float, float]
     """Torso (dx, dy) over the trial, m, world frame."""
+    terrain: str = "flat"
+    """The ground (`toddlerbot.sim.terrain`), drawn from ``seed``."""
 
     @property
     def fell(self) -> bool:
@@ -144,9 +148,10 @@ class Trial:
 
 
 def run_trial(description: RobotDescription, make_policy: PolicyFactory, command: tuple[float, float, float],
-              condition: Condition, seed: int, seconds: float) -> Trial:
-    """Walk ``command`` for ``seconds`` on the robot perturbed by ``condition`` at ``seed``."""
-    perturbation = condition.perturb(description, seed)
+              condition: Condition, seed: int, seconds: float, terrain: TerrainSpec | None = None) -> Trial:
+    """Walk ``command`` for ``seconds`` on the robot perturbed by ``condition`` at ``seed``, on ``terrain`` drawn from
+    ``seed`` (None: the flat floor)."""
+    perturbation = replace(condition.perturb(description, seed), terrain=terrain)
     robot = perturbed_robot(description, perturbation)
     policy = make_policy(robot)
     if condition.upper_body_pose > 0:
@@ -155,4 +160,5 @@ def run_trial(description: RobotDescription, make_policy: PolicyFactory, command
     result = run_policy(robot, policy, lambda t: np.asarray(command), seconds,
                         observers=[KickSchedule(robot, perturbation)])
     moved = robot.base_pos - result.log.base_pos[0]
-    return Trial(tuple(command), condition.name, seed, result.fall_time, (float(moved[0]), float(moved[1])))
+    return Trial(tuple(command), condition.name, seed, result.fall_time, (float(moved[0]), float(moved[1])),
+                 str(terrain or "flat"))

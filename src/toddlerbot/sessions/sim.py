@@ -32,6 +32,7 @@ from toddlerbot.runtime.runner import (
 )
 from toddlerbot.sessions.recovery import recovery_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+from toddlerbot.sim.terrain import TerrainSpec, parse_terrain, terrain_model
 
 
 @dataclass
@@ -73,17 +74,22 @@ class SimSession:
 def sim_session(policy: str = "walk-zmp", commands: str | CommandSchedule | None = None, seconds: float = 10.0,
                 description: RobotDescription | None = None, control_hz: float = CONTROL_HZ,
                 realtime: bool = False, task: str | None = None, seed: int = 0, camera: str | None = None,
-                viewer: bool = False, on_fall: str = "stop", **policy_options: object) -> SimSession:
+                viewer: bool = False, on_fall: str = "stop", terrain: str | TerrainSpec | None = None,
+                terrain_seed: int = 0, **policy_options: object) -> SimSession:
     """`sim run`'s robot and policy: ``policy`` (a registered name, its ``policy_options``: weights, motion, ...)
     on ``description`` (default: the packaged robot, floating) at ``control_hz``, following ``commands`` (a
     schedule's text, a schedule, or None: the policy's demo command) for ``seconds``; ``task``: in that registered
     task's scene, reset for ``seed``; ``camera``: record it (a video or snapshot, `SimSession.write_video`);
     ``viewer``: show the MuJoCo viewer (implies real time); ``realtime``: keep wall-clock time; ``on_fall``: what a
-    fall does (`toddlerbot.sessions.recovery`)."""
+    fall does (`toddlerbot.sessions.recovery`); ``terrain``: the ground (``NAME[:KEY=VALUE,...]`` or a parsed
+    `TerrainSpec`, `toddlerbot.sim.terrain`; None: the flat floor) drawn from ``terrain_seed``."""
     description = description or RobotDescription.load()
     realtime = realtime or viewer
     options = {"synchronous": not realtime, **policy_options}  # inference inline unless the loop keeps real time
-    robot, pol, scene = _robot_and_policy(description, policy, task, seed, 1.0 / control_hz, options)
+    if isinstance(terrain, str):
+        terrain = parse_terrain(terrain)
+    robot, pol, scene = _robot_and_policy(description, policy, task, seed, 1.0 / control_hz, options,
+                                          (terrain, terrain_seed))
     schedule = CommandSchedule.parse(commands) if isinstance(commands, str) else commands
     session = SimSession(robot, pol, schedule or (lambda _t: np.array(pol.demo_command, dtype=float)), seconds,
                          WallClock() if realtime else SimulatedClock(), scene, recovery=recovery_policy(on_fall, robot))
@@ -101,12 +107,18 @@ def sim_session(policy: str = "walk-zmp", commands: str | CommandSchedule | None
 
 
 def _robot_and_policy(description: RobotDescription, policy: str, task: str | None, seed: int, control_dt: float,
-                      options: dict) -> tuple[Robot, Policy, RunObserver | None]:
-    """(robot, policy, task progress observer or None). In a task's scene the robot is the task's, reset for
-    ``seed``, and a policy that takes a camera sees the task's head camera."""
+                      options: dict, ground: tuple[TerrainSpec | None, int]
+                      ) -> tuple[Robot, Policy, RunObserver | None]:
+    """(robot, policy, task progress observer or None). The robot stands on ``ground`` (terrain, seed). In a task's
+    scene the robot is the task's, reset for ``seed``, and a policy that takes a camera sees the task's head
+    camera."""
+    terrain, terrain_seed = ground
     if task is None:
-        robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt))
+        robot = MuJoCoRobot(description, SimConfig(control_dt=control_dt),
+                            model=terrain_model(description, terrain, terrain_seed))
         return robot, make_policy(policy, robot, **options), None
+    if terrain is not None and not terrain.is_flat:
+        raise ToddlerbotError(f"--terrain {terrain}: a task's scene has its own floor; drop --terrain or --task")
     from toddlerbot.robot.interface import CONTROL_DT
     from toddlerbot.tasks import make_task
     from toddlerbot.tasks.base import TaskRobot

@@ -2,7 +2,8 @@
 (`toddlerbot.sim.mujoco_robot.MuJoCoRobot`, `toddlerbot.hardware.plant.HilPlant`) report, computed here once.
 
 Height and uprightness are read from the torso body's frame as the last ``mj_step`` left it (computed before its
-integration); position and orientation from the free joint's state after it.
+integration); position and orientation from the free joint's state after it. The height is above the ground under the
+torso (`toddlerbot.sim.terrain.Ground`: on a terrain, the height field's surface there; on the flat floor, z itself).
 """
 
 from __future__ import annotations
@@ -12,9 +13,10 @@ import numpy as np
 
 from toddlerbot.robot.builder import FREEJOINT
 from toddlerbot.robot.interface import GroundTruth
+from toddlerbot.sim.terrain import Ground
 
 FALL_HEIGHT_FRACTION = 0.6
-"""Torso height below this fraction of its standing height counts as a fall."""
+"""Torso height above the ground below this fraction of its standing height counts as a fall."""
 
 
 class TorsoTruth:
@@ -24,10 +26,15 @@ class TorsoTruth:
         self._data = data
         self._body = model.body(torso).id
         self._base = model.joint(FREEJOINT).qposadr[0]
+        self._ground = Ground.of(model)
 
     def height_and_uprightness(self) -> tuple[float, float]:
-        """(height of the torso frame above the floor, m; z component of its up axis in the world, 1 = upright)."""
-        return float(self._data.xpos[self._body, 2]), float(self._data.xmat[self._body, 8])
+        """(height of the torso frame above the ground under it, m; z component of its up axis in the world, 1 =
+        upright)."""
+        x, y, z = self._data.xpos[self._body]
+        if self._ground is not None:
+            z = z - self._ground.height(x, y)
+        return float(z), float(self._data.xmat[self._body, 8])
 
     def fallen(self, standing_height: float, fall_tilt_rad: float, height_fraction: float) -> bool:
         """Tilted beyond ``fall_tilt_rad`` from upright or lower than ``height_fraction`` x ``standing_height``."""

@@ -29,6 +29,7 @@ from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, R
 from toddlerbot.sim.actuated import DIVERGED_SPEED, MotorAddresses, compile_substeps, diverged, step_one_robot
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
+from toddlerbot.sim.terrain import ground_geoms
 
 
 class SimulationError(ToddlerbotError):
@@ -77,7 +78,7 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
                      for name in ("imu_quat", "imu_gyro", "imu_accel")}
         handles = description.handles
         self._foot_geoms = [m.geom(g).id for g in handles.feet_geoms]
-        self._floor = m.geom("floor").id
+        self._ground = ground_geoms(m)
         self.torso_truth = TorsoTruth(m, self.data, handles.torso)
         self._home_key = m.key("home").id
         self._targets = np.zeros(len(self.motor_names))
@@ -158,11 +159,11 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         self._drive = MotorDrive(self._params)
 
     def foot_contact(self) -> np.ndarray:
-        """(left, right): does each foot's collision geom touch the floor?"""
-        floor = self._floor
-        on_floor = {b if a == floor else a for a, b in self.data.contact.geom[: self.data.ncon].tolist()
-                    if floor in (a, b)}  # a few contacts: plain Python beats numpy's set operations
-        return np.array([foot in on_floor for foot in self._foot_geoms])
+        """(left, right): does each foot's collision geom touch the ground (the floor or a terrain)?"""
+        ground = self._ground
+        on_ground = {b if a in ground else a for a, b in self.data.contact.geom[: self.data.ncon].tolist()
+                     if a in ground or b in ground}  # a few contacts: plain Python beats numpy's set operations
+        return np.array([foot in on_ground for foot in self._foot_geoms])
 
     def push(self, velocity_change: np.ndarray) -> None:
         """Add a horizontal velocity (dvx, dvy), m/s, world frame, to the torso: a kick."""

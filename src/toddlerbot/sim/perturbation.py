@@ -1,7 +1,8 @@
 """Seeded perturbations of the simulated robot, for measuring how robust a walking policy is.
 
 A `Perturbation` changes the robot a policy walks on (initial joint offsets, torso mass, floor friction, motor
-parameters) and pushes it while it walks (horizontal velocity kicks of the torso). `Perturbation.sample` draws
+parameters), the ground it walks on (a terrain, `toddlerbot.sim.terrain`, drawn from the same seed) and pushes it
+while it walks (horizontal velocity kicks of the torso). `Perturbation.sample` draws
 one from a seed, so a set of perturbations is reproducible on every machine; what is asserted over them is a
 rate (falls out of runs), never one trajectory.
 
@@ -18,6 +19,7 @@ import numpy as np
 from toddlerbot.actuation.catalogue import Catalogue
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot, SimConfig
+from toddlerbot.sim.terrain import TerrainSpec, terrain_model
 
 
 def scaled_parameters(params: object) -> tuple[str, ...]:
@@ -52,6 +54,8 @@ class Perturbation:
     kick_speed: float = 0.0
     """Horizontal velocity change of each kick, m/s, in a uniformly random direction (0: no kicks)."""
     kick_timing: KickTiming = KickTiming()
+    terrain: TerrainSpec | None = None
+    """The ground, drawn from ``seed`` (None: the flat floor)."""
 
     @classmethod
     def sample(cls, seed: int, description: RobotDescription, joint_offset: float = 0.01, mass: float = 0.1,
@@ -83,6 +87,8 @@ class Perturbation:
             parts.append(f"motor params x{min(factors):.2f}..{max(factors):.2f}")
         if self.kick_speed:
             parts.append(f"kicks {self.kick_speed:g} m/s")
+        if self.terrain is not None and not self.terrain.is_flat:
+            parts.append(f"terrain {self.terrain} seed {self.seed}")
         return ", ".join(parts) or "nominal"
 
 
@@ -96,12 +102,13 @@ def perturbed_catalogue(catalogue: Catalogue, motor_scale: tuple[tuple[str, str,
 
 def perturbed_robot(description: RobotDescription, perturbation: Perturbation,
                     config: SimConfig | None = None) -> MuJoCoRobot:
-    """A `MuJoCoRobot` of ``description`` with the perturbation's model changes and initial joint offsets."""
+    """A `MuJoCoRobot` of ``description`` on the perturbation's terrain, with its model changes and initial joint
+    offsets."""
     if perturbation.motor_scale:
         description = RobotDescription(description.spec, perturbed_catalogue(description.catalogue,
                                                                               perturbation.motor_scale),
                                        description.motor_params_files)
-    model = copy.copy(description.model("floating", scene=True))
+    model = copy.copy(terrain_model(description, perturbation.terrain, perturbation.seed))
     torso = model.body(description.handles.torso).id
     model.body_mass[torso] *= perturbation.torso_mass_scale
     model.body_inertia[torso] *= perturbation.torso_mass_scale
