@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-VOLATILE = {"wall_seconds", "inference_ms", "walltime", "sps", "epoch_seconds", "device"}
+VOLATILE = {"wall_seconds", "inference_ms", "walltime", "sps", "epoch_seconds", "compile_s", "device"}
 """Keys whose values are wall-clock measurements, not results."""
 
 

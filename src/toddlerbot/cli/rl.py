@@ -164,8 +164,10 @@ def _report(run_dir: Path, history: list[dict]) -> None:
 
     png = write_run_curve(run_dir, history)
     last = history[-1]
-    console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s "
-                  f"({last['sps']:.0f} steps/s), reward/step {last['step_reward']:.3f}; curve {png}")
+    compiling = sum(record.get("compile_s", 0.0) for record in history)  # runs before issue 45 recorded none
+    console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s ({compiling:.0f} s of it "
+                  f"compiling PPO, then {last['sps']:.0f} steps/s), reward/step {last['step_reward']:.3f}; "
+                  f"curve {png}")
 
 
 def _plan(out: Path | None, resume: Path | None, request: TrainRequest, compile_cache: bool = True,
