@@ -75,7 +75,7 @@ def use_compile_cache(enabled: bool = True) -> CacheSetting:
     import jax
     from jax.experimental.compilation_cache import compilation_cache
 
-    setting = _setting(enabled, jax.config.jax_compilation_cache_dir)
+    setting = _setting(enabled, os.environ.get("JAX_COMPILATION_CACHE_DIR"))  # JAX read it when imported
     if setting.source != "JAX_COMPILATION_CACHE_DIR":
         jax.config.update("jax_enable_compilation_cache", setting.folder is not None)
     if setting.folder is not None and setting.source != "JAX_COMPILATION_CACHE_DIR":
