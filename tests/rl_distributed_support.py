@@ -68,11 +68,11 @@ def print_learning_curves(seeds: int) -> None:
             ts, env_state, metrics = ppo.epoch(ts, env_state, k_epoch)
             curve.append(metrics["step_reward"])
         curves.append(curve)
-    devices = jax.local_devices()  # the epoch's own placement (`PPO.epoch`), every device's copy kept
-    replicas, _, _ = ppo._p_epoch(jax.device_put_replicated(ts, devices), env_state,
-                                  jax.device_put_sharded(list(jax.random.split(key, len(devices))), devices))
+    n = jax.local_device_count()  # the epoch's own placement (`PPO.epoch`), every device's copy kept
+    replicas, _, _ = ppo._p_epoch(train._per_device(jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *x.shape)), ts)),
+                                  env_state, train._per_device(jax.random.split(key, n)))
     spread = max(float(jnp.max(jnp.abs(x - x[:1]))) for x in jax.tree.leaves(replicas.params))
-    print(json.dumps({"devices": len(devices), "step_reward": curves, "replica_spread": spread}))
+    print(json.dumps({"devices": n, "step_reward": curves, "replica_spread": spread}))
 
 
 def _main() -> None:

@@ -221,3 +221,23 @@ def test_several_processes_need_a_named_run_directory(monkeypatch, capsys):
                                     "127.0.0.1:1234", "--num-processes", "2", "--process-id", "0")[:3:2])
     assert line == ("error: --out: a run of several processes needs its run directory named (the same folder for "
                     "every process)")
+
+
+def test_a_slurm_step_of_several_tasks_joins_and_one_of_one_task_does_not(monkeypatch):
+    """Under `srun` the processes' variables are SLURM's (read by jax.distributed itself); a step of one task, or
+    --num-processes 1, stays a single process; a --process-id is checked against the step's task count."""
+    from toddlerbot.errors import ToddlerbotError
+    from toddlerbot.rl.distributed import Processes
+
+    for name, value in {"SLURM_JOB_ID": "77", "SLURM_STEP_NODELIST": "node[001-002]", "SLURM_NTASKS": "8",
+                        "SLURM_PROCID": "3", "SLURM_LOCALID": "3"}.items():
+        monkeypatch.setenv(name, value)
+    assert Processes().wanted() and Processes(coordinator="node001:4321").wanted()
+    assert not Processes(num_processes=1).wanted()
+    with pytest.raises(ToddlerbotError, match=r"^--process-id 8: expected 0 to 7 for 8 processes$"):
+        Processes(process_id=8)
+    monkeypatch.setenv("SLURM_NTASKS", "1")
+    assert not Processes().wanted()
+    monkeypatch.setenv("SLURM_NTASKS", "eight")
+    with pytest.raises(ToddlerbotError, match=r"^SLURM_NTASKS=eight: expected a number of processes$"):
+        Processes().wanted()

@@ -37,6 +37,7 @@ from brax.training.acme import running_statistics, specs
 from brax.training.agents.ppo import losses as ppo_losses
 from brax.training.agents.ppo import networks as ppo_networks
 from flax import serialization
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_bytes, atomic_write_text
@@ -227,9 +228,9 @@ class PPO:
         metrics (floats; ``kl_max`` is the largest per-update mean KL)."""
         # every call's arguments placed alike (replicated, or one shard per device), else each new placement
         # compiles the epoch again, and on several devices is refused
-        devices = jax.local_devices()
-        p_ts = jax.device_put_replicated(_strip_weak_types(ts), devices)
-        keys = jax.device_put_sharded(list(jax.random.split(key, jax.device_count())[self._mine]), devices)
+        n = self.n_devices
+        p_ts = _per_device(jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), _strip_weak_types(ts)))
+        keys = _per_device(jax.random.split(key, jax.device_count())[self._mine])
         p_ts, env_state, metrics = self._p_epoch(p_ts, _strip_weak_types(env_state), keys)
         return jax.tree.map(_first_local, p_ts), env_state, {k: float(_first_local(v)) for k, v in metrics.items()}
 
@@ -629,6 +630,14 @@ def _from_warm_start(ts: TrainingState, warm: WarmStart, ppo: PPO) -> TrainingSt
     """PPO's first state: the warm start's networks and normaliser, a fresh optimiser."""
     params = ppo_losses.PPONetworkParams(policy=warm.policy, value=warm.value)
     return ts.replace(params=params, optimizer_state=ppo.optimizer.init(params), normalizer_params=warm.normalizer)
+
+
+def _per_device(tree):
+    """``tree``'s arrays, one row of their leading axis on each of this process's devices: how ``pmap`` places its
+    inputs and outputs (what `jax.device_put_replicated` and `jax.device_put_sharded` did; JAX deprecated them in
+    0.8.1)."""
+    sharding = NamedSharding(Mesh(np.array(jax.local_devices()), (AXIS,)), PartitionSpec(AXIS))
+    return jax.device_put(tree, sharding)
 
 
 def _first_local(x: jax.Array) -> jax.Array:
