@@ -40,7 +40,7 @@ import numpy as np
 
 from toddlerbot.actuation.appendix import ActuatorParams
 from toddlerbot.actuation.dc_motor import DCMotorParams
-from toddlerbot.sysid.evaluate import evaluate, plot_tracking
+from toddlerbot.sysid.evaluate import evaluate, plot_torque_map, plot_tracking
 from toddlerbot.sysid.fit import fit
 from toddlerbot.sysid.logs import MotorLog
 from toddlerbot.sysid.manifest import Manifest, load_manifest
@@ -97,13 +97,16 @@ def main() -> None:
     parser.add_argument("--evals", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--fit-kp-scale", action="store_true", help="also fit the DC motor's pwm_per_rad")
-    parser.add_argument("--plot", type=Path, help="folder for the held-out tracking plots of each model and split")
+    parser.add_argument("--plot", type=Path, help="folder for the held-out tracking plots of each model and split, "
+                        "and the torque the shaft received against the duty (catalogue parameters)")
     parser.add_argument("--save", type=Path, help="folder for the params.json of each model and split")
     args = parser.parse_args()
     manifest = load_manifest(args.manifest)
     print(f"machine: {platform.machine()} {os.cpu_count()} cores, numpy {np.__version__}, "
           f"load average {os.getloadavg()[0]:.1f}; {len(manifest.runs)} runs of {manifest.motor.name}")
     splits = validations(manifest)
+    if args.plot is not None and manifest.motor.actuator.model == "dc_motor":
+        print(f"torque map: {plot_torque_map(manifest, manifest.motor.actuator, args.plot / 'torque_map.png')}")
     for model in args.model or tuple(fit_models()):
         for validation in args.validation or ("crossgain", "highgain", "trajectories"):
             held_out: list[float] = []

@@ -19,7 +19,7 @@ from toddlerbot.actuation.params_file import load_params
 from toddlerbot.cli.main import app
 from toddlerbot.errors import ParamsError
 from toddlerbot.sysid.errors import SysIDError
-from toddlerbot.sysid.evaluate import evaluate, plot_tracking
+from toddlerbot.sysid.evaluate import evaluate, firmware_duty, plot_torque_map, plot_tracking, received_torque
 from toddlerbot.sysid.excitation import TORQUE_SCHEDULES, Excitation, excitation
 from toddlerbot.sysid.fit import fit
 from toddlerbot.sysid.manifest import Manifest, load_manifest, select_gains
@@ -185,3 +185,20 @@ def test_the_catalogue_xl330_tracks_every_real_run_including_kp_800() -> None:
     assert len(per_run) == 10 and {run.kp for run in real.runs} == {100.0, 400.0, 800.0}
     assert result.mae_deg == pytest.approx(1.58, abs=0.02)
     assert max(per_run.values()) <= 3.0 and max(per_run, key=per_run.get) == "lift_and_drop_kp800.csv"
+
+
+def test_received_torque_is_the_models_torque_on_its_own_run(tmp_path: Path) -> None:
+    """On a noise-free run of the DC-motor model itself (no Coulomb friction, so the shaft receives the motor's
+    torque whole), the torque reconstructed from the logged motion is the model's, and the duty is the firmware's."""
+    truth = TRUTH.replace(load_friction=0.0, frictionloss=0.001)
+    ex = [_excitation("sinusoids", 400, duration=2.0)]
+    run = synthesize(ex, RIG, truth, 0.0, voltage=SUPPLY, rated_voltage=MOTOR.rated_voltage)[0]
+    manifest = Manifest(Path("own.json"), MOTOR, RIG, (run,))
+    model = evaluate(manifest, truth).simulated[0].torque
+    received = received_torque(run, RIG, truth)
+    inner = slice(10, -10)  # the filter's window reaches past the ends there
+    assert np.median(np.abs(received - model)[inner]) < 0.01 * np.max(np.abs(model))
+    assert np.corrcoef(received[inner], model[inner])[0, 1] > 0.996  # 0.994 with the armature 2x off
+    duty = firmware_duty(run, truth)
+    assert duty == pytest.approx(np.clip(0.00288 * 400 * (run.goal_position - run.position), -1, 1))
+    assert plot_torque_map(manifest, truth, tmp_path / "map.png").stat().st_size > 10_000

@@ -1,4 +1,5 @@
-"""Tracking error of a parameter set on a manifest's runs, and plots of where the model misses."""
+"""Tracking error of a parameter set on a manifest's runs, plots of where the model misses, and the torque the
+logs say the shaft received against the firmware's PWM duty (what the DC-motor model's torque law is judged by)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,10 @@ import numpy as np
 
 from toddlerbot.actuation.motor_params import MotorParams
 from toddlerbot.files import save_figure
+from toddlerbot.sysid.logs import MotorLog
 from toddlerbot.sysid.manifest import Manifest
 from toddlerbot.sysid.params import Candidates
+from toddlerbot.sysid.rigs import SimpleRig
 from toddlerbot.sysid.simulate import DT, Replay, RunBatch, simulate
 
 
@@ -88,3 +91,59 @@ def plot_tracking(manifest: Manifest, evaluation: Evaluation, folder: str | Path
         target = Path(folder) / f"{Path(err.file).stem}.png"
         written.append(save_figure(fig, target, dpi=100))
     return written
+
+
+SMOOTHING_SAMPLES = 9
+"""Window of the Savitzky-Golay filter (quadratic) that differentiates the logged velocity, samples (45 ms at
+200 Hz)."""
+
+
+def received_torque(run: MotorLog, rig: SimpleRig, params: MotorParams) -> np.ndarray:
+    """The torque the output shaft received at each sample, N*m: (load inertia + armature) x acceleration, plus the
+    rig's gravity and the passive damping x velocity, from the logged velocity (the position's where none is
+    logged) differentiated over `SMOOTHING_SAMPLES`. While the motor drives the shaft this is its torque less the
+    Coulomb friction budget; it depends on the model only through the armature and damping."""
+    from scipy.signal import savgol_filter
+
+    dt = float(np.median(np.diff(run.time)))
+    if run.velocity is not None:
+        velocity = savgol_filter(run.velocity, SMOOTHING_SAMPLES, 2)
+        acceleration = savgol_filter(run.velocity, SMOOTHING_SAMPLES, 2, deriv=1, delta=dt)
+    else:
+        velocity = savgol_filter(run.position, SMOOTHING_SAMPLES, 2, deriv=1, delta=dt)
+        acceleration = savgol_filter(run.position, SMOOTHING_SAMPLES, 2, deriv=2, delta=dt)
+    inertia = rig.load_inertia + params.armature
+    return inertia * acceleration + rig.gravity_gain * np.sin(run.position) + params.damping * velocity
+
+
+def firmware_duty(run: MotorLog, params: MotorParams) -> np.ndarray:
+    """The PWM duty (-1..1) the firmware's P controller sets at each sample of a DC-motor model's run."""
+    return np.clip(params.pwm_per_rad * run.kp * (run.goal_position - run.position), -1.0, 1.0)
+
+
+def plot_torque_map(manifest: Manifest, params: MotorParams, target: str | Path) -> Path:
+    """One panel per firmware gain: the torque the shaft received (`received_torque`) against the firmware's duty
+    (`firmware_duty`, DC-motor parameters) while powered and moving (|q_dot| > 0.3 rad/s), blue where the motor
+    drives the motion and red where it brakes. At one duty the points of every gain should lie together if the
+    duty is what sets the torque."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    gains = sorted({run.kp for run in manifest.runs})
+    fig, axes = plt.subplots(1, len(gains), figsize=(5 * len(gains), 4.5), sharex=True, sharey=True, squeeze=False)
+    for ax, kp in zip(axes[0], gains, strict=True):
+        for run in (r for r in manifest.runs if r.kp == kp):
+            duty, tau = firmware_duty(run, params), received_torque(run, manifest.rig, params)
+            velocity = run.velocity if run.velocity is not None else np.gradient(run.position, run.time)
+            on = np.ones(len(duty), bool) if run.torque_enable is None else run.torque_enable > 0.5
+            moving = on & (np.abs(velocity) > 0.3)
+            driving = np.sign(velocity) == np.sign(duty)
+            ax.scatter(duty[moving & driving], tau[moving & driving], s=2, color="C0")
+            ax.scatter(duty[moving & ~driving], tau[moving & ~driving], s=2, color="C3")
+        ax.set_title(f"kp {kp:g}: blue drives the motion, red brakes")
+        ax.set_xlabel("firmware PWM duty")
+        ax.grid(True)
+    axes[0][0].set_ylabel("torque the shaft received (N m)")
+    return save_figure(fig, Path(target), dpi=100)
