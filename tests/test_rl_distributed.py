@@ -241,3 +241,19 @@ def test_a_slurm_step_of_several_tasks_joins_and_one_of_one_task_does_not(monkey
     monkeypatch.setenv("SLURM_NTASKS", "eight")
     with pytest.raises(ToddlerbotError, match=r"^SLURM_NTASKS=eight: expected a number of processes$"):
         Processes().wanted()
+
+
+def test_a_process_waits_for_its_coordinator_and_gives_up_in_one_line():
+    """Process K > 0 waits until process 0's coordinator answers (here at once: a listening socket), and stops with
+    one line when nothing answers in time (JAX itself would abort the process with a stack trace)."""
+    from toddlerbot.errors import ToddlerbotError
+    from toddlerbot.rl.distributed import wait_for_coordinator
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        wait_for_coordinator(f"127.0.0.1:{server.getsockname()[1]}", 5.0)
+    port = _free_port()
+    with pytest.raises(ToddlerbotError, match=rf"^--coordinator 127.0.0.1:{port}: nothing answered there in 1 s "
+                                              r"\(.+\); start process 0 on that machine"):
+        wait_for_coordinator(f"127.0.0.1:{port}", 1.0)

@@ -16,11 +16,16 @@ on ``--resume``, so it must be on a filesystem all of them see, and process 0's 
 from __future__ import annotations
 
 import os
+import socket
+import time
 from dataclasses import dataclass
 
 from toddlerbot.errors import ToddlerbotError
 
 MAX_PORT = 65535
+COORDINATOR_WAIT_S = 300.0
+"""How long a process other than 0 waits for process 0's coordinator to answer (JAX's own wait; past it JAX
+aborts the process with a stack trace, so `join` gives up first, in one line)."""
 
 
 @dataclass(frozen=True)
@@ -96,11 +101,13 @@ def _count(name: str) -> int:
 def join(processes: Processes) -> str | None:
     """Connect this process to the run's others (`Processes.wanted`), before anything touches JAX's devices;
     returns a line saying which process this is of how many, and how many devices they have together (None: a
-    single process, nothing done). Process ``K > 0`` waits for the coordinator up to JAX's timeout (5 minutes)."""
+    single process, nothing done). Process ``K > 0`` waits for the coordinator up to `COORDINATOR_WAIT_S`."""
     import jax
 
     if not processes.wanted():
         return None
+    if processes.coordinator is not None and processes.process_id:  # process 0 starts the coordinator itself
+        wait_for_coordinator(processes.coordinator, COORDINATOR_WAIT_S)
     if jax.config.jax_cpu_collectives_implementation is None:  # JAX before 0.5 had none on the CPU by default
         jax.config.update("jax_cpu_collectives_implementation", "gloo")
     try:
@@ -113,6 +120,23 @@ def join(processes: Processes) -> str | None:
     coordinator = processes.coordinator or os.environ.get("JAX_COORDINATOR_ADDRESS") or "the launcher's"
     return (f"process {jax.process_index()} of {jax.process_count()} (coordinator {coordinator}): "
             f"{jax.local_device_count()} of the {len(devices)} {devices[0].platform} devices here")
+
+
+def wait_for_coordinator(address: str, timeout_s: float) -> None:
+    """Return once ``HOST:PORT`` accepts a connection; one line after ``timeout_s`` seconds without."""
+    host, port = parse_coordinator(address)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=min(5.0, timeout_s)):
+                return
+        except OSError as exc:
+            if time.monotonic() >= deadline:
+                reason = " ".join(str(exc).split()) or type(exc).__name__
+                raise ToddlerbotError(f"--coordinator {address}: nothing answered there in {timeout_s:.0f} s "
+                                      f"({reason}); start process 0 on that machine with the same --coordinator, or "
+                                      "check the address and the firewall") from None
+            time.sleep(min(1.0, max(0.0, deadline - time.monotonic())))
 
 
 def is_main() -> bool:
