@@ -58,6 +58,7 @@ def _finish(processes: dict) -> dict:
     return outputs
 
 
+@pytest.mark.slow
 def test_two_devices_learn_as_one():
     """The same 16 envs on two devices (8 each, gradients and normaliser statistics averaged) learn as on one:
     the mean final error over 4 seeds agrees within `FINAL_ERROR_TOLERANCE`, and the devices' copies of the
@@ -133,6 +134,7 @@ def _assert_same_state(tmp: Path, stage: str) -> None:
     assert largest <= PROCESS_TOLERANCE
 
 
+@pytest.mark.slow
 def test_two_processes_train_as_one_process_of_two_devices_and_only_process_0_writes(first):
     from toddlerbot.rl import train
 
@@ -151,6 +153,7 @@ def test_two_processes_train_as_one_process_of_two_devices_and_only_process_0_wr
     assert p1_wrote == []  # nothing in its working folder, no folder where its --out pointed
 
 
+@pytest.mark.slow
 def test_a_two_process_run_resumes(resumed):
     from toddlerbot.rl import train
 
@@ -164,6 +167,7 @@ def test_a_two_process_run_resumes(resumed):
     assert f"done: {2 * steps:,} env steps" in outputs["p1"]
 
 
+@pytest.mark.slow
 def test_processes_given_different_options_stop_in_one_line(tmp_path):
     """Process 1 asks for 32 envs, process 0 for the recipe's 16: both stop before training, with one line."""
     port = _free_port()

@@ -3,7 +3,7 @@
 Each process of a run (one per machine, or one per GPU) runs ``rl train`` with the same options and its own process
 id. `join` connects them before anything touches JAX's devices: from ``--coordinator HOST:PORT --num-processes N
 --process-id K``, or from a launcher's environment that ``jax.distributed.initialize`` reads itself (a SLURM job
-step of several tasks, ``srun``; Open MPI's ``mpirun``; ``JAX_COORDINATOR_ADDRESS`` with the others). Then
+step of several tasks, ``srun``; Open MPI's ``mpirun``; ``JAX_COORDINATOR_ADDRESS`` in place of ``--coordinator``). Then
 ``jax.devices()`` holds the devices of every process, and the PPO epoch's ``pmap`` spans them all: each process
 steps its share of the environments on its own devices, and gradients and normaliser statistics are averaged over
 every device of every process (`toddlerbot.rl.train.PPO`). On the CPU, processes exchange them through gloo (JAX
@@ -108,7 +108,7 @@ def join(processes: Processes) -> str | None:
         return None
     if processes.coordinator is not None and processes.process_id:  # process 0 starts the coordinator itself
         wait_for_coordinator(processes.coordinator, COORDINATOR_WAIT_S)
-    if jax.config.jax_cpu_collectives_implementation is None:  # JAX before 0.5 had none on the CPU by default
+    if jax.config.jax_cpu_collectives_implementation is None:  # older JAX had no CPU collectives by default
         jax.config.update("jax_cpu_collectives_implementation", "gloo")
     try:
         jax.distributed.initialize(processes.coordinator, processes.num_processes, processes.process_id)

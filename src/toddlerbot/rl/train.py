@@ -523,13 +523,12 @@ def _train(run_dir: Path, env: RLEnvironment, cfg: PPOConfig, resume: bool, prog
 
 
 def describe_device(env: RLEnvironment) -> str:
-    """What trains: JAX's devices, and for the CPU physics backend the CPU and its threads."""
-    jax_devices = f"{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
-    if jax.process_count() > 1:
-        jax_devices = f"{jax.process_count()} processes, each {jax_devices}"
+    """What trains: JAX's devices, and for the CPU physics backend the CPU and its threads (of each process, in a run
+    of several)."""
+    processes = f"{jax.process_count()} processes, each " if jax.process_count() > 1 else ""
     if env.backend != "cpu":
-        return jax_devices
-    return f"CPU: {_cpu_name()}, {os.cpu_count()} cores; physics on {env.physics.threads} threads"
+        return f"{processes}{jax.local_device_count()} x {jax.local_devices()[0].device_kind}"
+    return f"{processes}CPU: {_cpu_name()}, {os.cpu_count()} cores; physics on {env.physics.threads} threads"
 
 
 def _cpu_name() -> str:
