@@ -8,8 +8,8 @@ registry (`TERRAINS`, `register_terrain`; installed packages add theirs through 
 ``parameters`` are its table and whose ``heights`` give the ground on a grid.
 
 Every terrain becomes one MuJoCo height field (geom `TERRAIN_GEOM`, sampled every `CELL` m over a square of
-half-width `EXTENT` m around the robot's start) on top of the scene's ``floor`` plane, which moves down to the
-terrain's lowest point; the robot's collision geoms collide with it as with the floor (contype/conaffinity). A
+half-width `EXTENT` m around the robot's start) on top of the scene's ``floor`` plane, which moves down to just below
+the terrain's lowest point; the robot's collision geoms collide with it as with the floor (contype/conaffinity). A
 height field rather than boxes because the MJX training backend collides it with the robot's boxes and spheres in
 4 contacts per geom, where boxes need a collision call and up to 8 contacts per (robot box, terrain box) pair
 (docs/simulation.md "Terrain", `benchmarks/bench_terrain.py`). The start square (half-width `START`, where the robot
@@ -40,13 +40,16 @@ TERRAIN_GEOM = "terrain"
 FLOOR_GEOM = "floor"
 EXTENT = 2.0
 """Half-width of the terrain square around the start, m: a 10 s walk at the fastest reach (0.15 m/s) ends 1.5 m out.
-Beyond it lies the floor plane at the terrain's lowest height."""
+Beyond it lies the floor plane, 1 mm below the terrain's lowest point."""
 CELL = 0.02
 """Spacing of the height field's samples, m: an edge (a tile's, a stair's) rises over one cell."""
 START = 0.25
 """Half-width of the flat square at z = 0 around the start (the robot's feet at home span 0.12 x 0.12 m)."""
 BASE_DEPTH = 0.05
 """Thickness of the height field's solid base below its lowest point, m."""
+FLOOR_DROP = 0.001
+"""How far the floor plane lies below the terrain's lowest point, m: where the terrain is at its lowest (the start
+square) the plane neither collides as a second ground nor shows through it in renders."""
 
 TERRAINS = Registry("terrain", entry_point_group="toddlerbot.terrains")
 """The terrain kinds `parse_terrain` accepts: `Terrain` subclasses, built-in ones first, then those of installed
@@ -263,8 +266,8 @@ def terrain_heights(terrain: TerrainSpec, seed: int, extent: float = EXTENT, cel
 
 def add_terrain(mj: mujoco.MjSpec, grid: HeightGrid) -> None:
     """Add ``grid`` to a robot's MjSpec with its scene (`robot.builder`'s ``floor``) as the height field
-    `TERRAIN_GEOM`, colliding as the floor does; the floor plane moves down to the lowest point. A flat grid adds
-    nothing."""
+    `TERRAIN_GEOM`, colliding as the floor does; the floor plane moves down to `FLOOR_DROP` below its lowest point.
+    A flat grid adds nothing."""
     if grid.flat:
         return
     low, high = float(grid.z.min()), float(grid.z.max())
@@ -273,11 +276,10 @@ def add_terrain(mj: mujoco.MjSpec, grid: HeightGrid) -> None:
     mj.add_hfield(name=TERRAIN_GEOM, size=[grid.extent, grid.extent, rise, BASE_DEPTH], nrow=nrow, ncol=ncol,
                   userdata=((grid.z - low) / rise).ravel().tolist())
     floor = mj.geom(FLOOR_GEOM)
-    material = mj.add_material(name=TERRAIN_GEOM, rgba=(0.45, 0.42, 0.36, 1.0))
     mj.worldbody.add_geom(name=TERRAIN_GEOM, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=TERRAIN_GEOM,
                           pos=(0.0, 0.0, low), contype=floor.contype, conaffinity=floor.conaffinity,
-                          material=material.name)
-    floor.pos = (0.0, 0.0, min(low, 0.0))
+                          material=floor.material)
+    floor.pos = (0.0, 0.0, min(low, 0.0) - FLOOR_DROP)
 
 
 def terrain_mjspec(description: RobotDescription, terrain: TerrainSpec | None, seed: int = 0) -> mujoco.MjSpec:
