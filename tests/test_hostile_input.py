@@ -304,6 +304,8 @@ CLI_CASES = [
      "{passwd}: the file: expected a mapping, got 'user0:x:0:0:User:/home/u0"),
     ("command_file_dev_zero", "sim run --policy stand --command-file /dev/zero",
      "/dev/zero: more than 1000000 bytes is too large for a command file (at most 1000000 bytes)"),
+    ("run_log_dev_zero", "eval tracking --log /dev/zero",
+     "/dev/zero is not a run log (.npz with the keys of toddlerbot.runtime.log): not a regular file"),
     ("spec_mass_1e308", "model info --spec {huge_mass}", "bodies[0] (torso).mass: Input should be less than or equal"),
     ("spec_timestep_1e300", "model build --spec {huge_timestep} -o {dir}/robot.xml",
      "simulation.timestep: Input should be less than or equal to 0.05"),

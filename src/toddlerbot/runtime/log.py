@@ -78,6 +78,9 @@ def _expanded_size(path: Path) -> int:
 
 def _read(path: Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
     """The arrays of the .npz `path` (the optional step keys where present); one line naming the file otherwise."""
+    if path.exists() and not path.is_file():  # a device such as /dev/zero would be read forever
+        raise ToddlerbotError(f"{path} is not a run log (.npz with the keys of toddlerbot.runtime.log): not a regular "
+                              "file")
     try:
         expanded = _expanded_size(path)
         if expanded > MAX_RUN_LOG_BYTES:

@@ -42,8 +42,8 @@ from toddlerbot.yaml_input import read_text
 
 COLUMNS = ("time", "x", "y", "z", "qw", "qx", "qy", "qz")
 """The capture file's columns: s, m, m, m, unit quaternion scalar first; world z up."""
-MAX_CAPTURE_BYTES = 256 << 20
-"""Largest capture file read: 20 minutes at 360 Hz with ten columns is about 60 MB."""
+MAX_CAPTURE_BYTES = 128 << 20
+"""Largest capture file read: an hour at 240 Hz, rows of about 100 characters, is 86 MB."""
 MAX_POSITION_M = 100.0
 """A coordinate beyond this is not metres (an export in millimetres)."""
 UNIT_TOLERANCE = 0.01
