@@ -66,9 +66,9 @@ MIN_YAW_RATE = 0.02
 IMU_AGE_S = LATENCY_S + REPORT_INTERVAL_S / 2
 """Mean age of the IMU reading in an observation, s: the BNO08x reports every 10 ms, each about 5 ms old
 (`toddlerbot.hardware.imu_stream.LATENCY_S`). The correlation lines the capture up with the gyro, so the offset is
-moved by this much to line it up with the observation's time. The HIL emulator's IMU lags its own pose by 12-13 ms
-on a 2-core VM at load 6-7 and by 21 ms at load 12: its reports are samples taken at its 10 ms ticks, which a busy
-host delays."""
+moved by this much to line it up with the observation's time. The HIL emulator's IMU lags its own pose by 12-15 ms
+on a 2-core VM at load 6-12, and lagged by 21 ms in a run where its 10 ms ticks slipped (load 12): its reports are
+samples taken at those ticks, which a busy host delays."""
 
 
 @dataclass(frozen=True)
