@@ -77,23 +77,34 @@ def train(
 
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
-    if resume and batch_size is not None:
-        raise ToddlerbotError("--batch-size sets a new run's batch; a resumed run keeps its own (drop --batch-size)")
+    preset = _preset(config, batch_size, resume)
     training_budget(minutes, steps)
     output_dir(out, "--out", [dataset, imagenet_weights])
-    preset = PRESETS[config] if batch_size is None else replace(PRESETS[config], batch_size=batch_size)
     main = launched_rank() == 0  # under torchrun only rank 0 prints
+    result = train_on_dataset(
+        dataset, preset, out, threads, on_open=_announce(dataset, out, main), minutes=minutes, resume=resume,
+        schedule=TrainSchedule(max_steps=steps, log_every=log_every, checkpoint_every=checkpoint_every),
+        imagenet_weights=imagenet_weights, device=device, dashboards=sinks)
+    if main:
+        _print_result(result)
 
+
+def _announce(dataset: Path, out: Path, main: bool):
+    """What the trainer calls once the dataset is open: rank 0 says what it trains on."""
     def opened(windows: int) -> None:
         if main:
             console.print(f"dataset {dataset}: {windows} windows; run directory {out}")
+    return opened
 
-    result = train_on_dataset(
-        dataset, preset, out, threads, on_open=opened, minutes=minutes, resume=resume,
-        schedule=TrainSchedule(max_steps=steps, log_every=log_every, checkpoint_every=checkpoint_every),
-        imagenet_weights=imagenet_weights, device=device, dashboards=sinks)
-    if not main:
-        return
+
+def _preset(config: str, batch_size: int | None, resume: bool):
+    """The named configuration, with the global batch ``--batch-size`` gives a new run."""
+    if resume and batch_size is not None:
+        raise ToddlerbotError("--batch-size sets a new run's batch; a resumed run keeps its own (drop --batch-size)")
+    return PRESETS[config] if batch_size is None else replace(PRESETS[config], batch_size=batch_size)
+
+
+def _print_result(result) -> None:
     last = result.history[-1] if result.history else {}
     val = last.get("val_loss")
     console.print(f"step {result.step}: train loss {last.get('train_loss', float('nan')):.4f}, validation loss "
