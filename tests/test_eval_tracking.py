@@ -78,7 +78,8 @@ def test_cli_prints_json_and_saves_plot(tmp_path):
 
 @pytest.mark.parametrize("args,message", [
     (["--policy", "dance"],
-     "error: --policy: unknown policy 'dance'; expected one of stand, replay, walk-zmp, walk-rl, dp, get-up"),
+     "error: --policy: unknown policy 'dance'; expected one of stand, replay, walk-zmp, walk-rl, dp, get-up, "
+     "track"),
     (["--policy", "walk-zmp", "--commands", "0:0.1,0"],
      "error: --commands: malformed command '0:0.1,0'; expected 'time: vx,vy,yaw_rate' like '0:0.1,0,0' with time >= 0"),
     (["--policy", "stand"],  # registered, but it ignores velocity commands
