@@ -25,13 +25,20 @@ def run_records(run_dir: Path) -> tuple[list[dict], list[dict]]:
             read_json_lines(Path(run_dir) / METRICS_RECORD, "metrics record"))
 
 
-def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path) -> Path:
-    """Each run's PPO metrics (`CURVES`) against environment steps (warm start included) and against wall time;
+TRACK_CURVES = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
+                ("motor_pos_error", "motor angle error, RMS (rad)"),
+                ("orientation_error", "torso orientation error (rad)"), ("fall_rate", "episode ends per env step"))
+"""The same for a motion-tracking run (`--env track`)."""
+
+
+def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path,
+                    curves: tuple[tuple[str, str], ...] = CURVES) -> Path:
+    """Each run's PPO metrics (``curves``) against environment steps (warm start included) and against wall time;
     a dotted line marks where a run's warm start ended."""
-    fig, axes = plt.subplots(2, len(CURVES), figsize=(4.2 * len(CURVES), 7), squeeze=False)
+    fig, axes = plt.subplots(2, len(curves), figsize=(4.2 * len(curves), 7), squeeze=False)
     for i, (label, (warm, history)) in enumerate(runs.items()):
         offset = warm[-1]["env_steps"] if warm else 0
-        for col, (key, title) in enumerate(CURVES):
+        for col, (key, title) in enumerate(curves):
             values = [h.get(key, float("nan")) for h in history]
             steps, minutes = [h["env_steps"] + offset for h in history], [h["walltime"] / 60 for h in history]
             for row, x in enumerate((steps, minutes)):
