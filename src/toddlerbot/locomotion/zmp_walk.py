@@ -19,7 +19,7 @@ joint angles are output joints (``TransmissionMap.joint_names``) in radians.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -107,6 +107,14 @@ class WalkState:
     """(2, 6) last leg solution (IK warm start)."""
     start_feet: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((2, 3)))
     """(2, 3) the feet's floor poses (x, y, yaw) at the start."""
+    step_offsets: np.ndarray = field(default_factory=lambda: np.zeros((3, 2)))
+    """(3, 2) walk-frame xy shifts of footsteps S_{k-1}, S_k and S_{k+1} from the plan (feedback inputs,
+    `ZMPWalk.adjust_swing`; zero offline), m. The feet go to the shifted footsteps; the ZMP reference, and so the
+    CoM plan, keep the planned ones. When a shifted foot lands, `follow` of its shift moves the walk pose P_k
+    itself (the footsteps after it follow from there) and the rest stays on that footstep alone."""
+    follow: float = 1.0
+    """Fraction of a landed foot's shift taken into the walk poses (1: walk on from where the foot landed; 0:
+    return to the planned path with the next step)."""
 
 
 class ZMPWalk:
@@ -166,15 +174,22 @@ class ZMPWalk:
         tick = state.tick
         poses = list(state.walk_poses)
         k = self._step_index(tick)
+        offsets = state.step_offsets
         if k >= 0 and (tick - cfg.start_ticks) % cfg.step_ticks == 0 and len(poses) < k + 2:
+            if offsets.any():  # a new step: S_k, shifted, has landed
+                landed = offsets[2]
+                if landed.any() and state.follow > 0:
+                    poses[k] = poses[k] + np.array([*(state.follow * landed), 0.0])
+                offsets = np.array([offsets[1], (1.0 - state.follow) * landed, np.zeros(2)])
             poses.append(advance(poses[-1], cmd, cfg.step_ticks * cfg.dt))  # fix S_{k+1}
         footsteps = self._footsteps(state, poses, cmd, k + 2 + cfg.preview_ticks // cfg.step_ticks + 2)
         zmp_future = self._zmp_refs(state, footsteps, np.arange(tick, tick + cfg.preview_ticks + 1))
         cart, err_sum, zmp = preview_step(self.gains, state.cart, state.zmp_error_sum, zmp_future)
-        foot_floor, lift, contact = self._feet(state, footsteps, tick)
+        foot_floor, lift, contact = self._feet(state, footsteps, tick, offsets)
         ref, leg_q = self._pose(tick, cmd, state, foot_floor, lift, contact, state.cart, zmp, zmp_future[0], torso_tilt)
         next_state = WalkState(tick=tick + 1, cart=cart, zmp_error_sum=err_sum, walk_poses=poses,
-                               first_stance=state.first_stance, leg_q=leg_q, start_feet=state.start_feet)
+                               first_stance=state.first_stance, leg_q=leg_q, start_feet=state.start_feet,
+                               step_offsets=offsets, follow=state.follow)
         return next_state, ref
 
     def trajectory(self, commands, duration: float) -> WalkTrajectory:
@@ -203,6 +218,24 @@ class ZMPWalk:
             refs.append(ref)
         self.__dict__.setdefault("_cache_states", {})[key] = state
         return refs[tick]
+
+    def adjust_swing(self, state: WalkState, offset: np.ndarray, follow: float = 1.0) -> WalkState:
+        """The state with the swinging foot's target S_{k+1} shifted by ``offset`` (walk-frame xy, m) from the
+        plan (replaces any earlier shift of the same step), ``follow`` of it to be taken into the walk poses when
+        the foot lands (`WalkState.step_offsets`)."""
+        offsets = state.step_offsets.copy()
+        offsets[2] = np.asarray(offset, dtype=float).reshape(2)
+        return replace(state, step_offsets=offsets, follow=float(follow))
+
+    def swing_leg(self, state: WalkState) -> tuple[int | None, int]:
+        """(the leg that swings, or is about to swing, in the step at ``state.tick``; ticks from then to its
+        planned touchdown). (None, 0) while standing at the start."""
+        cfg = self.config
+        k = self._step_index(state.tick)
+        if k < 0:
+            return None, 0
+        into_step = state.tick - cfg.start_ticks - k * cfg.step_ticks
+        return 1 - stance_side(k, state.first_stance), cfg.step_ticks - into_step
 
     # -- internals --------------------------------------------------------------------------------------------
     def _step_index(self, tick: int) -> int:
@@ -235,8 +268,9 @@ class ZMPWalk:
         blend = np.where(k < 0, 1.0, np.minimum((tau + 1) / cfg.double_support_ticks, 1.0))[:, None]
         return prev + blend * (target - prev)
 
-    def _feet(self, state: WalkState, steps: dict[int, np.ndarray], tick: int):
-        """Foot floor poses (2, 3: x, y, yaw), lifts (2,) and contact flags (2,) at a tick."""
+    def _feet(self, state: WalkState, steps: dict[int, np.ndarray], tick: int, offsets: np.ndarray):
+        """Foot floor poses (2, 3: x, y, yaw), lifts (2,) and contact flags (2,) at a tick; footsteps S_{k-1},
+        S_k and S_{k+1} shifted by the rows of ``offsets`` (walk frame, m)."""
         cfg = self.config
         k = self._step_index(tick)
         first = state.first_stance
@@ -245,14 +279,18 @@ class ZMPWalk:
         stance = stance_side(k, first)
         swing = 1 - stance
         feet, lift, contact = np.zeros((2, 3)), np.zeros(2), np.ones(2, dtype=bool)
-        feet[stance] = steps[k]
+        previous, current, end = steps[k - 1], steps[k], steps[k + 1]
+        if offsets.any():
+            previous, current, end = (step + np.array([*offset, 0.0])
+                                      for step, offset in zip((previous, current, end), offsets, strict=True))
+        feet[stance] = current
         tau = tick - cfg.start_ticks - k * cfg.step_ticks
         ss = tau - cfg.double_support_ticks + 1
         if ss <= 0:
-            feet[swing] = steps[k - 1]
+            feet[swing] = previous
         else:
             s = ss / (cfg.step_ticks - cfg.double_support_ticks)
-            pos, yaw = swing_pose(steps[k - 1], steps[k + 1], s, cfg.step_height)
+            pos, yaw = swing_pose(previous, end, s, cfg.step_height)
             feet[swing] = (pos[0], pos[1], yaw)
             lift[swing] = pos[2]
             contact[swing] = s >= 1.0

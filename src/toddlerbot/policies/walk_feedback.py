@@ -164,6 +164,13 @@ class CapturePointEstimator:
     """(2,) filtered rate of `com_error`, m/s."""
     dcm_error: np.ndarray = field(default_factory=lambda: np.zeros(2))
     """(2,) latest DCM error, m."""
+    leg_error: np.ndarray | None = None
+    """(2 legs, 2) CoM error relative to each foot at the last update, m (continuous when the stance changes)."""
+    leg_error_rate: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
+    """(2 legs, 2) filtered rate of `leg_error`, m/s."""
+    leg_dcm_error: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
+    """(2 legs, 2) DCM error relative to each foot, m: row ``leg`` is what the step adjustment reads while that
+    leg is the step's stance leg (no jump when the other foot lands or lifts off)."""
 
     def update(self, joint_pos: np.ndarray, planned_joint_pos: np.ndarray, contact: np.ndarray, roll: float,
                pitch: float) -> np.ndarray:
@@ -175,14 +182,20 @@ class CapturePointEstimator:
         feet_p, _ = self.ik.forward(q_plan)
         com_p = self.ik.com(q_plan)
         rot = tilt_rotation(roll, pitch)
+        per_leg = [rot @ (com_m - feet_m[leg]) - (com_p - feet_p[leg]) for leg in range(2)]
         legs = np.flatnonzero(contact)
-        err = np.mean([rot @ (com_m - feet_m[leg]) - (com_p - feet_p[leg]) for leg in legs], axis=0)[:2]
+        err = np.mean([per_leg[leg] for leg in legs], axis=0)[:2]
         key = tuple(legs)
+        a = self.rate_filter
         if self.stance is not None and self.stance == key:
-            a = self.rate_filter
             self.com_error_rate = (1 - a) * self.com_error_rate + a * (err - self.com_error) / self.dt
         self.stance, self.com_error = key, err
         self.dcm_error = err + self.com_error_rate / self.omega
+        per_leg = np.array(per_leg)[:, :2]
+        if self.leg_error is not None:
+            self.leg_error_rate = (1 - a) * self.leg_error_rate + a * (per_leg - self.leg_error) / self.dt
+        self.leg_error = per_leg
+        self.leg_dcm_error = per_leg + self.leg_error_rate / self.omega
         return self.dcm_error
 
 
@@ -224,3 +237,41 @@ class VelocityLoop:
         if (tick - self.start_ticks) % self.step_ticks == 0:
             self.correction = np.clip(np.asarray(g.kp) * error + ki * self.error_sum, -limit, limit)
         return self.correction
+
+
+@dataclass
+class GaitBaseline:
+    """The part of a per-tick (2,) signal that repeats with the gait cycle, learned per tick of the cycle, so that
+    what is left is what a push added. On an unpushed walk the DCM error (`CapturePointEstimator`) swings by
+    about +-3 cm sideways at the gait frequency (the robot sways less than planned) but repeats from cycle to
+    cycle within 0.3-0.9 cm. A tick's first ``warmup`` samples are averaged (the residual is zero meanwhile: the
+    first cycles of a walk are learned, not judged); after that each sample moves its tick's value by ``rate``
+    x the residual clipped to ``clip``, so a push moves the baseline by at most rate x clip and a new gait
+    (another command) is learned in a few cycles."""
+
+    period: int
+    """Ticks per gait cycle."""
+    rate: float = 0.3
+    """Fraction of the (clipped) residual learned per sample."""
+    clip: float = 0.02
+    """Bound on the residual learned per sample, m."""
+    warmup: int = 2
+    """Samples of a tick averaged before its residual counts."""
+    values: np.ndarray | None = None
+    """(period, 2) learned signal per tick of the cycle."""
+    samples: np.ndarray | None = None
+    """(period,) samples seen per tick of the cycle."""
+
+    def residual(self, tick: int, value: np.ndarray) -> np.ndarray:
+        """``value`` at gait ``tick`` minus the learned baseline of that tick (zero while the tick warms up);
+        then learns from it."""
+        if self.values is None:
+            self.values, self.samples = np.zeros((self.period, 2)), np.zeros(self.period, dtype=int)
+        i = tick % self.period
+        self.samples[i] += 1
+        if self.samples[i] <= self.warmup:
+            self.values[i] += (value - self.values[i]) / self.samples[i]
+            return np.zeros(2)
+        out = value - self.values[i]
+        self.values[i] += self.rate * np.clip(out, -self.clip, self.clip)
+        return out

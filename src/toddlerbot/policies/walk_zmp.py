@@ -12,6 +12,10 @@ The generator stays a pure function of its command and time; all feedback lives 
   from the measured leg joint angles (leg forward kinematics and whole-robot CoM of `LegIK`) and the IMU tilt,
   compared with the same quantity of the planned leg angles, and the error plus its rate / omega shifts the
   ankle pitch/roll;
+* stepping to catch a push (`toddlerbot.locomotion.capture_step`): the DCM error relative to the step's stance
+  foot, less its part that repeats with the gait (`GaitBaseline`), moves the swinging foot's target to where the
+  error will have gone at touchdown, within its reach; the walk goes on from where the foot lands, and the step
+  hurries when only the other foot can catch the push;
 * stance hip lift and a stiffer swing leg (`swing_kp_scale`) so that the swing foot leaves and reaches the floor
   closer to the plan;
 * velocity tracking (`VelocityTracking`, `VelocityLoop`): the base's forward velocity, estimated by leg
@@ -26,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toddlerbot.locomotion.capture_step import StepAdjustment, footstep_shift, hurries
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.locomotion.preview import GRAVITY
 from toddlerbot.locomotion.zmp_walk import WalkReference, WalkState, ZMPWalk
@@ -33,6 +38,7 @@ from toddlerbot.policies.base import Action, Policy
 from toddlerbot.policies.walk_feedback import (
     CapturePointEstimator,
     FootJoint,
+    GaitBaseline,
     HeadingHold,
     LegOdometry,
     VelocityLoop,
@@ -98,6 +104,7 @@ class WalkZMPPolicy(Policy):
         leg_kp_scale: float = 2.0,
         swing_kp_scale: float = 3.0,
         velocity: VelocityTracking | None = None,
+        step_adjustment: StepAdjustment | None = None,
     ) -> None:
         super().__init__(robot)
         names = list(robot.joint_names)
@@ -119,6 +126,7 @@ class WalkZMPPolicy(Policy):
         (0 elsewhere)."""
         self.feedback = feedback or AttitudeFeedback()
         self.velocity = velocity or VelocityTracking()
+        self.step_adjustment = step_adjustment or StepAdjustment()
         ik = self.walk.ik
         self.ankle_pitch = FootJoint.find(ik, names, "ankle_pitch", 1)
         self.ankle_roll = FootJoint.find(ik, names, "ankle_roll", 0)
@@ -141,6 +149,11 @@ class WalkZMPPolicy(Policy):
         self.capture_point = CapturePointEstimator(self.walk.ik, self.leg_index, self.omega,
                                                    self.feedback.dcm_velocity_filter, dt)
         self.velocity_loop = VelocityLoop(self.velocity, cfg.start_ticks, cfg.step_ticks, dt)
+        self.dcm_baseline = GaitBaseline(2 * cfg.step_ticks)
+        self.step_index = -1
+        """The generator's step that `step_shift` belongs to."""
+        self.step_shift = np.zeros(2)
+        """Current shift of the swinging foot's target, m, torso-heading frame (`StepAdjustment`)."""
 
     def act(self, obs: Observation, command: np.ndarray) -> Action:
         fb = self.feedback
@@ -158,10 +171,12 @@ class WalkZMPPolicy(Policy):
         dcm = np.zeros(2)
         if ref is not None:
             dcm = self.capture_point.update(obs.joint_pos, ref.joint_pos, ref.contact, roll, pitch)
+        ticks = self._catch_step(dcm, ref.torso_yaw) if ref is not None else 1
         contact = ref.contact if ref is not None else np.ones(2, dtype=bool)
         gains = np.where(contact, fb.stance_tilt, fb.swing_tilt)
         tilts = np.array([tilt_rotation(g * roll, g * pitch) for g in gains])
-        self.walk_state, ref = self.walk.step(self.walk_state, walk_command, tilts)
+        for _ in range(ticks):
+            self.walk_state, ref = self.walk.step(self.walk_state, walk_command, tilts)
         self.heading.advance(self.walk.clip_command(command)[2], self.control_dt)
         self.last_reference = ref
         q = ref.joint_pos.copy()
@@ -181,3 +196,33 @@ class WalkZMPPolicy(Policy):
             kp = np.where(self.swing_kp[leg] > 0, self.swing_kp[leg], kp)
         action = self.joint_action(q)
         return Action(action.motor_targets, action.joint_targets, kp=kp)
+
+    def _catch_step(self, dcm_error: np.ndarray, plan_yaw: float) -> int:
+        """Move the swinging foot's target where the DCM error (its part beyond the gait's periodic swing)
+        will have gone at touchdown, and hurry the step when the other foot must catch it
+        (`toddlerbot.locomotion.capture_step`); the generator walks on from where the foot lands. Returns the
+        generator ticks to advance this control tick."""
+        cfg, adj, state = self.walk.config, self.step_adjustment, self.walk_state
+        leg, ticks_left = self.walk.swing_leg(state)
+        if leg is None:
+            return 1
+        residual = self.dcm_baseline.residual(state.tick - cfg.start_ticks, self.capture_point.leg_dcm_error[1 - leg])
+        tau = cfg.step_ticks - ticks_left
+        step = (state.tick - cfg.start_ticks) // cfg.step_ticks
+        if step != self.step_index:  # a new step: the generator takes the last step's shift into the plan
+            self.step_index, self.step_shift = step, np.zeros(2)
+        swing = (tau - cfg.double_support_ticks + 1) / (cfg.step_ticks - cfg.double_support_ticks)
+        if swing <= 0:  # double support: a foot has just landed, and the estimate rings with the impact
+            return 1
+        ticks = adj.hurry_ticks if hurries(residual, leg, adj) else 1
+        if swing > adj.hold:
+            return ticks
+        target = footstep_shift(residual, self.omega, ticks_left * cfg.dt / ticks, leg, adj)
+        limit = adj.max_speed * cfg.dt
+        self.step_shift = self.step_shift + np.clip(target - self.step_shift, -limit, limit)
+        if self.step_shift.any() or state.step_offsets[2].any():
+            c, s = np.cos(plan_yaw), np.sin(plan_yaw)
+            shift = self.step_shift
+            self.walk_state = self.walk.adjust_swing(state, (c * shift[0] - s * shift[1], s * shift[0] + c * shift[1]),
+                                                     adj.follow)
+        return ticks
