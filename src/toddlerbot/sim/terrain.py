@@ -40,16 +40,18 @@ TERRAIN_GEOM = "terrain"
 FLOOR_GEOM = "floor"
 EXTENT = 2.0
 """Half-width of the terrain square around the start, m: a 10 s walk at the fastest reach (0.15 m/s) ends 1.5 m out.
-Beyond it lies the floor plane, 1 mm below the terrain's lowest point."""
+Beyond it lies the floor plane, `FLOOR_DROP` below the terrain's lowest point."""
 CELL = 0.02
 """Spacing of the height field's samples, m: an edge (a tile's, a stair's) rises over one cell."""
 START = 0.25
 """Half-width of the flat square at z = 0 around the start (the robot's feet at home span 0.12 x 0.12 m)."""
 BASE_DEPTH = 0.05
 """Thickness of the height field's solid base below its lowest point, m."""
-FLOOR_DROP = 0.001
-"""How far the floor plane lies below the terrain's lowest point, m: where the terrain is at its lowest (the start
-square) the plane neither collides as a second ground nor shows through it in renders."""
+FLOOR_DROP = BASE_DEPTH
+"""How far the floor plane lies below the terrain's lowest point, m: at the height field's base, so that where the
+terrain is at its lowest (the start square) the plane neither shows through it in renders nor collides as a second
+ground (1 mm below, feet landing 2.4 mm deep into the height field touched it, and a turn in place on the start
+square fell where it did not on 1 cm)."""
 
 TERRAINS = Registry("terrain", entry_point_group="toddlerbot.terrains")
 """The terrain kinds `parse_terrain` accepts: `Terrain` subclasses, built-in ones first, then those of installed
