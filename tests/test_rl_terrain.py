@@ -94,7 +94,7 @@ def test_mjx_collides_a_sole_with_the_height_field_where_mujoco_does():
     """A sole on round hills, at points that are not symmetric in x and y (a transposed height field would show):
     MJX's deepest contact is MuJoCo's within 0.3 mm. On curved ground the two split a sole's contact into prisms
     differently (MJX keeps 4 points, MuJoCo up to 48); on the flat tops of steps, slopes and tiles they agreed to
-    1 um (measured while writing this test). One compile of MJX's collision: 1-2 minutes on a loaded CPU."""
+    1 um (measured while writing this test). One compile of MJX's collision: 50-260 s on the shared 2-core VM."""
     model, datas = _foot_on(parse_terrain("bumps:height=0.05,width=0.4"), [(0.83, -0.41), (-0.37, 1.12), (1.3, 0.6)])
     starts = []
     for data in datas:
@@ -106,7 +106,8 @@ def test_mjx_collides_a_sole_with_the_height_field_where_mujoco_does():
     deepest = np.min(np.asarray(contact.dist), axis=1)
     expected = [np.min(d.contact.dist[:d.ncon]) for d in datas]
     np.testing.assert_allclose(deepest, expected, atol=3e-4)
-    assert np.all(deepest < 0) and np.ptp([d.qpos[2] for d in datas]) > 0.01  # on hills of different heights
+    ground = np.array([d.qpos[2] for d in datas]) - 0.021  # under the sole's highest corner
+    assert np.all(deepest < 0) and ground.min() > 0.01 and np.ptp(ground) > 0.003  # up hills of different heights
 
 
 @pytest.fixture(scope="module")
