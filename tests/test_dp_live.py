@@ -179,4 +179,4 @@ def test_dp_options_are_checked_before_anything_runs():
     assert str(unknown_task.exception) == "unknown task 'fly'; expected one of pick, wagon"
     unknown = runner.invoke(app, ["hw", "run", "--port", "/dev/null", "--calibration", "c.yaml", "--policy", "dpx"])
     assert str(unknown.exception) == ("unknown policy 'dpx'; expected one of stand, replay, walk-zmp, walk-rl, dp, "
-                                      "get-up")
+                                      "get-up, track")

@@ -129,7 +129,7 @@ def test_make_policy_builds_a_registered_policy_and_refuses_built_in_names(resto
         return Sway(robot)
 
     register_policy("sway", sway)
-    assert policy_names() == ("stand", "replay", "walk-zmp", "walk-rl", "dp", "get-up", "sway")
+    assert policy_names() == ("stand", "replay", "walk-zmp", "walk-rl", "dp", "get-up", "track", "sway")
     policy = make_policy("sway", robot, motion="wave", weights="ignored.npz")
     assert built == ["wave"] and policy.name == "sway"
     result = run_policy(robot, policy, CommandSchedule.parse("0:0,0,0"), 1.0)
@@ -140,7 +140,7 @@ def test_make_policy_builds_a_registered_policy_and_refuses_built_in_names(resto
     with pytest.raises(ToddlerbotError) as unknown:
         make_policy("dance", robot)
     assert str(unknown.value) == ("unknown policy 'dance'; expected one of stand, replay, walk-zmp, walk-rl, dp, "
-                                  "get-up, sway")
+                                  "get-up, track, sway")
 
 
 def test_a_registered_variant_builds_its_base_and_spec_variant(restored_registries):
