@@ -102,7 +102,8 @@ def test_a_policy_installed_as_the_guide_says_runs_from_the_command_line(tmp_pat
     assert 0.4 < swing < 0.65 and len(log.time) == 100  # 0.6 rad commanded peak to peak; 2 s at 50 Hz
     unknown = toddlerbot("sim", "run", "--policy", "fly")
     assert unknown.returncode == 2
-    assert "expected one of stand, replay, walk-zmp, walk-rl, dp, get-up, track, nod" in " ".join(unknown.stderr.split())
+    expected = "expected one of stand, replay, walk-zmp, walk-rl, dp, get-up, track, nod"
+    assert expected in " ".join(unknown.stderr.split())
 
 
 def test_a_task_added_as_the_guide_says_is_one_file_and_one_registration_that_every_command_knows(tmp_path):
