@@ -6,10 +6,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from toddlerbot.policies.track import TRACK_ENVIRONMENT
 from toddlerbot.rl import config
 from toddlerbot.rl.config import EnvConfig, ObsConfig
 
-TRACK = "track"
+TRACK = TRACK_ENVIRONMENT
 """The environment's registered name."""
 
 

@@ -35,6 +35,7 @@ from toddlerbot.actuation.model import ActuatorArrays
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_savez, atomic_write_text
 from toddlerbot.policies.motions import MAX_MOTION_BYTES, builtin_motions, load_motion, motion_path
+from toddlerbot.policies.track import TrackPolicy
 from toddlerbot.policies.track_observation import MotionTargets, track_actor_obs, track_frame, track_frame_size
 from toddlerbot.policies.walk_rl import SHIPPED_WEIGHTS
 from toddlerbot.rl import config, randomization, track_config
@@ -73,7 +74,7 @@ class TrackEnv(RLEnvironment):
     """One robot tracking one motion; vmap it (the training wrappers do) for many."""
 
     name = TRACK
-    runtime_policy = "track"
+    runtime_policy = TrackPolicy.name
     config_class = TrackConfig
     reward_terms = TRACK_REWARDS
     recipes = MappingProxyType({"cpu": Recipe(track_config.CPU), "mjx": Recipe(track_config.FULL),

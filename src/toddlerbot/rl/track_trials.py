@@ -6,7 +6,8 @@ A trial starts the (perturbed) simulated robot where the motion starts (lying on
 steps as the reference has rows, and compares every step with the reference row of that time (the motion played on
 the training model, `rl.motion_reference`). It **completed** when the robot never left the reference by the
 tracking environment's termination thresholds (`TrackConfig`: torso orientation, height, horizontal drift) and ends
-standing (torso at least `HEIGHT_FRACTION` of the standing height, uprightness at least `UPRIGHTNESS`).
+standing (torso at least `HEIGHT_FRACTION` of the standing height, uprightness at least `UPRIGHTNESS`: the get-up
+benchmark's bar, `policies.get_up_trials`).
 """
 
 from __future__ import annotations
@@ -19,9 +20,11 @@ import mujoco
 import numpy as np
 
 from toddlerbot.policies.base import Policy
+from toddlerbot.policies.get_up_trials import HEIGHT_FRACTION, UPRIGHTNESS
 from toddlerbot.policies.motions import Motion, full_pose, load_motion
 from toddlerbot.policies.replay import ReplayPolicy
 from toddlerbot.policies.track import TrackPolicy
+from toddlerbot.policies.walk_feedback import attitude
 from toddlerbot.rl.model import training_model
 from toddlerbot.rl.motion_reference import MotionReference, build_reference
 from toddlerbot.rl.track_config import TrackConfig
@@ -30,8 +33,6 @@ from toddlerbot.robot.floor_pose import place_on_floor
 from toddlerbot.sim.actuated import MotorAddresses
 from toddlerbot.sim.perturbation import Perturbation, perturbed_robot
 
-HEIGHT_FRACTION = 0.9
-UPRIGHTNESS = 0.9
 KICK_SPEED = 0.2
 """m/s of the kick condition's one horizontal kick, in a seeded direction at a seeded time during the motion."""
 
@@ -120,7 +121,7 @@ class MotionTrials:
                 left_at = row * cfg.ctrl_dt
         stood = (robot.torso_height() >= HEIGHT_FRACTION * robot.standing_height
                  and robot.torso_uprightness() >= UPRIGHTNESS)
-        heading = heading_of(robot.base_quat) - heading_of(ref.torso_quat[-1])
+        heading = attitude(robot.base_quat)[2] - attitude(ref.torso_quat[-1])[2]
         return MotionTrial(player, condition.name, seed, left_at is None and stood, left_at, stood,
                            float(np.sqrt(np.mean(squared))), float(np.mean(tilted)),
                            float(np.angle(np.exp(1j * heading))))
@@ -131,8 +132,3 @@ def up_axis(quat: np.ndarray) -> np.ndarray:
     w, x, y, z = quat
     return np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
 
-
-def heading_of(quat: np.ndarray) -> float:
-    """The torso's heading (the direction of its x axis in the floor plane), rad, of a torso near upright."""
-    w, x, y, z = quat
-    return float(np.arctan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z)))
