@@ -13,6 +13,7 @@ from toddlerbot.policies.get_up import GetUpPolicy
 from toddlerbot.policies.get_up_trials import fallen_robot, get_up_trial
 from toddlerbot.policies.rl_inference import ACTION_DISTRIBUTION
 from toddlerbot.policies.track import TrackPolicy
+from toddlerbot.policies.track_observation import MotionTargets
 from toddlerbot.policies.walk_rl import SHIPPED_WEIGHTS
 from toddlerbot.rl.track_config import TrackConfig
 from toddlerbot.rl.track_env import TrackEnv
@@ -32,7 +33,7 @@ def constant_policy(path, trials: MotionTrials, action: float):
     """An exported tracking policy of ``trials``' motion whose action is ``action`` on every motor, always."""
     description, cfg = trials.description, trials.cfg
     n = description.n_motors
-    width = cfg.obs.history * (3 * n + 6) + 1 + len(cfg.lookahead) * n
+    width = MotionTargets("", trials.reference.motor_targets, 1, cfg.lookahead).actor_width(cfg.obs.history, n)
     arrays = {"distribution": np.array(ACTION_DISTRIBUTION), "action_std": np.full(n, 0.1, np.float32),
               "layer0_kernel": np.zeros((width, 8), np.float32), "layer0_bias": np.zeros(8, np.float32),
               "layer1_kernel": np.zeros((8, n), np.float32), "layer1_bias": np.full(n, action, np.float32),
