@@ -25,13 +25,7 @@ def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[s
     """(catalogue motor name, parameters) of a params.json; raise `ParamsError` naming the file."""
     path = Path(path)
     catalogue = catalogue or default_catalogue()
-    text = read_text(path, "params.json", ParamsError, MAX_PARAMS_BYTES, "UTF-8 JSON")
-    try:
-        raw = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ParamsError(f"{path}: not valid JSON: {exc}") from None
-    if not isinstance(raw, dict) or not isinstance(raw.get("actuator"), dict) or "motor" not in raw:
-        raise ParamsError(f"{path}: expected {{'motor': name, 'actuator': {{...}}}}")
+    raw = _read(path)
     try:
         name = catalogue[str(raw["motor"])].name
     except SpecError:
@@ -45,6 +39,28 @@ def load_params(path: str | Path, catalogue: Catalogue | None = None) -> tuple[s
     except (TypeError, ValueError) as exc:
         raise ParamsError(f"{path}: {exc} (motor {name})") from None
     return name, params
+
+
+def relative_errors(path: str | Path) -> dict[str, float]:
+    """Each fitted parameter's relative standard error, as `sysid fit` records it in the file's ``fit``
+    (``{}`` for a file without them)."""
+    raw = _read(Path(path))
+    try:
+        return {name: float(entry["relative"])
+                for name, entry in raw.get("fit", {}).get("uncertainty", {}).items()}
+    except (AttributeError, KeyError, TypeError, ValueError):
+        raise ParamsError(f"{path}: fit.uncertainty: expected {{name: {{'relative': number, ...}}}}") from None
+
+
+def _read(path: Path) -> dict:
+    text = read_text(path, "params.json", ParamsError, MAX_PARAMS_BYTES, "UTF-8 JSON")
+    try:
+        raw = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ParamsError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(raw, dict) or not isinstance(raw.get("actuator"), dict) or "motor" not in raw:
+        raise ParamsError(f"{path}: expected {{'motor': name, 'actuator': {{...}}}}")
+    return raw
 
 
 def catalogue_with_params(paths: Iterable[str | Path], catalogue: Catalogue | None = None) -> Catalogue:
