@@ -113,7 +113,7 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
     run = _run_at(tmp_path, 400)
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
                                            "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
-                                           "num_timesteps": 1000}]
+                                           "terrain": "flat", "terrain_seed": 0, "num_timesteps": 1000}]
     plan = resume_plan(run, TrainRequest(push_velocity=(0.25, 0.4), timesteps=2000))
     assert plan.resume and plan.env is None  # the run reads its (new) configuration itself
     env_cfg, ppo_cfg = train.load_config(run)
@@ -170,7 +170,23 @@ def test_stages_recorded_before_the_interval_could_change_read_as_the_configurat
     (run / "config.json").write_text(json.dumps(raw))
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
                                            "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
-                                           "num_timesteps": 1000}]  # and read fresh IMU readings
+                                           "terrain": "flat", "terrain_seed": 0,
+                                           "num_timesteps": 1000}]  # and read fresh IMU readings, on the flat floor
+
+
+def test_a_resumed_run_goes_on_on_other_ground_as_a_recorded_stage(tmp_path):
+    """A terrain curriculum: `rl train --resume --terrain ... --terrain-seed ...` from the last checkpoint."""
+    from toddlerbot.rl import train
+    from toddlerbot.rl.launch import TrainRequest, resume_plan
+
+    run = _run_at(tmp_path, 400)
+    resume_plan(run, TrainRequest(terrain="rough:height=0.02", terrain_seed=5))
+    env_cfg, _ = train.load_config(run)
+    assert (env_cfg.terrain, env_cfg.terrain_seed) == ("rough:height=0.02,cell=0.1", 5)
+    assert [(s["from_env_steps"], s["terrain"], s["terrain_seed"]) for s in train.training_stages(run)] == [
+        (0, "flat", 0), (400, "rough:height=0.02,cell=0.1", 5)]
+    with pytest.raises(ToddlerbotError, match=r"^--terrain 'rough:height=0\.5': .*height"):
+        resume_plan(run, TrainRequest(terrain="rough:height=0.5"))
 
 
 @pytest.mark.parametrize(("request_fields", "message"), [
@@ -182,8 +198,8 @@ def test_stages_recorded_before_the_interval_could_change_read_as_the_configurat
     ({"num_envs": 8, "environment": "walk2"}, r"^--num-envs/--env: a resumed run keeps the settings it started"),
     ({"imu_age": (0.02, 0.01)}, r"^--imu-age: IMU age 0\.02\.\.0\.01: expected 0 <= youngest <= oldest, s$"),
     ({"imu_age": (0.0, 0.03)}, r"^--imu-age: IMU age up to 0\.03 s: expected at most the control period 0\.02 s$"),
-    ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval, --imu-age and "
-                      r"--timesteps start a next stage"),
+    ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval, --imu-age, "
+                      r"--terrain, --terrain-seed and --timesteps start a next stage"),
 ])
 def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_was(tmp_path, request_fields,
                                                                                      message):

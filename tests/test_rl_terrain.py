@@ -3,6 +3,7 @@ height field (classic MuJoCo and MJX alike), a foot on it counts as ground conta
 env's termination and feet heights are heights above the ground under them (on the flat floor: z, as before)."""
 
 import math
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -115,7 +116,7 @@ def envs(description):
     cfg = smoke_env_config()
     table = standing_table(description, cfg.command, period=0.6)
     flat = WalkEnv(cfg, description, reference=table, gain_scales=(np.ones(30), np.zeros((2, 30))))
-    slope = WalkEnv(cfg, description, reference=table, gain_scales=flat.gain_scales, terrain=SLOPE)
+    slope = WalkEnv(replace(cfg, terrain=str(SLOPE)), description, reference=table, gain_scales=flat.gain_scales)
     return flat, slope
 
 

@@ -177,3 +177,35 @@ def test_a_run_starts_from_another_runs_warm_start_without_dagger(smoke_run, tmp
     records = read_jsonl(second / "metrics.jsonl")
     assert len(records) == 1 and records[0]["env_steps"] == config.SMOKE.num_timesteps // config.SMOKE.num_evals
     assert np.isfinite(records[0]["policy_loss"])
+
+
+def test_a_run_continues_an_exported_policy_on_a_terrain(smoke_run, tmp_path):
+    """`--init-policy FILE --terrain ...`: the new run takes the export's settings, starts from its actor and
+    normaliser exactly (a critic fitted to the actor's returns beside them), trains on the terrain, and its export
+    records the ground and the policy it continued."""
+    run = smoke_run[0]
+    exported = RLPolicyFile(export.export_run(run, tmp_path / "walk.npz"))
+    second = tmp_path / "on_terrain"
+    _cli("rl", "train", "--smoke", "--init-policy", str(exported.path), "--terrain", "rough:height=0.01",
+         "--terrain-seed", "3", "--out", str(second), "--epochs", "1", "--no-tensorboard", cache=run.parent / "xla")
+    env_cfg, ppo_cfg = train.load_config(second)
+    assert (env_cfg.terrain, env_cfg.terrain_seed) == ("rough:height=0.01,cell=0.1", 3)
+    assert env_cfg.reward.weights == exported.meta["reward_weights"]
+    assert [env_cfg.randomization.push_velocity_min, env_cfg.randomization.push_velocity] == \
+        exported.meta["push_velocity"]
+    assert list(ppo_cfg.policy_hidden) == exported.meta["policy_hidden"]
+    assert train.load_imitation_config(second).policy == str(exported.path.resolve())
+    start = RLPolicyFile(export.export_run(second, tmp_path / "start.npz", checkpoint="warm_start"))
+    for mine, theirs in zip(start.network.kernels + start.network.biases,
+                            exported.network.kernels + exported.network.biases):
+        np.testing.assert_array_equal(mine, theirs)
+    np.testing.assert_allclose(start.network.obs_mean, exported.network.obs_mean, rtol=1e-6)
+    np.testing.assert_allclose(start.network.obs_std, exported.network.obs_std, rtol=1e-6)
+    np.testing.assert_allclose(start.action_std, exported.action_std, rtol=1e-6)
+    critic = read_jsonl(second / "imitation.jsonl")
+    assert len(critic) == config.SMOKE_IMITATION.iterations and np.isfinite(critic[-1]["value_loss"])
+    trained = RLPolicyFile(export.export_run(second, tmp_path / "trained.npz"))
+    assert trained.meta["terrain"] == "rough:height=0.01,cell=0.1"
+    assert trained.meta["terrain_stages"] == [[0, "rough:height=0.01,cell=0.1", 3]]
+    assert trained.meta["init_policy"] == str(exported.path.resolve())
+    assert not np.array_equal(trained.network.kernels[-1], exported.network.kernels[-1])  # PPO moved it

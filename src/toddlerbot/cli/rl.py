@@ -85,6 +85,15 @@ ImuAgeOption = Annotated[tuple[float, float] | None, typer.Option(
     help="The IMU reading the policy sees is this many seconds old, uniform between these two per episode, at most "
          "one control period (default 0 0: fresh); a real BNO08x's are 5-15 ms old. With --resume: the run goes "
          "on with these ages from its last checkpoint (a stage, as with --push-velocity).")]
+TerrainOption = Annotated[str | None, typer.Option(
+    help="The ground every environment walks on: NAME[:KEY=VALUE,...] (docs/simulation.md \"Terrain\"; e.g. "
+         "mix:height=0.02,degrees=10). Default: the flat floor. With --resume: the run goes on on this ground from "
+         "its last checkpoint (a terrain curriculum in stages).")]
+TerrainSeedOption = Annotated[int | None, typer.Option(
+    help="The seed the --terrain is drawn from (default 0; with --resume: a next stage on a new draw).")]
+InitPolicyOption = Annotated[Path | None, typer.Option(
+    help="Continue an exported walk policy (an .npz, or a shipped one by name: walk_rl): its actor and settings, "
+         "a critic fitted to its returns first (docs/rl.md \"Walking on terrain\").")]
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
@@ -125,6 +134,9 @@ def train(
     imitation_iterations: ImitationIterationsOption = None,
     motor_params: MotorParamsOption = None,
     warm_start: WarmStartOption = None,
+    init_policy: InitPolicyOption = None,
+    terrain: TerrainOption = None,
+    terrain_seed: TerrainSeedOption = None,
     variant: VariantOption = None,
     upper_body_pose: UpperBodyPoseOption = None,
     hand_force: HandForceOption = None,
@@ -146,7 +158,7 @@ def train(
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
                            hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()),
-                           env, motion)
+                           env, motion, terrain, terrain_seed, init_policy)
     plan = _plan(out, resume, request, compile_cache, processes)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 
@@ -225,8 +237,10 @@ def _train_with_progress(plan, minutes: float | None, epochs: int | None, sinks)
                             f"  KL {m['kl_mean']:.3f}  {m['sps']:.0f} steps/s")
 
         def imitation_progress(m: dict) -> None:
-            bar.update(task, description="DAgger from walk-zmp",
-                       info=f"iteration {m['iteration']}: {m['samples']:,} labels, BC loss {m['bc_loss']:.4f}, "
+            dagger = "bc_loss" in m  # else the critic of --init-policy's actor (`toddlerbot.rl.policy_start`)
+            fit = f"BC loss {m['bc_loss']:.4f}" if dagger else f"value loss {m['value_loss']:.4f}"
+            bar.update(task, description="DAgger from walk-zmp" if dagger else "critic of the initial policy",
+                       info=f"iteration {m['iteration']}: {m['samples']:,} samples, {fit}, "
                             f"falls/step {m['fall_rate']:.4f}")
 
         _, history = run_training(plan.run_dir, plan.env, plan.ppo, resume=plan.resume, progress=progress,

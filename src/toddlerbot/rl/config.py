@@ -9,9 +9,11 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, replace
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.locomotion.config import WALK_REACH, WalkConfig
 from toddlerbot.policies.rl_inference import ObsConfig
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
+from toddlerbot.sim.terrain import parse_terrain
 
 __all__ = ["ObsConfig"]
 
@@ -208,8 +210,16 @@ class EnvConfig:
     reward: RewardConfig = field(default_factory=RewardConfig)
     randomization: RandomizationConfig = field(default_factory=RandomizationConfig)
     randomize: bool = True
+    terrain: str = "flat"
+    """The ground every env walks on (`toddlerbot.sim.terrain`, ``NAME[:KEY=VALUE,...]``), drawn from
+    ``terrain_seed``; `rl train --resume --terrain` starts a next stage on other ground (a curriculum)."""
+    terrain_seed: int = 0
 
     def __post_init__(self) -> None:
+        try:
+            parse_terrain(self.terrain, "terrain")
+        except ToddlerbotError as exc:
+            raise ValueError(str(exc)) from None
         if not (1 <= self.solver_iterations <= MAX_SOLVER_ITERATIONS
                 and 1 <= self.solver_ls_iterations <= MAX_SOLVER_ITERATIONS):
             raise ValueError(f"solver iterations {self.solver_iterations}/{self.solver_ls_iterations}: expected "
@@ -311,6 +321,10 @@ class ImitationConfig:
     """Adam steps on the aggregated data after each iteration (actor, then critic)."""
     batch_size: int = 512
     learning_rate: float = 1e-3
+    policy: str | None = None
+    """An exported walk policy (``.npz``) to start from instead of DAgger (`rl train --init-policy`,
+    `toddlerbot.rl.policy_start`): its actor and observation normaliser as they are, and a critic fitted to the
+    returns it earns in this run's environment over ``iterations`` rollouts."""
 
     def __post_init__(self) -> None:
         if min(self.num_envs, self.steps, self.bc_steps, self.batch_size) < 1 or \

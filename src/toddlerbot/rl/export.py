@@ -123,6 +123,9 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "push_interval_stages": [[stage["from_env_steps"], *stage["push_interval_s"]] for stage in stages],
             "imu_age_s": stages[-1]["imu_age_s"],
             "imu_age_stages": [[stage["from_env_steps"], *stage["imu_age_s"]] for stage in stages],
+            "terrain": stages[-1]["terrain"],
+            "terrain_stages": [[stage["from_env_steps"], stage["terrain"], stage["terrain_seed"]] for stage in stages],
+            "init_policy": train.load_imitation_config(run_dir).policy,
             "motor_params": json.loads(read_run_text(record, "motor record")) if record.is_file() else []}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None

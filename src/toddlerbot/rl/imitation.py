@@ -118,8 +118,8 @@ def dagger(env, networks: ppo_networks.PPONetworks, cfg: ImitationConfig, episod
     value = networks.value_network.init(k_value)
     obs_spec = {k: specs.Array(v, jnp.dtype("float32")) for k, v in env.observation_size.items()}
     normalizer = running_statistics.init_state(obs_spec)
-    fit_policy = _fitter(lambda p, norm, obs: networks.policy_network.apply(norm, p, obs)[0], cfg)
-    fit_value = _fitter(lambda p, norm, obs: networks.value_network.apply(norm, p, obs)[..., None], cfg)
+    fit_policy = fitter(lambda p, norm, obs: networks.policy_network.apply(norm, p, obs)[0], cfg)
+    fit_value = fitter(lambda p, norm, obs: networks.value_network.apply(norm, p, obs)[..., None], cfg)
     state = reset(jax.random.split(k_env, cfg.num_envs))
     data: dict[str, list[np.ndarray]] = {"state": [], "privileged_state": [], "label": [], "return": []}
     leg, scale = env.leg_index, env.cfg.obs.action_scale
@@ -154,7 +154,7 @@ def dagger(env, networks: ppo_networks.PPONetworks, cfg: ImitationConfig, episod
             # a floor on the std: an input that has not varied yet (e.g. no push so far) must not blow up later
             normalizer = running_statistics.update(normalizer, jax.tree.map(jnp.asarray, batch),
                                                    std_min_value=NORMALIZER_STD_MIN)
-            returns = _discounted_returns(np.stack(rewards), np.stack(dones), discounting)
+            returns = discounted_returns(np.stack(rewards), np.stack(dones), discounting)
             for k in ("state", "privileged_state"):
                 data[k].append(batch[k].reshape(-1, batch[k].shape[-1]))
             data["label"].append(np.stack(labels).reshape(-1, len(leg)).astype(np.float32))
@@ -162,7 +162,7 @@ def dagger(env, networks: ppo_networks.PPONetworks, cfg: ImitationConfig, episod
             stacked = {k: np.concatenate(v) for k, v in data.items()}
             policy, bc_loss = fit_policy(policy, normalizer, stacked["state"], stacked["label"], seed + 2 * iteration)
             # the returns of the last ~2/(1 - discount) steps of each iteration lack their future: leave them out
-            keep = _with_future(cfg.steps, discounting, cfg.num_envs)(len(data["return"]))
+            keep = with_future(cfg.steps, discounting, cfg.num_envs)(len(data["return"]))
             value, value_loss = fit_value(value, normalizer, stacked["privileged_state"][keep], stacked["return"][keep],
                                           seed + 2 * iteration + 1)
             dones_it = np.stack(dones)
@@ -180,7 +180,7 @@ def dagger(env, networks: ppo_networks.PPONetworks, cfg: ImitationConfig, episod
     return WarmStart(policy, value, normalizer, env_steps, history)
 
 
-def _discounted_returns(rewards: np.ndarray, dones: np.ndarray, discounting: float) -> np.ndarray:
+def discounted_returns(rewards: np.ndarray, dones: np.ndarray, discounting: float) -> np.ndarray:
     """(T, n) returns-to-go within the chunk, cut at episode ends."""
     out = np.zeros_like(rewards)
     running = np.zeros(rewards.shape[1])
@@ -190,7 +190,7 @@ def _discounted_returns(rewards: np.ndarray, dones: np.ndarray, discounting: flo
     return out
 
 
-def _with_future(steps: int, discounting: float, n_envs: int) -> Callable[[int], np.ndarray]:
+def with_future(steps: int, discounting: float, n_envs: int) -> Callable[[int], np.ndarray]:
     """Row selector of the aggregated (iteration, step, env) returns whose step has 2/(1 - discount) steps after
     it in its iteration."""
     usable = max(1, steps - round(2 / (1 - discounting)))
@@ -198,7 +198,7 @@ def _with_future(steps: int, discounting: float, n_envs: int) -> Callable[[int],
     return lambda iterations: np.tile(rows, iterations)
 
 
-def _fitter(apply: Callable, cfg: ImitationConfig):
+def fitter(apply: Callable, cfg: ImitationConfig):
     """fit(params, normaliser, inputs, targets, seed) -> (params, last minibatch loss): ``cfg.bc_steps`` Adam
     steps of mean squared error on random minibatches (a fresh Adam state per call)."""
     optimizer = optax.adam(cfg.learning_rate)

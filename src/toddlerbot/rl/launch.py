@@ -50,6 +50,11 @@ class TrainRequest:
     motion: str | None = None
     """The motion a tracking environment tracks (a built-in name or a motion file; ``track`` needs one, the others
     take none)."""
+    terrain: str | None = None
+    """The ground to train on (`toddlerbot.sim.terrain`; None: the recipe's, the flat floor)."""
+    terrain_seed: int | None = None
+    init_policy: Path | None = None
+    """An exported walk policy to continue training from (`toddlerbot.rl.policy_start`)."""
 
 
 @dataclass(frozen=True)
@@ -72,13 +77,14 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
                   "imitation_iterations": "--imitation-iterations", "warm_start": "--warm-start",
                   "variant": "--variant", "upper_body_pose": "--upper-body-pose", "hand_force": "--hand-force",
                   "num_envs": "--num-envs", "mirror_loss": "--mirror-loss", "reward_weights": "--reward-weight",
-                  "environment": "--env", "motion": "--motion"}
+                  "environment": "--env", "motion": "--motion", "init_policy": "--init-policy"}
 """`TrainRequest` fields a resume refuses to change (given other than their defaults), and their options."""
 
 
-STAGE_OPTIONS = {"push_velocity": "--push-velocity", "push_interval": "--push-interval", "imu_age": "--imu-age"}
-"""`TrainRequest` fields of the randomisation that a resume may change: each starts a next stage (as a new step
-budget, ``--timesteps``, does)."""
+STAGE_OPTIONS = {"push_velocity": "--push-velocity", "push_interval": "--push-interval", "imu_age": "--imu-age",
+                 "terrain": "--terrain", "terrain_seed": "--terrain-seed"}
+"""`TrainRequest` fields of the randomisation and the ground that a resume may change: each starts a next stage
+(as a new step budget, ``--timesteps``, does)."""
 
 
 def resume_plan(run_dir: Path, request: TrainRequest, write: bool = True) -> TrainPlan:
@@ -100,13 +106,15 @@ def resume_plan(run_dir: Path, request: TrainRequest, write: bool = True) -> Tra
 
 def _next_stage(run_dir: Path, request: TrainRequest, write: bool) -> None:
     """config.json takes the new `STAGE_OPTIONS` and step budget (checked first), and its `stages` list the stage
-    that starts at the last checkpoint, so that an export knows which pushes trained which checkpoint."""
+    that starts at the last checkpoint, so that an export knows which pushes and ground trained which
+    checkpoint."""
     from toddlerbot.rl import train
 
     env_cfg, ppo_cfg = train.load_config(run_dir)
     paths = train.checkpoint_paths(run_dir)
     start = train.checkpoint_env_steps(paths[-1]) if paths else 0
-    env_cfg = _robot_variant(env_cfg, TrainRequest(**{field: getattr(request, field) for field in STAGE_OPTIONS}))
+    stage_request = TrainRequest(**{field: getattr(request, field) for field in STAGE_OPTIONS})
+    env_cfg = _ground(_robot_variant(env_cfg, stage_request), stage_request)
     ppo_cfg = _ppo_overrides(ppo_cfg, TrainRequest(timesteps=request.timesteps))
     if ppo_cfg.num_timesteps <= start:
         raise ToddlerbotError(f"--timesteps {ppo_cfg.num_timesteps}: the run is already at {start} PPO env steps; "
@@ -133,12 +141,14 @@ def new_run_plan(run_dir: Path, request: TrainRequest, write: bool = True) -> Tr
     if source and source.env.environment != name:
         raise ToddlerbotError(f"--warm-start {source.run_dir}: a run of environment {source.env.environment!r}; "
                               f"expected {name!r}")
-    env_cfg = _environment(source.env if source else env_class.default_config(request.smoke), backend, request)
-    env_cfg = _motion(env_cfg, request)
     recipe = env_class.recipe(backend, request.smoke)
     ppo_cfg, imitation_cfg = replace(recipe.ppo, seed=request.seed), recipe.imitation
+    base = source.env if source else env_class.default_config(request.smoke)
     if source:
         ppo_cfg, imitation_cfg = source.policy_of(ppo_cfg), source.imitation
+    if request.init_policy is not None:
+        base, ppo_cfg, imitation_cfg = _init_policy(request, name, base, ppo_cfg, imitation_cfg)
+    env_cfg = _motion(_environment(base, backend, request), request)
     if request.imitation_iterations is not None:
         try:
             imitation_cfg = replace(imitation_cfg, iterations=request.imitation_iterations)
@@ -151,6 +161,20 @@ def new_run_plan(run_dir: Path, request: TrainRequest, write: bool = True) -> Tr
         run_dir.mkdir(parents=True, exist_ok=True)
         atomic_write_text(run_dir / SMOKE_MARKER, "this run uses the --smoke configuration\n")
     return TrainPlan(run_dir, False, env_cfg, ppo_cfg, imitation_cfg)
+
+
+def _init_policy(request: TrainRequest, environment: str, env_cfg: config.EnvConfig, ppo_cfg: config.PPOConfig,
+                 imitation_cfg: config.ImitationConfig):
+    """The configurations of a run that continues ``--init-policy``'s export: the export's settings on the recipe's,
+    and a warm start made from it (`toddlerbot.rl.policy_start`)."""
+    from toddlerbot.rl.policy_start import exported_env_config, exported_policy, exported_ppo_config
+
+    if request.warm_start is not None or request.variant is not None or request.motor_params:
+        raise ToddlerbotError("--init-policy: the exported policy fixes the robot and its start; --warm-start, "
+                              "--variant and --motor-params are refused with it")
+    exported = exported_policy(request.init_policy, environment)
+    return (exported_env_config(exported, env_cfg), exported_ppo_config(exported, ppo_cfg),
+            replace(imitation_cfg, policy=str(exported.path.resolve()), iterations=max(1, imitation_cfg.iterations)))
 
 
 def _warm_start_source(request: TrainRequest) -> WarmStartSource | None:
@@ -177,7 +201,7 @@ def _environment(env_cfg: config.EnvConfig, backend: str, request: TrainRequest)
     except ValueError as exc:
         raise ToddlerbotError(f"--solver-iterations/--ls-iterations: {exc}") from exc
     defaults = environment_class(env_cfg.environment).reward_terms.weights(env_cfg.reward.weights)
-    env_cfg = replace(_robot_variant(env_cfg, request),
+    env_cfg = replace(_ground(_robot_variant(env_cfg, request), request),
                       reward=replace(env_cfg.reward, weights=reward_weights(defaults, request)))
     if not request.motor_params:
         return env_cfg
@@ -233,6 +257,17 @@ def _robot_variant(env_cfg: config.EnvConfig, request: TrainRequest) -> config.E
             env_cfg = replace(env_cfg, randomization=replace(env_cfg.randomization, **fields))
         except ValueError as exc:
             raise ToddlerbotError(f"{option}: {exc}") from exc
+    return env_cfg
+
+
+def _ground(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfig:
+    """The request's terrain and terrain seed (checked now) on ``env_cfg``."""
+    from toddlerbot.sim.terrain import parse_terrain
+
+    if request.terrain is not None:
+        env_cfg = replace(env_cfg, terrain=str(parse_terrain(request.terrain)))
+    if request.terrain_seed is not None:
+        env_cfg = replace(env_cfg, terrain_seed=request.terrain_seed)
     return env_cfg
 
 

@@ -311,23 +311,24 @@ def save_config(run_dir: Path, env_cfg: EnvConfig, ppo_cfg: PPOConfig,
 
 
 def training_stage(from_env_steps: int, env_cfg: EnvConfig, ppo_cfg: PPOConfig) -> dict:
-    """One stage of a run: from this PPO env step on, pushes in this band at these intervals and IMU readings this
-    old, until this many env steps."""
+    """One stage of a run: from this PPO env step on, pushes in this band at these intervals, IMU readings this
+    old and this ground, until this many env steps."""
     band = env_cfg.randomization
     return {"from_env_steps": int(from_env_steps), "push_velocity": [band.push_velocity_min, band.push_velocity],
             "push_interval_s": list(band.push_interval_s), "imu_age_s": list(band.imu_age_s),
-            "num_timesteps": ppo_cfg.num_timesteps}
+            "terrain": env_cfg.terrain, "terrain_seed": env_cfg.terrain_seed, "num_timesteps": ppo_cfg.num_timesteps}
 
 
 def training_stages(run_dir: Path) -> list[dict]:
-    """The run's stages, oldest first: one unless `rl train --resume` changed the pushes, the IMU age or the budget.
-    Stages recorded before a resume could change the push interval ran the configuration's; those recorded before
-    the IMU age existed, fresh readings."""
+    """The run's stages, oldest first: one unless `rl train --resume` changed the pushes, the IMU age, the ground
+    or the budget. Stages recorded before a resume could change the push interval ran the configuration's; those
+    recorded before the IMU age existed, fresh readings; those before terrains, the flat floor."""
     raw = json.loads(read_run_text(run_dir / CONFIG, "training configuration"))
     env_cfg, ppo_cfg = load_config(run_dir)
     if "stages" in raw:
         interval = list(env_cfg.randomization.push_interval_s)
-        return [{"push_interval_s": interval, "imu_age_s": [0.0, 0.0], **stage} for stage in raw["stages"]]
+        return [{"push_interval_s": interval, "imu_age_s": [0.0, 0.0], "terrain": "flat", "terrain_seed": 0, **stage}
+                for stage in raw["stages"]]
     return [training_stage(0, env_cfg, ppo_cfg)]
 
 
@@ -544,9 +545,11 @@ def _cpu_name() -> str:
 def _warm_start(run_dir: Path, env: RLEnvironment, ppo: PPO, cfg: ImitationConfig, ts: TrainingState, key: jax.Array,
                 t_start: float, time_limit_s: float | None, progress,
                 metrics: MetricsLogger) -> tuple[WarmStart, float]:
-    """The run's warm start: loaded from ``warm_start.msgpack`` or made now (DAgger) and saved. Returns it and the
-    wall time the run spent before this call (the loaded warm start's; 0 when made now)."""
+    """The run's warm start: loaded from ``warm_start.msgpack`` or made now (DAgger, or from ``cfg.policy``'s export:
+    `toddlerbot.rl.policy_start`) and saved. Returns it and the wall time the run spent before this call (the loaded
+    warm start's; 0 when made now)."""
     from toddlerbot.rl.imitation import dagger
+    from toddlerbot.rl.policy_start import policy_warm_start
 
     path = run_dir / WARM_START
     template = {"policy": ts.params.policy, "value": ts.params.value, "normalizer": ts.normalizer_params,
@@ -565,8 +568,9 @@ def _warm_start(run_dir: Path, env: RLEnvironment, ppo: PPO, cfg: ImitationConfi
         if progress:
             progress(m)
 
-    warm = dagger(env, ppo.networks, cfg, ppo.cfg.episode_length, ppo.cfg.discounting, key, deadline, record,
-                  t_start=t_start)
+    make = policy_warm_start if cfg.policy else dagger
+    warm = make(env, ppo.networks, cfg, ppo.cfg.episode_length, ppo.cfg.discounting, key, deadline, record,
+                t_start=t_start)
     arrays = {"policy": warm.policy, "value": warm.value, "normalizer": warm.normalizer,
               "env_steps": np.asarray(warm.env_steps, np.int64)}
     state = serialization.to_state_dict(jax.device_get(arrays))

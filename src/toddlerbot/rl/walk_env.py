@@ -12,7 +12,7 @@ imitation, 50 Hz control.
   home pose. With ``teacher_gains`` the leg P gains follow walk-zmp's stance/swing schedule.
 * Episodes: `PPOConfig.episode_length` control steps (the episode wrapper counts them), ended early when the
   torso falls below ``min_torso_height`` above the ground or tilts more than ``max_tilt`` (`WalkEnv.terminated`).
-* Ground: the flat floor, or a terrain (`toddlerbot.sim.terrain`, given to the constructor with its seed) in the
+* Ground: the flat floor, or a terrain (`toddlerbot.sim.terrain`, ``EnvConfig.terrain`` and its seed) in the
   training model; torso and feet heights are then heights above the ground under them (`WalkEnv.height_above_ground`;
   on the flat floor the absolute heights, untouched).
 * Rewards: `toddlerbot.rl.rewards.WALK_REWARDS` (Table 6 and the path term, each beside its weight).
@@ -52,7 +52,7 @@ from toddlerbot.rl.run_files import ACTION_SPACE, REFERENCE_RECORD
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.mirror import Mirror, robot_mirror
 from toddlerbot.robot.upper_body import upper_body_mask
-from toddlerbot.sim.terrain import Ground, TerrainSpec
+from toddlerbot.sim.terrain import Ground, parse_terrain
 
 
 def _yaw_quat(yaw: jax.Array) -> jax.Array:
@@ -86,13 +86,12 @@ class WalkEnv(RLEnvironment):
         return config.smoke_env_config() if smoke else EnvConfig()
 
     def __init__(self, cfg: EnvConfig | None = None, description: RobotDescription | None = None,
-                 reference: GaitReference | None = None, gain_scales: tuple[np.ndarray, np.ndarray] | None = None,
-                 terrain: TerrainSpec | None = None, terrain_seed: int = 0) -> None:
+                 reference: GaitReference | None = None, gain_scales: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> None:
         """``description``: the robot (by default `training_description`; a given one must be of the same
         variant and carry the same params.json files). ``reference``: an imitation table (default: the ZMP walk).
         ``gain_scales``: (stance (n_motors,), swing (2, n_motors)) factors on the spec's P gains (default, with
-        ``cfg.teacher_gains``: walk-zmp's). ``terrain``: the ground every env walks on, drawn from
-        ``terrain_seed`` (None: the flat floor)."""
+        ``cfg.teacher_gains``: walk-zmp's). Every env walks on ``cfg.terrain``, drawn from ``cfg.terrain_seed``."""
         use_full_precision()
         cfg = self.resolved_config(cfg or EnvConfig())
         if description is None:
@@ -113,7 +112,8 @@ class WalkEnv(RLEnvironment):
             cfg = replace(cfg, obs=replace(cfg.obs, gait_period=reference.period))
         self.cfg = cfg
         """The configuration with the gait period, the backend and the reward weights resolved (save this one)."""
-        model = training_model(description, cfg, terrain, terrain_seed)
+        terrain = parse_terrain(cfg.terrain, "terrain")
+        model = training_model(description, cfg, None if terrain.is_flat else terrain, cfg.terrain_seed)
         self.mj_model = model
         self.ground = Ground.of(model)
         """The terrain's ground heights, None on the flat floor."""
