@@ -3,7 +3,9 @@
 Ten commands across the policy's reach, each walked for `--seconds` under every condition (nominal, torso 10 %
 heavier, floor friction 0.5, small random perturbations, velocity kicks of 0.1, 0.2 and 0.3 m/s, the upper body
 held at a random pose 0.3 and 0.5 of the way to its limits: with `--variant` only, unless named in `--conditions`)
-and `--seeds` seeds, on the robot of `--variant`;
+and `--seeds` seeds, on the robot of `--variant` with the fitted motor parameters of `--motor-params` (sysID
+params.json files, as `sim run` takes them; `benchmarks/bench_motor_models.py` walks both policies under each motor
+model);
 prints a table of falls (falls / trials per cell) and the totals per condition. Trials run in `--workers`
 subprocesses that print one JSON line per trial (nothing is pickled between processes).
 
@@ -15,8 +17,9 @@ a column is a (condition, terrain) pair. With `--terrain` the conditions default
 cycle (`runtime.robustness.kick_grid`), standing and walking half the forward reach, and prints which fall.
 
 Run: PYTHONPATH=src python benchmarks/bench_walk_robustness.py [--policy walk-zmp|walk-rl] [--weights F.npz]
-     [--variant gripper] [--seeds 3] [--seconds 8] [--workers 2] [--conditions nominal,perturbed,"posed 0.3"]
-     [--kick-grid 0.3] [--terrain rough:height=0.02 --terrain slope:degrees=10]
+     [--variant gripper] [--motor-params P.json] [--seeds 3] [--seconds 8] [--workers 2]
+     [--conditions nominal,perturbed,"posed 0.3"] [--kick-grid 0.3]
+     [--terrain rough:height=0.02 --terrain slope:degrees=10]
 """
 
 from __future__ import annotations
@@ -36,6 +39,10 @@ from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.sim.terrain import parse_terrain
 
 
+def _description(args) -> RobotDescription:
+    return RobotDescription.load(variant=args.variant, motor_params=args.motor_params)
+
+
 def _policy_factory(args):
     return lambda robot: make_policy(args.policy, robot, weights=args.weights, symmetric=not args.asymmetric)
 
@@ -45,7 +52,8 @@ def _reach(args, description):
 
 
 def _label(args) -> str:
-    return args.policy + (f" ({args.weights})" if args.weights else "") + (" asymmetric" if args.asymmetric else "")
+    return args.policy + (f" ({args.weights})" if args.weights else "") + (" asymmetric" if args.asymmetric else "") \
+        + "".join(f" with {path}" for path in args.motor_params)
 
 
 def _columns(args, names):
@@ -73,7 +81,7 @@ def _grid_jobs(args, description):
 
 def grid_worker(args) -> None:
     """Run every `--workers`-th `--kick-grid` trial starting at `--worker`, one JSON line each."""
-    description = RobotDescription.load(variant=args.variant)
+    description = _description(args)
     for k, (command, i, j, direction, kick_time) in enumerate(_grid_jobs(args, description)):
         if k % args.workers == args.worker:
             fall = directed_kick_trial(description, _policy_factory(args), command, args.kick_grid, direction,
@@ -99,7 +107,7 @@ def print_grid(args, rows, wall) -> None:
 
 def worker(args, names) -> None:
     """Run every `--workers`-th trial starting at `--worker` and print each as a JSON line."""
-    description = RobotDescription.load(variant=args.variant)
+    description = _description(args)
     by_name = {c.name: c for c in conditions()}
     for i, (command, name, seed, terrain) in enumerate(_jobs(args, names, description)):
         if i % args.workers != args.worker:
@@ -115,6 +123,8 @@ def main() -> None:
     parser.add_argument("--policy", default="walk-zmp")
     parser.add_argument("--weights", default=None)
     parser.add_argument("--variant", default=None, help="spec variant (e.g. gripper)")
+    parser.add_argument("--motor-params", action="append", default=[], metavar="P.json",
+                        help="fitted actuator parameters (sysid params.json; repeatable), as sim run takes them")
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--seconds", type=float, default=8.0)
@@ -130,11 +140,12 @@ def main() -> None:
                         help="walk every condition on this terrain too (repeatable), drawn from the trial's seed")
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    for text in args.terrain or []:
-        try:
+    try:
+        for text in args.terrain or []:
             parse_terrain(text)
-        except ToddlerbotError as exc:
-            parser.error(str(exc))
+        _description(args)
+    except ToddlerbotError as exc:
+        parser.error(str(exc))
     names = args.conditions.split(",") if args.conditions else ["nominal"] if args.terrain else \
         [c.name for c in conditions() if args.variant or not c.upper_body_pose]
     unknown = set(names) - {c.name for c in conditions()}
@@ -153,7 +164,7 @@ def main() -> None:
     if args.kick_grid is not None:
         print_grid(args, rows, wall)
         return
-    description = RobotDescription.load(variant=args.variant)
+    description = _description(args)
     commands = list(dict.fromkeys(tuple(c) for c, _, _, _ in _jobs(args, names, description)))
     columns = _columns(args, names)
     robot = f"{_label(args)} ({description.spec.variant or 'base robot'})"
