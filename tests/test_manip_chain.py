@@ -98,7 +98,7 @@ def test_the_wagon_grip_holds_the_handle_with_margin_through_the_push(wagon_runs
     ("scene: wagon\nskills: [{name: a, kind: pose, motors: {neck_pitch_drive: down}, until: {after: 1}}]\n",
      "skill a: motors.neck_pitch_drive: expected float, got 'down'"),
     ("scene: wagon\nskills: [{name: a, kind: pose, motors: {}, until: {after: 1}}]\n",
-     "skill a: motors, grip: expected motor angles (name: rad) or a grip fraction"),
+     "skill a: motors, grip, home: expected motor angles (name: rad), a grip fraction or groups to move home"),
     ("scene: wagon\nskills: [{name: a, kind: pose, grip: 1.5, until: {after: 1}}]\n",
      "skill a: grip: expected a fraction of the grippers' range in [0, 1], got 1.5"),
     ("scene: wagon\nskills: [{name: a, kind: pose, motors: {neck_pitch_drive: -0.9}, seconds: 0, until: {after: 1}}]\n",

@@ -85,6 +85,7 @@ def _run_real(chain, description, port: str, calibration: Path, imu: str, video:
         raise ToddlerbotError("--video records the simulator; it is not available on the real robot")
     status = chain_on_robot(chain, description, port, calibration, imu, on_switch=say)
     outcome = {"chain": chain.name, "success": status.failure is None, "failure": status.failure,
-               "switches": [{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in status.switches]}
+               "switches": [{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in status.switches],
+               "recoveries": [r.to_dict() for r in status.recoveries]}
     line = f"chain {chain.name}: {'ended' if status.failure is None else 'FAILED: ' + status.failure}"
     return status.failure is None, outcome, [line]

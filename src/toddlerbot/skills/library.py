@@ -9,8 +9,8 @@ returns motor targets and firmware gains (the runner applies `hold` and sends th
 * ``dp``: a diffusion-policy checkpoint drives the arm and gripper motors (torch is imported only here).
 * ``walk``: a registered walking policy (walk-zmp, walk-rl, one's own) with a fixed command.
 * ``hold``: every motor keeps the previous skill's last targets.
-* ``pose``: the named motors move to their angles (the grippers to a fraction of their range) in ``seconds``, the
-  others keep the previous skill's targets.
+* ``pose``: the named motors move to their angles (the grippers to a fraction of their range, whole groups to the
+  home pose) in ``seconds``, the others keep the previous skill's targets.
 
 A chain file names a kind; `SKILLS` (`toddlerbot.skills`) maps the name to its `SkillKind` (parameters and
 constructor), so a skill of your own is a `Skill` subclass registered under a new name (docs/extending.md).
@@ -118,12 +118,15 @@ class PoseParams:
     """Motor name -> target angle, rad (the spec's motor angles, as `home_motor_pos`)."""
     grip: float | None = None
     """The grippers (the ``gripper`` group) to this fraction of their range from open (as a grasp's grip_fraction)."""
+    home: tuple[str, ...] = ()
+    """Motor groups moved to the home pose (e.g. ``[arm, gripper]``: arms back, grippers open)."""
     seconds: float = 0.5
     """Duration of the minimum-jerk move from the previous skill's last targets."""
 
     def __post_init__(self) -> None:
-        if not self.motors and self.grip is None:
-            raise ValueError("motors, grip: expected motor angles (name: rad) or a grip fraction")
+        if not self.motors and self.grip is None and not self.home:
+            raise ValueError("motors, grip, home: expected motor angles (name: rad), a grip fraction or groups to "
+                             "move home")
         if self.grip is not None and not 0.0 <= self.grip <= 1.0:
             raise ValueError(f"grip: expected a fraction of the grippers' range in [0, 1], got {self.grip}")
         if not self.seconds > 0:
@@ -342,6 +345,11 @@ class PoseSkill(Skill):
             if not grippers:
                 raise ToddlerbotError(f"pose skill: grip: {d.spec.name} has no gripper motors")
             index, goal = index + grippers, goal + list(range_fraction(d, grippers, p.grip))
+        for group in p.home:
+            if group not in d.groups:
+                raise ToddlerbotError(f"pose skill: home: {group!r} is not a motor group of {d.spec.name} "
+                                      f"({', '.join(d.groups)})")
+            index, goal = index + list(d.groups[group]), goal + list(d.home_motor_pos[d.groups[group]])
         self.index, self.goal = np.array(index), np.array(goal)
         self.seconds = p.seconds
         self.kp = d.default_kp.copy()

@@ -19,20 +19,23 @@ BUTTON_WAIT_S = 3600.0
 
 def needs_imu(chain: ChainSpec) -> bool:
     """Does a skill of `chain` balance from the IMU (a walk)?"""
-    return any(skill_kind(s.kind).needs_imu for s in chain.skills)
+    return any(skill_kind(s.kind).needs_imu for s in chain.skills + chain.recovery)
 
 
 class SwitchReporter(RunObserver):
-    """Says each switch of the chain as it happens (``grasp -> wait at 0.90 s``)."""
+    """Says each switch, retry and recover of the chain as it happens (``grasp -> wait at 0.90 s``, ``recover push
+    at 7.52 s, on from grasp``)."""
 
     def __init__(self, chain: ChainRunner, say: Callable[[str], None]) -> None:
-        self.chain, self.say, self.reported = chain, say, 0
+        self.chain, self.say, self.reported, self.recoveries = chain, say, 0, 0
 
     def on_step(self, step: Step) -> None:
-        switches = self.chain.status.switches
-        for a, b, t in switches[self.reported:]:
+        status = self.chain.status
+        for r in status.recoveries[self.recoveries:]:
+            self.say(f"{r.kind} {r.skill} at {r.time_s:.2f} s, on from {r.resume}")
+        for a, b, t in status.switches[self.reported:]:
             self.say(f"{a} -> {b} at {t:.2f} s")
-        self.reported = len(switches)
+        self.reported, self.recoveries = len(status.switches), len(status.recoveries)
 
 
 def run_on_robot(chain: ChainSpec, robot: Robot, buttons: Callable[[], frozenset[str]] = frozenset,

@@ -1,8 +1,8 @@
 """`toddlerbot chain run` in simulation: the chain's scene at its task's start for the seed (the wagon shifted; the
 pick task's start as `dp eval` resets it: `Task.chain_start`), the chain run by `runtime.run_policy` to its end;
-the outcome is the chain's own success predicates plus what each skill was driven by, the switch times,
-displacements and lifts, how firmly each hand held its bar through the last skill (the margin of a `grasped`
-success) and each dp skill's policy status."""
+the outcome is the chain's own success predicates plus what each skill was driven by, the switch times, its
+retries and recoveries, displacements and lifts, how firmly each hand held its bar through the last skill (the
+margin of a `grasped` success) and each dp skill's policy status."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import numpy as np
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Robot
 from toddlerbot.runtime.runner import RunObserver, run_policy
-from toddlerbot.skills.runner import ChainRunner, time_limit
+from toddlerbot.skills.runner import ChainRunner, Recovery, time_limit
 from toddlerbot.skills.sim_observers import ChainVideo, GripMargin, GripObserver
 from toddlerbot.skills.spec import ChainSpec
 from toddlerbot.tasks import make_task, task_description
@@ -39,7 +39,7 @@ class SimChainResult:
     driven_by: dict[str, str]
     """Skill name -> what drove it."""
     switch_time_s: float | None
-    """Sim time the first skill handed over (grasp -> next)."""
+    """Sim time the first skill first handed over to the second (grasp -> next)."""
     switches: list[tuple[str, str, float]]
     displacement_m: dict[str, float]
     """Body -> horizontal displacement since the start, for each `moved` success predicate."""
@@ -48,6 +48,8 @@ class SimChainResult:
     failure: str | None
     sim_seconds: float
     wall_seconds: float
+    recoveries: list[Recovery] = field(default_factory=list)
+    """Each retry and recover the chain made."""
     grip: dict[str, GripMargin] = field(default_factory=dict)
     """Side -> its grip on the bar of each `grasped` success predicate, over the last skill."""
     extra: dict = field(default_factory=dict)
@@ -63,6 +65,7 @@ class SimChainResult:
         out[f"{first}_by"] = self.driven_by[first]
         out.update(checks=self.checks, driven_by=self.driven_by, failure=self.failure,
                    switches=[{"from": a, "to": b, "time_s": round(t, 3)} for a, b, t in self.switches],
+                   recoveries=[r.to_dict() for r in self.recoveries],
                    sim_seconds=round(self.sim_seconds, 3), wall_seconds=round(self.wall_seconds, 2),
                    grip={side: {"min_force_n": round(g.min_force_n, 2), "slide_mm": round(1e3 * g.slide_m, 1),
                                 "to_end_mm": round(1e3 * g.to_end_m, 1)}
@@ -76,6 +79,7 @@ class SimChainResult:
                  + (f" ({self.failure})" if self.failure else "")]
         lines += [f"  {skill}: {by}" for skill, by in self.driven_by.items()]
         lines += [f"  {a} -> {b} at {t:.2f} s" for a, b, t in self.switches]
+        lines += [f"  {r.kind} {r.skill} at {r.time_s:.2f} s, on from {r.resume}" for r in self.recoveries]
         lines += [f"  {body} moved {moved:.3f} m" for body, moved in self.displacement_m.items()]
         lines += [f"  {body} rose {rise:.3f} m" for body, rise in self.lift_m.items()]
         lines.append(f"  checks {self.checks}; {self.sim_seconds:.1f} s simulated in {self.wall_seconds:.1f} s")
@@ -121,11 +125,13 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     dp = runner.skill_status()
     moved = [p.body for name, p in chain.success if isinstance(p, MovedParams)]
     lifted = [p.body for name, p in chain.success if isinstance(p, LiftedParams)]
+    first = [t for a, b, t in status.switches if (a, b) == tuple(s.name for s in chain.skills[:2])]
     return SimChainResult(
         chain.name, seed, status.failure is None and all(checks.values()), checks, dict(status.driven_by),
-        status.switches[0][2] if status.switches else None, status.switches,
+        first[0] if first else None, status.switches,
         {body: probe.displacement(body) for body in moved}, {body: probe.rise(body) for body in lifted},
-        status.failure, float(obs.time), time.perf_counter() - started, grip.grip, {"dp": dp} if dp else {},
+        status.failure, float(obs.time), time.perf_counter() - started, list(status.recoveries), grip.grip,
+        {"dp": dp} if dp else {},
     )
 
 

@@ -11,6 +11,18 @@
         hold: [leg]                  # motor groups kept at the targets the previous skill ended with
         until: {predicate: grasped, target: wagon_handle}   # or {after: SECONDS} or {button: l1}
         timeout: 6                   # optional: fail if `until` has not held after this long, s
+        retry: {times: 2, back_off: [release]}   # optional: on the timeout, run `release`, then this skill again
+      - name: push
+        kind: walk
+        until: {after: 8}
+        recover:                     # optional: while it runs, `lost` must keep holding; once it has not for `for` s,
+          lost: {predicate: holding, hands: both}  # run the back-off skills, then go on from `resume` (this
+          for: 0.2                               # skill keeps the time it ran)
+          back_off: [stop, release]
+          resume: grasp
+          times: 2
+    recovery:                        # optional: skills run only as a retry's or recover's back-off
+      - {name: release, kind: pose, home: [arm, gripper], until: {after: 0.8}}
 
 Each kind's parameters are a dataclass (its `SkillKind` in `skills.SKILLS`); a predicate's are in `predicates`.
 """
@@ -29,6 +41,8 @@ from toddlerbot.yaml_input import read_yaml
 
 BUTTONS = ("l1", "r1", "l2", "r2")
 MAX_CHAIN_BYTES = 64_000
+MAX_RECOVERIES = 10
+"""Most retries (or recoveries) one transition may make in a run."""
 SHIPPED_DIR = Path(__file__).resolve().parent / "chains"
 
 
@@ -48,6 +62,29 @@ class Switch:
 
 
 @dataclass(frozen=True)
+class Retry:
+    """When a skill's `timeout` passes: run the `back_off` skills (of the chain's `recovery`) in order, then the
+    skill again, from its start; at most `times` retries in a run, then the chain fails as without one."""
+
+    times: int
+    back_off: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Recover:
+    """While a skill runs, its `lost` predicate must keep holding; once it has not held for `for_s` s: run the
+    `back_off` skills in order, then go on from `resume` (the skill itself or one before it); when the chain comes
+    back to the interrupted skill, it goes on with the time it had run. At most `times` in a run; a loss after that
+    fails the chain."""
+
+    lost: Switch
+    for_s: float
+    back_off: tuple[str, ...]
+    resume: str
+    times: int
+
+
+@dataclass(frozen=True)
 class SkillSpec:
     name: str
     kind: str
@@ -56,6 +93,8 @@ class SkillSpec:
     until: Switch
     hold: tuple[str, ...] = ()
     timeout: float | None = None
+    retry: Retry | None = None
+    recover: Recover | None = None
 
 
 @dataclass(frozen=True)
@@ -68,12 +107,19 @@ class ChainSpec:
     button: str | None = None
     success: tuple[tuple[str, object], ...] = ()
     """(predicate name, its parameters) that must all hold when the chain ends."""
+    recovery: tuple[SkillSpec, ...] = ()
+    """Skills run only as the back-off of a skill's `retry` or `recover`."""
+
+    def skill(self, name: str) -> SkillSpec:
+        """The skill or recovery skill called `name`."""
+        return next(s for s in self.skills + self.recovery if s.name == name)
 
     def with_scripted_grasps(self) -> ChainSpec:
         """The same chain with every ``scripted_grasp`` skill driven by its script, whatever checkpoint it names."""
-        skills = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=None))  # type: ignore
-                       if s.kind == "scripted_grasp" else s for s in self.skills)
-        return dataclasses.replace(self, skills=skills)
+        def scripted(specs: tuple[SkillSpec, ...]) -> tuple[SkillSpec, ...]:
+            return tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, checkpoint=None))  # type: ignore
+                         if s.kind == "scripted_grasp" else s for s in specs)
+        return dataclasses.replace(self, skills=scripted(self.skills), recovery=scripted(self.recovery))
 
 
 def chain_path(name_or_path: str | Path) -> Path:
@@ -90,7 +136,6 @@ def chain_path(name_or_path: str | Path) -> Path:
 
 def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> ChainSpec:
     """Read and validate a chain; `groups` are the motor groups `hold` may name (the description's)."""
-    from toddlerbot.skills import SKILLS, skill_kind
     from toddlerbot.tasks import TASKS
     from toddlerbot.tasks.predicates import PREDICATES
 
@@ -98,57 +143,121 @@ def load_chain(name_or_path: str | Path, groups: typing.Collection[str]) -> Chai
     doc = read_yaml(path, "chain file", ChainFileError, MAX_CHAIN_BYTES)
     src = str(path)
     top = _mapping(doc, src, "the file")
-    _only(top, ("name", "scene", "button", "success", "skills"), src, "the file")
+    _only(top, ("name", "scene", "button", "success", "skills", "recovery"), src, "the file")
     scene = _choice(top.get("scene"), TASKS.names(), src, "scene")
     button = None if top.get("button") is None else _choice(top["button"], BUTTONS, src, "button")
     raw_skills = top.get("skills")
     if not isinstance(raw_skills, list) or not raw_skills:
         raise ChainFileError(f"{src}: skills: expected a non-empty list of skills, got {quoted(raw_skills)}")
-    skills, names = [], set()
-    for i, raw in enumerate(raw_skills):
-        raw = _mapping(raw, src, f"skill {i + 1}")
-        name = raw.get("name")
-        if not isinstance(name, str) or not name:
-            raise ChainFileError(f"{src}: skill {i + 1}: name: expected a non-empty string, got {quoted(name)}")
-        if name in names:
-            raise ChainFileError(f"{src}: skill {name}: name: used twice")
-        names.add(name)
-        where = f"{src}: skill {name}"
-        kind = _choice(raw.get("kind"), SKILLS.names(), where, "kind")
-        hold = raw.get("hold", [])
-        if not isinstance(hold, list) or any(g not in groups for g in hold):
-            raise ChainFileError(f"{where}: hold: expected a list of motor groups from {', '.join(groups)}, "
-                                 f"got {quoted(hold)}")
-        timeout = raw.get("timeout")
-        if timeout is not None:
-            timeout = _positive(timeout, where, "timeout")
-        until = _switch(raw.get("until"), where, PREDICATES)
-        params = build_params(skill_kind(kind).params, {k: v for k, v in raw.items()
-                                             if k not in ("name", "kind", "hold", "timeout", "until")}, where)
-        skills.append(SkillSpec(name, kind, params, until, tuple(hold), timeout))
+    raw_recovery = top.get("recovery", [])
+    if not isinstance(raw_recovery, list):
+        raise ChainFileError(f"{src}: recovery: expected a list of skills, got {quoted(raw_recovery)}")
+    names: list[str] = []
+    recovery = tuple(_skill(raw, src, "recovery skill", i, names, groups, PREDICATES)
+                     for i, raw in enumerate(raw_recovery))
+    recovery_names = tuple(names)
+    skills = [_skill(raw, src, "skill", i, names, groups, PREDICATES) for i, raw in enumerate(raw_skills)]
+    for i, (raw, spec) in enumerate(zip(raw_skills, skills)):
+        where = f"{src}: skill {spec.name}"
+        retry = None if raw.get("retry") is None else _retry(raw["retry"], spec, recovery_names, where)
+        recover = None if raw.get("recover") is None else _recover(
+            raw["recover"], [s.name for s in skills[: i + 1]], recovery_names, where, PREDICATES)
+        skills[i] = dataclasses.replace(spec, retry=retry, recover=recover)
     success = []
     for pred, raw in _mapping(top.get("success", {}), src, "success").items():
         where = f"{src}: success: {pred}"
         _choice(pred, tuple(PREDICATES), f"{src}: success", "predicate")
         success.append((pred, build_params(PREDICATES[pred].params, _mapping(raw, where, "parameters"), where)))
-    return ChainSpec(str(top.get("name", path.stem)), src, scene, tuple(skills), button, tuple(success))
+    return ChainSpec(str(top.get("name", path.stem)), src, scene, tuple(skills), button, tuple(success), recovery)
 
 
-def _switch(raw: object, where: str, predicates: Mapping) -> Switch:
-    raw = _mapping(raw, where, "until")
+def _skill(raw: object, src: str, what: str, i: int, names: list[str], groups: typing.Collection[str],
+           predicates: Mapping) -> SkillSpec:
+    """One skill (`what`: ``skill`` or ``recovery skill``), its name added to `names`; `retry` and `recover` are
+    read later, for the skills only."""
+    from toddlerbot.skills import SKILLS, skill_kind
+
+    raw = _mapping(raw, src, f"{what} {i + 1}")
+    name = raw.get("name")
+    if not isinstance(name, str) or not name:
+        raise ChainFileError(f"{src}: {what} {i + 1}: name: expected a non-empty string, got {quoted(name)}")
+    if name in names:
+        raise ChainFileError(f"{src}: {what} {name}: name: used twice")
+    names.append(name)
+    where = f"{src}: {what} {name}"
+    if what == "recovery skill":
+        for key in ("retry", "recover"):
+            if key in raw:
+                raise ChainFileError(f"{where}: {key}: only the chain's skills retry or recover, not a recovery skill")
+    kind = _choice(raw.get("kind"), SKILLS.names(), where, "kind")
+    hold = raw.get("hold", [])
+    if not isinstance(hold, list) or any(g not in groups for g in hold):
+        raise ChainFileError(f"{where}: hold: expected a list of motor groups from {', '.join(groups)}, "
+                             f"got {quoted(hold)}")
+    timeout = raw.get("timeout")
+    if timeout is not None:
+        timeout = _positive(timeout, where, "timeout")
+    until = _switch(raw.get("until"), where, predicates)
+    params = build_params(skill_kind(kind).params, {k: v for k, v in raw.items() if k not in
+                                                    ("name", "kind", "hold", "timeout", "until", "retry", "recover")},
+                          where)
+    return SkillSpec(name, kind, params, until, tuple(hold), timeout)
+
+
+def _retry(raw: object, spec: SkillSpec, recovery: tuple[str, ...], where: str) -> Retry:
+    raw = _mapping(raw, where, "retry")
+    _only(raw, ("times", "back_off"), where, "retry")
+    if spec.timeout is None:
+        raise ChainFileError(f"{where}: retry: a retry follows the skill's timeout, and it has none")
+    return Retry(_times(raw.get("times"), where, "retry.times"), _back_off(raw.get("back_off", []), recovery, where,
+                                                                        "retry.back_off"))
+
+
+def _recover(raw: object, resumable: list[str], recovery: tuple[str, ...], where: str, predicates: Mapping
+             ) -> Recover:
+    raw = _mapping(raw, where, "recover")
+    _only(raw, ("lost", "for", "back_off", "resume", "times"), where, "recover")
+    lost = _mapping(raw.get("lost"), where, "recover.lost")
+    if "predicate" not in lost:
+        raise ChainFileError(f"{where}: recover.lost: expected {{predicate: NAME, ...parameters}}, got {quoted(lost)}")
+    lost_for = _typed(raw.get("for", 0.0), float, where, "recover.for")
+    if not 0 <= lost_for <= 60:  # type: ignore[operator]
+        raise ChainFileError(f"{where}: recover.for: expected seconds in [0, 60], got {quoted(raw['for'])}")
+    return Recover(_switch(lost, where, predicates, "recover.lost"), lost_for,  # type: ignore[arg-type]
+                   _back_off(raw.get("back_off", []), recovery, where, "recover.back_off"),
+                   _choice(raw.get("resume"), tuple(resumable), where, "recover.resume"),
+                   _times(raw.get("times"), where, "recover.times"))
+
+
+def _times(value: object, where: str, field: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_RECOVERIES:
+        raise ChainFileError(f"{where}: {field}: expected a whole number in [1, {MAX_RECOVERIES}], got {quoted(value)}")
+    return value
+
+
+def _back_off(value: object, recovery: tuple[str, ...], where: str, field: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or any(name not in recovery for name in value):
+        known = ", ".join(recovery) or "none declared"
+        raise ChainFileError(f"{where}: {field}: expected a list of the chain's recovery skills ({known}), "
+                             f"got {quoted(value)}")
+    return tuple(value)
+
+
+def _switch(raw: object, where: str, predicates: Mapping, field: str = "until") -> Switch:
+    raw = _mapping(raw, where, field)
     keys = [k for k in ("after", "predicate", "button") if k in raw]
     if len(keys) != 1:
-        raise ChainFileError(f"{where}: until: expected exactly one of after, predicate, button; "
+        raise ChainFileError(f"{where}: {field}: expected exactly one of after, predicate, button; "
                              f"got {quoted(sorted(raw))}")
     if keys[0] == "after":
-        _only(raw, ("after",), where, "until")
-        return Switch(after=_positive(raw["after"], where, "until.after"))
+        _only(raw, ("after",), where, field)
+        return Switch(after=_positive(raw["after"], where, f"{field}.after"))
     if keys[0] == "button":
-        _only(raw, ("button",), where, "until")
-        return Switch(button=_choice(raw["button"], BUTTONS, where, "until.button"))
-    name = _choice(raw["predicate"], tuple(predicates), where, "until.predicate")
+        _only(raw, ("button",), where, field)
+        return Switch(button=_choice(raw["button"], BUTTONS, where, f"{field}.button"))
+    name = _choice(raw["predicate"], tuple(predicates), where, f"{field}.predicate")
     params = build_params(predicates[name].params, {k: v for k, v in raw.items() if k != "predicate"},
-                          f"{where}: until")
+                          f"{where}: {field}")
     return Switch(predicate=name, params=params)
 
 
@@ -171,8 +280,8 @@ def build_params(cls: type, raw: Mapping, where: str) -> object:
 
 
 def _typed(value: object, hint: object, where: str, field: str) -> object:
-    """`value` converted to `hint` (float, int, str, bool, a Literal, a fixed tuple of floats, a dict of such, or
-    X | None)."""
+    """`value` converted to `hint` (float, int, str, bool, a Literal, a fixed tuple of floats, a tuple of any
+    length of such, a dict of such, or X | None)."""
     options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
     if value is None and type(None) in options:
         return None
@@ -192,8 +301,10 @@ def _typed(value: object, hint: object, where: str, field: str) -> object:
         return {_typed(k, key_hint, where, field): _typed(v, value_hint, where, f"{field}.{k}")
                 for k, v in value.items()}
     if typing.get_origin(hint) is tuple and isinstance(value, list):
-        size = len(typing.get_args(hint))
-        if len(value) == size:
+        args = typing.get_args(hint)
+        if len(args) == 2 and args[1] is Ellipsis:  # tuple[X, ...]: a list of any length
+            return tuple(_typed(v, args[0], where, f"{field}[{i}]") for i, v in enumerate(value))
+        if len(value) == len(args):
             return tuple(_typed(v, float, where, f"{field}[{i}]") for i, v in enumerate(value))
     name = getattr(hint, "__name__", str(hint))
     raise ChainFileError(f"{where}: {field}: expected {name}, got {quoted(value)}")

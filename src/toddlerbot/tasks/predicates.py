@@ -45,6 +45,21 @@ class GraspedParams:
 
 
 @dataclass(frozen=True)
+class HoldingParams:
+    hands: Hands = "both"
+    closed_fraction: float = 0.5
+    """The gripper is commanded at least this fraction of the way from open to closed..."""
+    min_torque: float = 0.15
+    """...and its motor pushes towards closed with at least this torque, N*m (the observation's motor torque:
+    simulated, or estimated from the present current on hardware). A gripper closed on the wagon handle pushes
+    0.28-0.30 N*m at `grip_fraction` 0.78, one that closed on nothing 0.03-0.04 (docs/manipulation.md)."""
+
+    def __post_init__(self) -> None:
+        if not self.min_torque > 0:
+            raise ValueError(f"min_torque: expected a positive torque, N*m, got {self.min_torque}")
+
+
+@dataclass(frozen=True)
 class MovedParams:
     body: str
     at_least: float
@@ -77,7 +92,7 @@ def _sides(hands: Hands) -> tuple[tuple[str, ...], Callable]:
     return SIDES, all if hands == "both" else any
 
 
-def _commanded_closed(p: GraspedParams, ctx: Context, side: str) -> tuple[bool, int]:
+def _commanded_closed(p: GraspedParams | HoldingParams, ctx: Context, side: str) -> tuple[bool, int]:
     d = ctx.robot.description
     i = d.motor_names.index(f"{side}_gripper_drive")
     lo, hi = d.motor_range[i]
@@ -99,6 +114,18 @@ def _grasped_hardware(p: GraspedParams, ctx: Context) -> bool:
     return combine(held)
 
 
+def _holding(p: HoldingParams, ctx: Context) -> bool:
+    """Sensed alike in sim and on hardware: the gripper commanded closed and its motor pushing on something."""
+    sides, combine = _sides(p.hands)
+    d = ctx.robot.description
+    held = []
+    for side in sides:
+        closed, i = _commanded_closed(p, ctx, side)
+        closing = np.sign(d.motor_range[i, 1] - d.motor_range[i, 0])
+        held.append(closed and closing * ctx.obs.motor_torque[i] >= p.min_torque)
+    return combine(held)
+
+
 def _moved_sim(p: MovedParams, ctx: Context) -> bool:
     return ctx.probe.displacement(p.body) >= p.at_least  # type: ignore[union-attr]
 
@@ -113,6 +140,7 @@ def _upright(p: UprightParams, ctx: Context) -> bool:
 
 PREDICATES: dict[str, Predicate] = {
     "grasped": Predicate(GraspedParams, _grasped_sim, _grasped_hardware),
+    "holding": Predicate(HoldingParams, _holding, _holding),
     "moved": Predicate(MovedParams, _moved_sim, None),
     "lifted": Predicate(LiftedParams, _lifted_sim, None),
     "upright": Predicate(UprightParams, _upright, _upright),
