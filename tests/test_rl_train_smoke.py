@@ -209,3 +209,21 @@ def test_a_run_continues_an_exported_policy_on_a_terrain(smoke_run, tmp_path):
     assert trained.meta["terrain_stages"] == [[0, "rough:height=0.01,cell=0.1", 3]]
     assert trained.meta["init_policy"] == str(exported.path.resolve())
     assert not np.array_equal(trained.network.kernels[-1], exported.network.kernels[-1])  # PPO moved it
+
+
+def test_checkpoint_selection_walks_each_candidate_and_picks_the_fewest_falls(smoke_run, tmp_path):
+    """`rl export --select K`: each of the last K checkpoints walks the same trials (the reach on a seed no
+    benchmark uses); the one with the fewest falls, then the least stray, is selected and recorded in the export."""
+    from toddlerbot.rl.selection import SELECTION_SEEDS, SelectionTrials, select_checkpoint
+
+    run = smoke_run[0]
+    trials = SelectionTrials(kick=0.0, seeds=(SELECTION_SEEDS[0],), seconds=1.0)
+    best, rows = select_checkpoint(run, 2, trials)
+    assert [r["checkpoint"] for r in rows] == [p.name for p in train.checkpoint_paths(run)[-2:]]
+    assert all(r["trials"] == 10 and 0 <= r["falls"] <= 10 for r in rows)  # the ten commands of the reach
+    ranked = sorted(rows, key=lambda r: (r["falls"], np.nan_to_num(r["stray_m"], nan=np.inf)))
+    assert best == ranked[0]["checkpoint"]
+    path = export.export_run(run, tmp_path / "selected.npz", checkpoint=best, extra_meta={"selection": rows})
+    meta = RLPolicyFile(path).meta
+    assert meta["checkpoint"] == best and meta["selection"] == rows
+    assert not set(SELECTION_SEEDS) & set(range(6))  # disjoint from bench_walk_robustness's seeds 0-5

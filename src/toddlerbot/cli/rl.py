@@ -259,6 +259,13 @@ def export(
         "--format", help="npz (numpy inference) or onnx (onnxruntime; checked against the numpy policy).")] = "npz",
     checkpoint: Annotated[str | None, typer.Option(help="A checkpoint file name of the run (default: the latest; "
                                                         "'warm_start': the DAgger warm start).")] = None,
+    select: Annotated[int | None, typer.Option(
+        help="Export the best of the run's last N checkpoints instead of the latest: each walks the policy's reach "
+             "in the simulator under --select-kick kicks and on each --select-terrain, on seeds no benchmark uses; "
+             "fewest falls, then least stray, wins (docs/rl.md \"Checkpoint selection\").")] = None,
+    select_kick: Annotated[float, typer.Option(help="With --select: m/s of the kicks on the flat floor.")] = 0.3,
+    select_terrain: Annotated[list[str] | None, typer.Option(
+        help="With --select: also walk on this ground without kicks (repeatable; e.g. rough:height=0.02).")] = None,
     ship: Annotated[bool, typer.Option(help="Maintainers, in a source checkout: write the package's shipped policy "
                                             "(walk_rl.npz, or walk_rl_<variant>.npz for a variant's run) that every "
                                             "walk-rl run loads by default (docs/rl.md, \"Shipping a policy\").")]
@@ -281,8 +288,26 @@ def export(
     _require_jax()
     from toddlerbot.rl.export import export_run
 
-    path = export_run(run, out, checkpoint=checkpoint)
+    selection = None
+    if select is not None:
+        if checkpoint is not None:
+            raise ToddlerbotError("--select chooses the checkpoint; drop --checkpoint")
+        checkpoint, selection = _select(run, select, select_kick, tuple(select_terrain or ()))
+    path = export_run(run, out, checkpoint=checkpoint, extra_meta=selection and {"selection": selection})
     console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")
+
+
+def _select(run: Path, last: int, kick: float, terrains: tuple[str, ...]) -> tuple[str, dict]:
+    """The selected checkpoint and the record of the selection (trials, every candidate's row) for the export."""
+    from dataclasses import asdict
+
+    from toddlerbot.rl.selection import SelectionTrials, select_checkpoint
+
+    trials = SelectionTrials(kick=kick, terrains=terrains)
+    best, rows = select_checkpoint(run, last, trials, progress=lambda name, row: console.print(
+        f"{name}: {row['falls']}/{row['trials']} falls, stray {row['stray_m']:.3f} m"))
+    console.print(f"selected {best}")
+    return best, {"trials": asdict(trials), "candidates": rows, "selected": best}
 
 
 def _export_target(run: Path, out: Path | None, export_format: str, ship: bool) -> Path:

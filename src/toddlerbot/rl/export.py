@@ -73,10 +73,11 @@ def robot_arrays(description: RobotDescription) -> dict[str, np.ndarray]:
 
 
 def export_run(run_dir: Path, out: Path, description: RobotDescription | None = None,
-               checkpoint: str | None = None) -> Path:
+               checkpoint: str | None = None, extra_meta: dict | None = None) -> Path:
     """Export a checkpoint of a training run (for the run's robot: packaged spec, its variant and params.json):
     the latest, the named file of ``checkpoints/``, or ``warm_start`` (the DAgger warm start, before PPO). The run's
-    environment (`toddlerbot.rl.environments`) adds what its runtime policy needs (`RLEnvironment.write_export`)."""
+    environment (`toddlerbot.rl.environments`) adds what its runtime policy needs (`RLEnvironment.write_export`);
+    ``extra_meta`` goes into the metadata too (e.g. how the checkpoint was selected)."""
     from toddlerbot.rl import train  # jax-heavy; keep `write_policy` importable alone
     from toddlerbot.rl.environment import training_description
     from toddlerbot.rl.environments import environment_class
@@ -126,7 +127,8 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "terrain": stages[-1]["terrain"],
             "terrain_stages": [[stage["from_env_steps"], stage["terrain"], stage["terrain_seed"]] for stage in stages],
             "init_policy": train.load_imitation_config(run_dir).policy,
-            "motor_params": json.loads(read_run_text(record, "motor record")) if record.is_file() else []}
+            "motor_params": json.loads(read_run_text(record, "motor record")) if record.is_file() else [],
+            **(extra_meta or {})}
     space = run_dir / ACTION_SPACE
     action_space = dict(np.load(space, allow_pickle=False)) if space.is_file() else None
     return environment.write_export(out, arrays, env_cfg, meta, description, action_space)
