@@ -1,10 +1,13 @@
 """Success rate over seeds and timings of the wagon skill chain in simulation (`toddlerbot chain run wagon`): per
-seed the outcome, the wagon's displacement, the grasp -> next switch time, each hand's grip through the push (the
-weaker finger pad's least normal force, how far the handle slid along the fingers, how near the grasp point came to
-the handle's end) and the wall time of one run (no video); then the success rate. `--pose-offset` and
+seed the outcome (success: the wagon moved at least 0.5 m, both hands on the handle and the robot upright at the
+end), the wagon's displacement, the grasp -> next switch time, the grasp retries and re-grasps (the push's
+recoveries) with their times, each hand's grip through the push (the weaker finger pad's least normal force, how far
+the handle slid along the fingers, how near the grasp point came to the handle's end) and the wall time of one run
+(no video); then the success rate and the retries and re-grasps in all. `--pose-offset` and
 `--wagon-shift` perturb the start to show the margin.
 
-Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 20] [--pose-offset 0.01] [--wagon-shift 0.01,0]
+Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 20] [--first-seed 0] [--pose-offset 0.01]
+                                                    [--wagon-shift 0.01,0]
                                                     [--scripted-grasp]
 The grasp is the chain's: the shipped wagon diffusion policy (`dp/checkpoints/wagon.pt`, torch: the [dp] extra; its
 sampling noise seeded by the run's seed), or with `--scripted-grasp` the script.
@@ -38,7 +41,8 @@ def main() -> None:
     if args.scripted_grasp:
         chain = chain.with_scripted_grasps()
     print(f"wagon chain, {perturbation}")
-    print("seed  outcome                  moved m  switch s  grip N (L/R)   slide mm (L/R)  to end mm (L/R)  wall s")
+    print("seed  outcome                  moved m  switch s  grip N (L/R)   slide mm (L/R)  to end mm (L/R)  wall s  "
+          "retries, re-grasps (s)")
     results = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         results.append(run_in_sim(chain, seed, description=description, perturbation=perturbation))
@@ -53,7 +57,12 @@ def main() -> None:
           f"pad force {forces.min():.1f} N (median {np.median(forces):.1f}); handle slide at most "
           f"{1e3 * slides.max():.1f} mm; grasp point at least {1e3 * to_end.min():.0f} mm from the handle's end; "
           f"wall {wall.min():.1f}-{wall.max():.1f} s per run (mean {wall.mean():.1f}); grasp by "
-          f"{', '.join(sorted({r.driven_by['grasp'] for r in results}))}")
+          f"{', '.join(sorted({r.driven_by['grasp'] for r in results}))}; {_count(results, 'retry')} grasp retries "
+          f"and {_count(results, 'recover')} re-grasps in all, on {sum(bool(r.recoveries) for r in results)} seeds")
+
+
+def _count(results: list[SimChainResult], kind: str) -> int:
+    return sum(r.kind == kind for result in results for r in result.recoveries)
 
 
 def _row(r: SimChainResult) -> str:
@@ -62,7 +71,9 @@ def _row(r: SimChainResult) -> str:
     return (f"{r.seed:4d}  {outcome[:23]:23s}  {r.displacement_m['wagon']:7.3f}  {r.switch_time_s or np.nan:8.2f}  "
             f"{'/'.join(f'{g.min_force_n:.1f}' for g in grip):13s}  "
             f"{'/'.join(f'{1e3 * g.slide_m:.1f}' for g in grip):14s}  "
-            f"{'/'.join(f'{1e3 * g.to_end_m:.0f}' for g in grip):15s}  {r.wall_seconds:6.1f}")
+            f"{'/'.join(f'{1e3 * g.to_end_m:.0f}' for g in grip):15s}  {r.wall_seconds:6.1f}  "
+            + (", ".join(f"{'retry' if x.kind == 'retry' else 're-grasp'} {x.time_s:.2f}" for x in r.recoveries)
+               or "-"))
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import textwrap
 
 import numpy as np
@@ -103,6 +104,25 @@ def test_the_wagon_grip_holds_the_handle_with_margin_through_the_push(wagon_runs
      "skill a: grip: expected a fraction of the grippers' range in [0, 1], got 1.5"),
     ("scene: wagon\nskills: [{name: a, kind: pose, motors: {neck_pitch_drive: -0.9}, seconds: 0, until: {after: 1}}]\n",
      "skill a: seconds: expected a positive duration, got 0.0"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}, retry: {times: 1}}]\n",
+     "skill a: retry: a retry follows the skill's timeout, and it has none"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}, timeout: 2, retry: {times: 0}}]\n",
+     "skill a: retry.times: expected a whole number in [1, 10], got 0"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}, timeout: 2, retry: {times: 1, back_off: [x]}}]\n",
+     "skill a: retry.back_off: expected a list of the chain's recovery skills (none declared), got ['x']"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}, recover: {lost: {predicate: holding}, "
+     "resume: b, times: 1}}, {name: b, kind: hold, until: {after: 1}}]\n",
+     "skill a: recover.resume: expected one of a, got 'b'"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}, recover: {lost: {after: 1}, resume: a, "
+     "times: 1}}]\n", "skill a: recover.lost: expected {predicate: NAME, ...parameters}"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}, recover: {lost: {predicate: holding, "
+     "min_torque: -1}, resume: a, times: 1}}]\n", "skill a: recover.lost: min_torque: expected a positive torque"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}, recover: {lost: {predicate: holding}, "
+     "for: -1, resume: a, times: 1}}]\n", "skill a: recover.for: expected seconds in [0, 60], got -1"),
+    ("scene: wagon\nskills: [{name: a, kind: hold, until: {after: 1}}]\nrecovery: [{name: r, kind: hold, "
+     "until: {after: 1}, retry: {times: 1}}]\n", "recovery skill r: retry: only the chain's skills retry or recover"),
+    ("scene: wagon\nskills: [{name: r, kind: hold, until: {after: 1}}]\nrecovery: [{name: r, kind: hold, "
+     "until: {after: 1}}]\n", "skill r: name: used twice"),
 ])
 def test_bad_chain_files_get_one_line_errors_naming_file_skill_and_field(tmp_path, body, message):
     path = _chain_file(tmp_path, body)
@@ -628,3 +648,92 @@ def test_a_chain_walks_with_any_registered_walking_policy(tmp_path, monkeypatch,
                                                 "until: {after: 1}}]\n"), GROUPS)
     with pytest.raises(ToddlerbotError, match=r"^walk skill: policy 'stand' follows no velocity command"):
         run_in_sim(standing, 0, description=DESCRIPTION)
+
+
+SLIP_FRICTION = 0.05
+
+
+class _Slip(RunObserver):
+    """From `at` s the left hand's grip on the wagon handle turns slippery (its pads take the contact at friction
+    `SLIP_FRICTION`; dropping the handle's own friction below ~0.3 makes its stiff pinch blow up numerically, and at
+    0.1 the hand slips and catches the handle again), until the chain opens its hands to grasp again. Keeps the left
+    pads' force and the gripper torques when the chain noticed."""
+
+    def __init__(self, at: float) -> None:
+        self.at, self.restored, self.noticed = at, False, None
+
+    def on_start(self, robot, policy, obs) -> None:
+        from toddlerbot.tasks.probe import SceneProbe
+        from toddlerbot.tasks.scenes import finger_pads
+
+        self.robot, self.chain, self.probe = robot, policy, SceneProbe(robot.model, robot.data)
+        self.pads = [robot.model.geom(p).id for p in finger_pads("left")]
+        self.friction = robot.model.geom_friction[self.pads].copy()
+
+    def on_step(self, step) -> None:
+        model, status = self.robot.model, self.chain.status
+        if self.noticed is None and status.recoveries:
+            obs = self.robot.observe()
+            grippers = [DESCRIPTION.motor_names.index(f"{s}_gripper_drive") for s in ("left", "right")]
+            self.noticed = (self.probe.pad_forces("left", "wagon_handle"), obs.motor_torque[grippers])
+        self.restored = self.restored or status.skill == "open"
+        slippery = step.obs.time >= self.at and not self.restored
+        model.geom_priority[self.pads] = 2 if slippery else 0
+        model.geom_friction[self.pads, 0] = SLIP_FRICTION if slippery else self.friction[:, 0]
+
+
+def test_a_hand_that_lets_go_of_the_handle_mid_push_is_noticed_and_the_chain_grasps_again_and_pushes_on():
+    from toddlerbot.skills.sim_run import run_in_sim
+
+    chain = load_chain("wagon", GROUPS).with_scripted_grasps()
+    slip = _Slip(at=7.0)  # 2.5 s into the push
+    out = run_in_sim(chain, 0, description=DESCRIPTION, disturbances=[slip]).as_json()
+    # Measured (seed 0): the left hand let go at once; the chain noticed from its gripper's torque at 7.18 s, stood,
+    # opened, grasped again (the first re-grasp closed on nothing, its retry closed on the handle) and pushed on:
+    # wagon moved 0.656 m, both hands on it at the end; 11 s wall.
+    recover = out["recoveries"][0]
+    assert recover["kind"] == "recover" and recover["skill"] == "push" and recover["resume"] == "grasp"
+    assert 7.0 < recover["time_s"] < 7.5
+    pads, torque = slip.noticed
+    assert pads.max() < 1.0 and torque[0] < 0.15 <= torque[1]  # the left hand had let go, the right still held
+    names = [(s["from"], s["to"]) for s in out["switches"]]
+    assert names[:5] == [("grasp", "settle"), ("settle", "push"), ("push", "stand"), ("stand", "open"),
+                         ("open", "grasp")]
+    assert names[-2:] == [("grasp", "settle"), ("settle", "push")]  # grasped again, then the push resumed
+    assert all(r["kind"] == "retry" and r["skill"] == "grasp" for r in out["recoveries"][1:])
+    resumed = out["switches"][-1]["time_s"]
+    walked = (recover["time_s"] - out["switches"][1]["time_s"]) + (out["sim_seconds"] - resumed)
+    assert walked == pytest.approx(8.0, abs=0.05)  # the push walked its 8 s in all, not 8 s more
+    assert out["success"] and out["checks"] == {"moved": True, "grasped": True, "upright": True}
+
+
+class _HandleAway(RunObserver):
+    """The wagon handle takes no contacts until the chain first opens its hands: the first grasp closes on nothing."""
+
+    def on_start(self, robot, policy, obs) -> None:
+        self.model, self.chain = robot.model, policy
+        self.handle = robot.model.geom("wagon_handle").id
+        self.model.geom_contype[self.handle] = self.model.geom_conaffinity[self.handle] = 0
+
+    def on_step(self, step) -> None:
+        if self.chain.status.skill == "retract":
+            self.model.geom_contype[self.handle] = self.model.geom_conaffinity[self.handle] = 1
+
+
+def test_a_grasp_that_has_not_closed_in_its_time_is_retried_after_backing_off(tmp_path):
+    from toddlerbot.skills.sim_run import run_in_sim
+
+    shipped = load_chain("wagon", GROUPS).with_scripted_grasps()
+    grasp_only = dataclasses.replace(shipped, skills=shipped.skills[:2],  # grasp, settle: no push
+                                     success=(("grasped", GraspedParams("wagon_handle", "both")),))
+    out = run_in_sim(grasp_only, 0, description=DESCRIPTION, disturbances=[_HandleAway()]).as_json()
+    # Measured: the first grasp closes on nothing and times out at 6.02 s; the back-off opens the hands (0.4 s) and
+    # brings the arms home (1 s), the retry closes on the handle at 11.5 s.
+    assert out["recoveries"] == [{"kind": "retry", "skill": "grasp", "resume": "grasp", "time_s": pytest.approx(
+        6.02, abs=0.021)}]
+    assert [(s["from"], s["to"]) for s in out["switches"]] == [
+        ("grasp", "open"), ("open", "retract"), ("retract", "grasp"), ("grasp", "settle")]
+    times = [s["time_s"] for s in out["switches"]]
+    assert times[1] - times[0] == pytest.approx(0.4, abs=0.021) and times[2] - times[1] == pytest.approx(1.0, abs=0.021)
+    assert 3.8 <= times[3] - times[2] <= 4.2  # the retry grasps as the first grasp of a run does
+    assert out["switch_time_s"] == times[3] and out["success"]

@@ -7,6 +7,7 @@ margin of a `grasped` success) and each dp skill's policy status."""
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -95,7 +96,10 @@ def scene_robot(chain: ChainSpec, seed: int, description: RobotDescription,
 
 def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
                description: RobotDescription | None = None,
-               perturbation: StartPerturbation = StartPerturbation()) -> SimChainResult:
+               perturbation: StartPerturbation = StartPerturbation(),
+               disturbances: Sequence[RunObserver] = ()) -> SimChainResult:
+    """The chain run to its end in its scene for `seed`; `disturbances` are more run observers, each told the
+    robot and the chain (`on_start`) and called after every step (a test's slip: the handle made slippery)."""
     description = task_description(description)
     robot, start = scene_robot(chain, seed, description, perturbation)
     model = robot.model
@@ -104,7 +108,7 @@ def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
     runner = ChainRunner(chain, robot, model, probe, camera.image, start_targets=start, seed=seed)
     grip = GripObserver(runner, probe, _bars(chain, model))
     recorder = None if video is None else ChainVideo(robot, video, camera.image)
-    observers: list[RunObserver] = [grip] if recorder is None else [grip, recorder]
+    observers: list[RunObserver] = [grip, *disturbances] + ([] if recorder is None else [recorder])
     limit = time_limit(chain, UNBOUNDED_SKILL_S)
     started = time.perf_counter()
     try:  # a chain walking into the wagon may fall: `upright` is one of its checks, not a reason to stop
