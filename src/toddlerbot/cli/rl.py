@@ -264,6 +264,8 @@ def export(
              "in the simulator under --select-kick kicks and on each --select-terrain, on seeds no benchmark uses; "
              "fewest falls, then least stray, wins (docs/rl.md \"Checkpoint selection\").")] = None,
     select_kick: Annotated[float, typer.Option(help="With --select: m/s of the kicks on the flat floor.")] = 0.3,
+    select_seeds: Annotated[int | None, typer.Option(min=1, help="With --select: seeds per trial (default: those of "
+                                                                 "toddlerbot.rl.selection.SELECTION_SEEDS).")] = None,
     select_terrain: Annotated[list[str] | None, typer.Option(
         help="With --select: also walk on this ground without kicks (repeatable; e.g. rough:height=0.02).")] = None,
     ship: Annotated[bool, typer.Option(help="Maintainers, in a source checkout: write the package's shipped policy "
@@ -292,18 +294,20 @@ def export(
     if select is not None:
         if checkpoint is not None:
             raise ToddlerbotError("--select chooses the checkpoint; drop --checkpoint")
-        checkpoint, selection = _select(run, select, select_kick, tuple(select_terrain or ()))
+        checkpoint, selection = _select(run, select, select_kick, tuple(select_terrain or ()), select_seeds)
     path = export_run(run, out, checkpoint=checkpoint, extra_meta=selection and {"selection": selection})
     console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")
 
 
-def _select(run: Path, last: int, kick: float, terrains: tuple[str, ...]) -> tuple[str, dict]:
+def _select(run: Path, last: int, kick: float, terrains: tuple[str, ...], seeds: int | None) -> tuple[str, dict]:
     """The selected checkpoint and the record of the selection (trials, every candidate's row) for the export."""
     from dataclasses import asdict
 
-    from toddlerbot.rl.selection import SelectionTrials, select_checkpoint
+    from toddlerbot.rl.selection import SELECTION_SEEDS, SelectionTrials, select_checkpoint
 
-    trials = SelectionTrials(kick=kick, terrains=terrains)
+    first = SELECTION_SEEDS[0]
+    trials = SelectionTrials(kick=kick, terrains=terrains,
+                             seeds=SELECTION_SEEDS if seeds is None else tuple(range(first, first + seeds)))
     best, rows = select_checkpoint(run, last, trials, progress=lambda name, row: console.print(
         f"{name}: {row['falls']}/{row['trials']} falls, stray {row['stray_m']:.3f} m"))
     console.print(f"selected {best}")
