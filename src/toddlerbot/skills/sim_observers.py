@@ -33,7 +33,8 @@ class GripMargin:
     """Least distance from the grasp point to the nearer end of the bar's straight part, m (the pads reach
     `scenes.PAD_HALF_SIZE[0]` either side of it)."""
     start_m: float | None = None
-    """Where the bar's axis was along the fingers (grasp-site y) when the skill began, m; None until measured."""
+    """Where the bar's axis was along the fingers (grasp-site y) when the skill last began, m; None until
+    measured."""
 
     def update(self, probe: SceneProbe, side: str, bar: str) -> None:
         self.min_force_n = min(self.min_force_n, float(probe.pad_forces(side, bar).min()))
@@ -44,16 +45,21 @@ class GripMargin:
 
 
 class GripObserver(RunObserver):
-    """Measures each (hand, bar) of `bars` after every step the chain's last skill drove."""
+    """Measures each (hand, bar) of `bars` after every step the chain's last skill drove (a slide from where the bar
+    was each time the skill began: after a re-grasp, from the new grasp)."""
 
     def __init__(self, chain: ChainRunner, probe: SceneProbe, bars: list[tuple[str, str]]) -> None:
         self.chain, self.probe, self.bars = chain, probe, bars
         self.grip = {side: GripMargin() for side, _ in bars}
+        self._measuring = False
 
     def on_step(self, step: Step) -> None:
-        if self.chain.status.skill == self.chain.chain.skills[-1].name:
-            for side, bar in self.bars:
-                self.grip[side].update(self.probe, side, bar)
+        measuring = self.chain.status.skill == self.chain.chain.skills[-1].name
+        for side, bar in self.bars if measuring else ():
+            if not self._measuring:
+                self.grip[side].start_m = None
+            self.grip[side].update(self.probe, side, bar)
+        self._measuring = measuring
 
 
 class ChainVideo(RunObserver):
