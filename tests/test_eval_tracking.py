@@ -114,3 +114,23 @@ def test_the_shipped_gpu_policy_by_name_walks_forward_then_turns(description):
     assert r.falls == 0
     assert r.position_m < 0.2 and r.lin_vel_mps < 0.05 and r.ang_vel_radps < 0.06
 
+
+
+def test_eval_tracking_walks_on_a_terrain(tmp_path):
+    """`eval tracking --terrain`: the same schedule on a gentle 3 degree slope is walked without a fall and scores
+    otherwise than on the flat floor (the ground is under the robot); a bad terrain is one line, and a logged run
+    (--log) refuses it."""
+    def run(*extra):
+        result = CliRunner().invoke(app, ["eval", "tracking", "--policy", "walk-rl", "--commands", "0:0.1,0,0",
+                                          "--seconds", "6", "--json", *extra])
+        return result
+
+    flat, slope = run(), run("--terrain", "slope:degrees=3", "--terrain-seed", "1")
+    assert flat.exit_code == 0 and slope.exit_code == 0, slope.output
+    on_flat, on_slope = json.loads(flat.output), json.loads(slope.output)
+    assert on_slope["falls"] == 0 and on_slope["position_m"] < 0.1
+    assert on_slope["position_m"] != on_flat["position_m"]
+    bad = run("--terrain", "slope:degrees=45")
+    assert str(bad.exception).startswith("--terrain 'slope:degrees=45': degrees=45: expected -30 to 30 deg")
+    logged = CliRunner().invoke(app, ["eval", "tracking", "--log", str(tmp_path / "run.npz"), "--terrain", "flat"])
+    assert logged.exit_code != 0 and "--terrain" in str(logged.exception)

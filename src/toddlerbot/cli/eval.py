@@ -11,6 +11,8 @@ from toddlerbot.cli.options import (
     AsymmetricOption,
     MotorParamsOption,
     RobotOptions,
+    TerrainOption,
+    TerrainSeedOption,
     duration,
     symmetric_option,
 )
@@ -19,6 +21,7 @@ from toddlerbot.cli.output_paths import output_file
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import json_text
 from toddlerbot.policies import policy_names
+from toddlerbot.sim.terrain import TerrainSpec, parse_terrain
 
 app = typer.Typer(help="Evaluate policies in simulation, or logged runs (appendix Table 7).", no_args_is_help=True)
 
@@ -48,17 +51,20 @@ def tracking(
     asymmetric: AsymmetricOption = False,
     log: LogOption = None,
     mocap: MocapOption = None,
+    terrain: TerrainOption = None,
+    terrain_seed: TerrainSeedOption = 0,
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
     (exit code 1 if the robot fell); with --log, the same errors of a logged run."""
     from toddlerbot.runtime.tracking import plot_velocity_tracking
 
     if log is None and mocap is None:
+        ground = None if terrain is None else parse_terrain(terrain)
         result, title, truth = _simulated(policy, commands, seconds, weights, plot, motor_params, asymmetric,
-                                          as_json)
+                                          as_json, ground, terrain_seed)
     else:
         simulation = {"--commands": commands, "--seconds": seconds, "--weights": weights,
-                      "--motor-params": motor_params, "--asymmetric": asymmetric or None}
+                      "--motor-params": motor_params, "--asymmetric": asymmetric or None, "--terrain": terrain}
         given = [name for name, value in simulation.items() if value is not None]
         result, title, truth = _logged(log, mocap, plot, given)
     summary = result.summary() | truth
@@ -73,8 +79,10 @@ def tracking(
 
 
 def _simulated(policy: str, commands: str | None, seconds: float | None, weights: Path | None, plot: Path | None,
-               motor_params: list[Path] | None, asymmetric: bool, quiet: bool):
-    """The policy's tracking in the simulator, its title, and no ground-truth figures (the simulator's)."""
+               motor_params: list[Path] | None, asymmetric: bool, quiet: bool, terrain: TerrainSpec | None,
+               terrain_seed: int):
+    """The policy's tracking in the simulator (on ``terrain`` drawn from ``terrain_seed``), its title, and no
+    ground-truth figures (the simulator's)."""
     from toddlerbot.runtime.tracking import evaluate_policy
 
     if policy not in policy_names():
@@ -85,9 +93,9 @@ def _simulated(policy: str, commands: str | None, seconds: float | None, weights
         output_file(plot, "--plot", [weights, *robot.files])
     description = robot.description()
     with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not quiet else _null():
-        result = evaluate_policy(description, policy, schedule_text, seconds, weights,
+        result = evaluate_policy(description, policy, schedule_text, seconds, weights, terrain, terrain_seed,
                                  **symmetric_option(policy, asymmetric))
-    return result, policy, {}
+    return result, policy if terrain is None else f"{policy} on {terrain} (seed {terrain_seed})", {}
 
 
 def _logged(log: Path | None, mocap: Path | None, plot: Path | None, simulation_options: list[str]):

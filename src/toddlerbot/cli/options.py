@@ -17,6 +17,7 @@ from toddlerbot.robot.builder import Base
 from toddlerbot.robot.description import RobotDescription, load_variant, variant_names
 from toddlerbot.robot.interface import CONTROL_HZ
 from toddlerbot.sessions.recovery import ON_FALL
+from toddlerbot.sim.terrain import terrain_names
 
 
 def _registered_variant(name: str | None) -> str | None:
@@ -73,6 +74,14 @@ MAX_SEED = 2**32 - 1
 def seed_option(help: str, flag: str = "--seed", smallest: int = 0):
     """The typer option of a seed: a whole number in [`smallest`, `MAX_SEED`], refused in one line otherwise."""
     return typer.Option(flag, min=smallest, max=MAX_SEED, help=help)
+
+
+TerrainOption = Annotated[str | None, typer.Option("--terrain", help=f"The ground: NAME[:KEY=VALUE,...], NAME one "
+                                                   f"of {', '.join(terrain_names())}, e.g. rough:height=0.02 or "
+                                                   "slope:degrees=-10 (docs/simulation.md, \"Terrain\"). Default: "
+                                                   "the flat floor.")]
+TerrainSeedOption = Annotated[int, seed_option(help="For --terrain: the seed its ground is drawn from.",
+                                               flag="--terrain-seed")]
 
 
 ControlHzOption = Annotated[float | None, typer.Option(

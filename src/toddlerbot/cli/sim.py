@@ -14,6 +14,8 @@ from toddlerbot.cli.options import (
     OnFallOption,
     RobotOptions,
     SpecOption,
+    TerrainOption,
+    TerrainSeedOption,
     VariantOption,
     check_run_policy,
     duration,
@@ -29,7 +31,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.files import atomic_write_text, json_text
 from toddlerbot.policies import policy_names
 from toddlerbot.robot.interface import CONTROL_HZ
-from toddlerbot.sim.terrain import parse_terrain, terrain_names
+from toddlerbot.sim.terrain import parse_terrain
 
 app = typer.Typer(help="Simulate ToddlerBot in MuJoCo: walk, stand, replay motions; render and plot runs.",
                   no_args_is_help=True)
@@ -63,12 +65,6 @@ CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --
 SeedOpt = Annotated[int, seed_option(help="For --task: scene seed (the cube's pose).")]
 ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --policy dp: CPU threads for torch "
                                                  "(default 1).")]
-TerrainOpt = Annotated[str | None, typer.Option("--terrain", help=f"The ground: NAME[:KEY=VALUE,...], NAME one of "
-                                                f"{', '.join(terrain_names())}, e.g. rough:height=0.02 or "
-                                                "slope:degrees=-10 (docs/simulation.md, \"Terrain\"). Default: "
-                                                "the flat floor.")]
-TerrainSeedOpt = Annotated[int, seed_option(help="For --terrain: the seed its ground is drawn from.",
-                                            flag="--terrain-seed")]
 
 
 @app.command()
@@ -79,8 +75,8 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,
         checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = None, spec: SpecOption = None,
         variant: VariantOption = None, motor_params: MotorParamsOption = None,
-        asymmetric: AsymmetricOption = False, on_fall: OnFallOption = "stop", terrain: TerrainOpt = None,
-        terrain_seed: TerrainSeedOpt = 0) -> None:
+        asymmetric: AsymmetricOption = False, on_fall: OnFallOption = "stop", terrain: TerrainOption = None,
+        terrain_seed: TerrainSeedOption = 0) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.sessions.sim import sim_session
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -26,6 +27,9 @@ from toddlerbot.files import save_figure
 from toddlerbot.locomotion.config import WalkConfig
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT
+
+if TYPE_CHECKING:
+    from toddlerbot.sim.terrain import TerrainSpec
 
 DEFAULT_COMMANDS = "0:0,0,0; 1:0.1,0,0; 6:0.05,0,0; 10:0,0,0; 12:0,0.05,0; 16:0,0,0.3; 20:0.1,0,0.2; 24:0,0,0"
 """The default evaluation schedule (runtime command syntax, 26 s), inside the trained command ranges: stand, walk
@@ -107,18 +111,21 @@ def tracking_errors(time: np.ndarray, command: np.ndarray, base_pos: np.ndarray,
 
 
 def evaluate_policy(description: RobotDescription, policy_name: str, commands: str = DEFAULT_COMMANDS,
-                    seconds: float = DEFAULT_SECONDS, weights: Path | None = None,
-                    **options: object) -> TrackingResult:
+                    seconds: float = DEFAULT_SECONDS, weights: Path | None = None, terrain: TerrainSpec | None = None,
+                    terrain_seed: int = 0, **options: object) -> TrackingResult:
     """Run a registered walking policy (e.g. ``walk-rl``, ``walk-zmp``: one with a command reach; ``options`` for
     its factory, e.g. walk-rl's ``symmetric``) through a command schedule on the simulated robot of `description`
-    (its fitted motor parameters included) and score it."""
+    (its fitted motor parameters included), on ``terrain`` drawn from ``terrain_seed`` (None: the flat floor), and
+    score it."""
     from toddlerbot.policies import make_policy
     from toddlerbot.runtime.commands import CommandSchedule
     from toddlerbot.runtime.runner import run_policy
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
+    from toddlerbot.sim.terrain import terrain_model
 
     schedule = CommandSchedule.parse(commands, source="--commands")
-    robot = MuJoCoRobot(description)
+    robot = MuJoCoRobot(description, model=None if terrain is None else terrain_model(description, terrain,
+                                                                                      terrain_seed))
     policy = make_policy(policy_name, robot, weights=weights, **options)
     if policy.command_reach is None:
         policy.close()
