@@ -136,9 +136,12 @@ def test_chain_run_wagon_is_grasped_by_the_policy_and_reports_its_outcome():
     out = json.loads(result.output)
     assert result.exit_code == (0 if out["success"] else 1)
     assert out["grasp_by"] == "dp (wagon.pt)"
-    assert out["driven_by"] == {"grasp": "dp (wagon.pt)", "settle": "hold", "push": "walk-rl"}
+    assert out["driven_by"] == {"grasp": "dp (wagon.pt)", "settle": "hold", "push": "walk-rl",
+                                "stand": "pose", "open": "pose", "retract": "pose"}  # the last three: back-offs
     assert out["dp"]["grasp"]["failures"] == 0 and out["dp"]["grasp"]["chunks_used"] >= 8
-    assert 3.8 <= out["switch_time_s"] <= 6.0  # the grasp ends by its check or its 6 s timeout
+    retries = sum(r["kind"] == "retry" for r in out["recoveries"])
+    if out["switch_time_s"] is not None:  # the grasp closed: by its check, before its 6 s timeout (per attempt)
+        assert 3.8 <= out["switch_time_s"] <= 6.0 + retries * (0.4 + 1.0 + 6.0)
     if out["success"]:
         assert out["wagon_displacement_m"] >= 0.5
         for grip in out["grip"].values():
