@@ -7,10 +7,11 @@ stronger by ``--standard-errors`` of that fit's relative standard errors; the ex
 fit's load friction too). Per condition and policy: Table 7's tracking errors over the default schedule
 (`toddlerbot.runtime.tracking`, 26 s) and the falls over the ten reach commands (`runtime.robustness`) on the
 nominal robot and under ``--kick`` m/s kicks on ``--seeds`` seeds. Trials run in ``--workers`` subprocesses that
-print one JSON line each.
+print one JSON line each. The defaults are the grid of docs/sysid.md ("Walking under each motor model": 12 minutes
+on the shared 2-core VM).
 
-Run: PYTHONPATH=src python benchmarks/bench_motor_models.py [--conditions "appendix,dc_motor weaker"] [--seeds 2]
-     [--seconds 8] [--kick 0.2] [--standard-errors 1] [--workers 2] [--fits benchmarks/results/xl330_fits]
+Run: PYTHONPATH=src python benchmarks/bench_motor_models.py [--conditions "appendix,dc_motor weaker"] [--seeds 1]
+     [--seconds 6] [--kick 0.2] [--standard-errors 1] [--workers 2] [--fits benchmarks/results/xl330_fits]
 """
 
 from __future__ import annotations
@@ -101,8 +102,8 @@ def main() -> None:
     parser.add_argument("--conditions", default=None, help="comma-separated motor-model conditions (default: all)")
     parser.add_argument("--fits", type=Path, default=FITS, help="folder of the reference fits <model>.json")
     parser.add_argument("--standard-errors", type=float, default=1.0, help="how far the weaker/stronger moves go")
-    parser.add_argument("--seeds", type=int, default=2)
-    parser.add_argument("--seconds", type=float, default=8.0)
+    parser.add_argument("--seeds", type=int, default=1)
+    parser.add_argument("--seconds", type=float, default=6.0)
     parser.add_argument("--kick", type=float, default=0.2, help="kick speed, m/s")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
