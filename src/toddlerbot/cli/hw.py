@@ -21,6 +21,8 @@ from toddlerbot.cli.options import (
     OnFallOption,
     RobotOptions,
     SpecOption,
+    TerrainOption,
+    TerrainSeedOption,
     VariantOption,
     check_run_policy,
     duration,
@@ -62,20 +64,25 @@ def emulate(
                                                    "or TIME:SPEED@DEGREES (s after torque first comes on, m/s, from "
                                                    "its heading: 0 forward, 180 backwards; repeatable).")] = None,
     kick_seed: Annotated[int, seed_option("Seed of the directions of --kick without @DEGREES.", "--kick-seed")] = 0,
+    terrain: TerrainOption = None,
+    terrain_seed: TerrainSeedOption = 0,
 ) -> None:
     """Serve the robot's motors on a pseudo-terminal: prints the device path as the first line, then serves until
     interrupted (Ctrl-C, SIGTERM, SIGHUP), then prints one JSON line of statistics. With --hil the simulated
-    robot's IMU is published too, as the BNO08x reports it (`hw run --imu emulator` reads it)."""
+    robot's IMU is published too, as the BNO08x reports it (`hw run --imu emulator` reads it), and --terrain is
+    the ground it stands on."""
     from toddlerbot.hardware.emulator import EmulatedBus, Faults
     from toddlerbot.hardware.hil_kicks import parse_kicks
     from toddlerbot.hardware.serve import serve_until_stopped, write_true_calibration
+    from toddlerbot.sim.terrain import parse_terrain
 
     parsed = Faults.parse(faults or [])
     robot = RobotOptions.of(spec_path, variant, motor_params)
     if write_calibration is not None:
         output_file(write_calibration, "--write-calibration", robot.files)
     bus = EmulatedBus(robot.description(), hil=hil, faults=parsed, fast_sync_read=not no_fast_sync_read,
-                      offsets_seed=offsets_seed, kicks=parse_kicks(kick or [], kick_seed))
+                      offsets_seed=offsets_seed, kicks=parse_kicks(kick or [], kick_seed),
+                      terrain=terrain and parse_terrain(terrain), terrain_seed=terrain_seed)
     if write_calibration is not None:
         write_true_calibration(bus, write_calibration)
     report = serve_until_stopped(bus, lambda path: print(path, flush=True))

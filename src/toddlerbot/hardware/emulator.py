@@ -7,7 +7,7 @@ motor (`emulated_motor`). The motion behind the registers comes from a plant (`p
 
 * `SimplePlant`: every motor is an independent inertia driven by the actuator model
   (`toddlerbot.actuation.model.motor_torque`) with the gains in its control table.
-* `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor; the same
+* `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor or a terrain; the same
   actuator model runs every 1 ms physics step, paced to wall-clock time in a background thread.
 
 Every motor has a hidden mounting offset (pulses): the reading at motor angle 0, which the zero-point
@@ -53,6 +53,7 @@ from toddlerbot.hardware.emulated_motor import EmulatedMotor
 from toddlerbot.hardware.hil_kicks import Kick
 from toddlerbot.hardware.plant import HilPlant, SimplePlant
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.terrain import TerrainSpec
 
 SUPPLY_VOLTAGE = 12.0
 """Default emulated supply voltage, V."""
@@ -141,6 +142,8 @@ class EmulatedBus:
         fast_sync_read: bool = True,
         offsets_seed: int = 0,
         kicks: tuple[Kick, ...] = (),
+        terrain: TerrainSpec | None = None,
+        terrain_seed: int = 0,
     ) -> None:
         self.description = description
         self.spec = description.spec
@@ -158,7 +161,9 @@ class EmulatedBus:
         self.stats = BusStats()
         if kicks and not hil:
             raise ToddlerbotError("--kick pushes the simulated robot: it needs --hil")
-        self.plant: SimplePlant | HilPlant = HilPlant(self.motors, description, kicks) if hil \
+        if terrain is not None and not hil:
+            raise ToddlerbotError(f"--terrain {terrain}: the ground is the simulated robot's: it needs --hil")
+        self.plant: SimplePlant | HilPlant = HilPlant(self.motors, description, kicks, terrain, terrain_seed) if hil \
             else SimplePlant(self.motors)
         for motor in self.motors:
             self._power_up(motor)

@@ -2,7 +2,8 @@
 
 * `SimplePlant`: every motor is an independent inertia driven by the actuator model
   (`toddlerbot.actuation.model.motor_torque`) with the gains in its control table (via `actuator_arrays`).
-* `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor, stepped through
+* `HilPlant` (hardware in the loop): the MuJoCo model of the whole floating robot on the floor (or on a seeded
+  terrain, `toddlerbot.sim.terrain`), stepped through
   the simulator's actuated plant (`toddlerbot.sim.actuated.step_actuated`: the actuator model every 1 ms physics
   step, with each motor's torque enable and current limit), paced to wall-clock time in a background thread. It
   has `GroundTruth` (the torso's true pose), which the emulator reports.
@@ -36,6 +37,7 @@ from toddlerbot.robot.interface import FALL_TILT_RAD
 from toddlerbot.sim.actuated import MotorAddresses, compile_substeps, step_one_robot
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
+from toddlerbot.sim.terrain import TerrainSpec, terrain_model
 
 LOAD_INERTIA = 0.002
 """Load inertia added to the armature of each motor in `SimplePlant`, kg*m^2."""
@@ -144,7 +146,8 @@ def publish(motors: list[EmulatedMotor], q: np.ndarray, qd: np.ndarray, tau: np.
 
 
 class HilPlant(TorsoGroundTruth):
-    """The whole robot in MuJoCo (floating base, floor), motors driven by the actuator model every physics step.
+    """The whole robot in MuJoCo (floating base, on the floor or on ``terrain`` drawn from ``terrain_seed``), motors
+    driven by the actuator model every physics step.
 
     The simulation holds still (robot hanging on its stand) until the first motor's torque is enabled, then
     runs in real time in a background thread; `realtime_factor` reports how well it kept up. Once every motor
@@ -152,9 +155,11 @@ class HilPlant(TorsoGroundTruth):
     The model and the actuator parameters come from the description, so fitted params.json files apply.
     """
 
-    def __init__(self, motors: list[EmulatedMotor], description: RobotDescription, kicks: tuple[Kick, ...] = ()
-                 ) -> None:
+    def __init__(self, motors: list[EmulatedMotor], description: RobotDescription, kicks: tuple[Kick, ...] = (),
+                 terrain: TerrainSpec | None = None, terrain_seed: int = 0) -> None:
         self.motors = motors
+        self.ground = "flat" if terrain is None else f"{terrain} (seed {terrain_seed})"
+        """The ground the robot stands on, as the emulator reports it."""
         self.kicks = list(kicks)
         """Kicks still to come (`toddlerbot.hardware.hil_kicks`), in time order."""
         self.kicked: list[tuple[float, float, float]] = []
@@ -164,7 +169,7 @@ class HilPlant(TorsoGroundTruth):
         self.retried_steps = 0
         """Physics batches taken again with more solver iterations after they diverged (`step_one_robot`)."""
         self.params = [m.model.actuator for m in motors]
-        self.model = description.model(base="floating", scene=True)
+        self.model = terrain_model(description, terrain, terrain_seed)  # the description's own on the flat floor
         self.data = mujoco.MjData(self.model)
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
         mujoco.mj_forward(self.model, self.data)

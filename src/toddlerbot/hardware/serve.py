@@ -48,7 +48,8 @@ def serve_until_stopped(bus: EmulatedBus, on_ready: Callable[[str], None]) -> di
 
 def _plant_report(plant: HilPlant) -> dict:
     motion = plant.powered_motion()
-    return {"sim_time": round(plant.sim_time, 3), "realtime_factor": round(plant.realtime_factor, 3),
+    return {"ground": plant.ground, "sim_time": round(plant.sim_time, 3),
+            "realtime_factor": round(plant.realtime_factor, 3),
             "torso_height": round(plant.torso_height(), 4), "torso_upright": round(plant.torso_uprightness(), 4),
             "powered_min_torso_height": _finite(plant.powered_min_height),
             "powered_min_torso_upright": _finite(plant.powered_min_upright),
