@@ -166,6 +166,41 @@ def test_walking_policies_walk_the_tracking_schedule_in_real_time_on_the_emulate
     assert tracked.ang_vel_radps < angular, (tracked, seen)
 
 
+ROUGH_1CM = "rough:height=0.01,cell=0.1"
+"""CI's HIL terrain: tiles up to 1 cm (issue 42's HIL benchmark walks 2 cm, `benchmarks/bench_hil_walk.py`)."""
+FLAT_FLOOR_WALK_RL = pytest.mark.xfail(strict=False, reason=(
+    "the shipped walk-rl, trained on the flat floor, falls backwards where its toe meets the first 1 cm tile edge "
+    "(simulator, 0.1 m/s, seeds 0-4: falls at 4.7-5.2 s; 0.05 and 0.15 m/s forward, 0.05 m/s back fall too): the "
+    "terrain policy of issue 42 owes this walk (docs/hardware.md, \"Walking on rough ground in HIL\")"))
+
+
+@pytest.mark.slow
+@FLAT_FLOOR_WALK_RL
+def test_walk_rl_walks_onto_1_cm_rough_ground_in_real_time(tmp_path):
+    """`hw emulate --hil --terrain`: walk-rl, through the driver and the safety layer on the emulated IMU, walks 7 s
+    at 0.1 m/s off the flat start square onto tiles up to 1 cm, upright, and motion capture tracks it."""
+    from toddlerbot.runtime.log import RunLog
+    from toddlerbot.runtime.summary import summarize
+    from toddlerbot.sim.terrain import START
+
+    cal_file, log_file = tmp_path / "emulated.yaml", tmp_path / "run.npz"
+    proc, path = _start_emulator("--hil", "--write-calibration", str(cal_file), "--terrain", ROUGH_1CM,
+                                 "--terrain-seed", "0")
+    try:
+        run = _hw_run(path, cal_file, "--imu", "emulator", "--mocap", "emulator", "--log", str(log_file), "--policy",
+                      "walk-rl", "--command", "0:0,0,0; 1:0.1,0,0", "--seconds", "8")
+    finally:
+        report = _stop_emulator(proc)
+    seen = f"{run.stdout}{run.stderr}emulator: {report}"
+    assert report["ground"] == f"{ROUGH_1CM} (seed 0)", seen
+    assert run.returncode == 0 and report["powered_min_torso_upright"] > 0.9, seen  # no fall, upright all the way
+    assert report["powered_torso_motion"]["dx_m"] > START + 0.15, seen  # its feet walked on the tiles
+    tracked = summarize(RunLog.load(log_file), fell=False, fall_time=None).tracking
+    position, linear, angular = HIL_TRACKING_BOUNDS["walk-rl"]
+    assert tracked.position_m < position and tracked.lin_vel_mps < linear, (tracked, seen)
+    assert tracked.ang_vel_radps < angular, (tracked, seen)
+
+
 TOPPLE = """name: topple
 description: tip backwards onto the floor
 interpolation: smooth
