@@ -120,22 +120,25 @@ def main() -> None:
     for seed in seeds:
         ground = [] if terrain is None else ["--terrain", str(terrain), "--terrain-seed", str(seed)]
         sim, wall = simulated(args.policy, args.weights, args.seconds, terrain, seed)
-        print(f"simulator{f' (seed {seed})' if terrain else ''}: fell {sim.fell}, {sim.motion_text()} "
+        print(f"simulator{f' (seed {seed})' if terrain else ''}: "
+              f"{f'fell at {sim.fall_time_s:.2f} s' if sim.fell else 'no fall'}, {sim.motion_text()} "
               f"({wall:.1f} s wall)")
         for _ in range(args.runs):
             hil = in_the_loop(args.policy, args.weights, args.seconds, ground)
             print_run(hil)
             walks.append((sim, hil))
-    standing = [(errors(sim), errors(hil["summary"])) for sim, hil in walks
-                if not sim.fell and not hil["fell"] and hil["summary"] is not None]
     print(f"HIL falls {sum(hil['fell'] for _, hil in walks)} of {len(walks)}; simulator falls "
           f"{sum(sim.fell for sim, _ in walks)} of {len(walks)}")
-    if standing:
-        sim_mean, hil_mean = (np.mean(side, axis=0) for side in zip(*standing, strict=True))
-        print(f"mean tracking errors (position m / linear m/s / angular rad/s) of the {len(standing)} walks neither "
-              f"fell in: simulator {' / '.join(f'{v:.3f}' for v in sim_mean)}, HIL "
-              f"{' / '.join(f'{v:.3f}' for v in hil_mean)}, HIL / simulator "
-              f"{' / '.join(f'{v:.2f}' for v in hil_mean / sim_mean)}")
+    logged = [(sim, hil) for sim, hil in walks if hil["summary"] is not None]
+    standing = [(sim, hil) for sim, hil in logged if not sim.fell and not hil["fell"]]
+    compared, which = (standing, f"the {len(standing)} walks neither fell in") if standing else \
+        (logged, f"all {len(logged)} walks, each up to its fall")
+    if compared:
+        sim_mean = np.mean([errors(sim) for sim, _ in compared], axis=0)
+        hil_mean = np.mean([errors(hil["summary"]) for _, hil in compared], axis=0)
+        print(f"mean tracking errors (position m / linear m/s / angular rad/s) of {which}: simulator "
+              f"{' / '.join(f'{v:.3f}' for v in sim_mean)}, HIL {' / '.join(f'{v:.3f}' for v in hil_mean)}, "
+              f"HIL / simulator {' / '.join(f'{v:.2f}' for v in hil_mean / sim_mean)}")
 
 
 if __name__ == "__main__":
