@@ -13,6 +13,10 @@ subprocesses that print one JSON line per trial (nothing is pickled between proc
 `slope:degrees=-10`) adds a terrain axis: every condition is walked on each terrain, drawn from the trial's seed, and
 a column is a (condition, terrain) pair. With `--terrain` the conditions default to `nominal` alone.
 
+`--stops`: every trial stops on the way (`runtime.robustness.stop_schedule`: a zero command for 3 s from 2.4-2.9 s,
+then the command again), so under kicks it is kicked walking, standing and walking again (walk-rl stands still at a
+zero command: `policies.stand_still`).
+
 `--kick-grid SPEED` instead kicks once per trial, in 8 directions around the heading x 6 moments of one gait
 cycle (`runtime.robustness.kick_grid`), standing and walking half the forward reach, and prints which fall.
 
@@ -44,7 +48,8 @@ def _description(args) -> RobotDescription:
 
 
 def _policy_factory(args):
-    return lambda robot: make_policy(args.policy, robot, weights=args.weights, symmetric=not args.asymmetric)
+    return lambda robot: make_policy(args.policy, robot, weights=args.weights, symmetric=not args.asymmetric,
+                                     stand=not args.step_in_place)
 
 
 def _reach(args, description):
@@ -53,6 +58,7 @@ def _reach(args, description):
 
 def _label(args) -> str:
     return args.policy + (f" ({args.weights})" if args.weights else "") + (" asymmetric" if args.asymmetric else "") \
+        + (" stepping in place" if args.step_in_place else "") \
         + "".join(f" with {path}" for path in args.motor_params)
 
 
@@ -113,7 +119,7 @@ def worker(args, names) -> None:
         if i % args.workers != args.worker:
             continue
         trial = run_trial(description, _policy_factory(args), command, by_name[name], seed, args.seconds,
-                          None if terrain is None else parse_terrain(terrain))
+                          None if terrain is None else parse_terrain(terrain), args.stops)
         print(json.dumps({"command": trial.command, "condition": name, "seed": seed, "terrain": terrain,
                           "fall_time": trial.fall_time}), flush=True)
 
@@ -136,8 +142,12 @@ def main() -> None:
                         help="one kick of SPEED m/s per trial over directions x gait phases instead")
     parser.add_argument("--asymmetric", action="store_true",
                         help="walk-rl without its mirror image (docs/rl.md \"Mirror symmetry\")")
+    parser.add_argument("--step-in-place", action="store_true",
+                        help="walk-rl stepping in place at a zero command instead of standing still (docs/rl.md)")
     parser.add_argument("--terrain", action="append", default=None, metavar="NAME[:KEY=VALUE,...]",
                         help="walk every condition on this terrain too (repeatable), drawn from the trial's seed")
+    parser.add_argument("--stops", action="store_true",
+                        help="every trial stands at a zero command for 3 s on the way (stop_schedule)")
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     try:
@@ -168,7 +178,8 @@ def main() -> None:
     commands = list(dict.fromkeys(tuple(c) for c, _, _, _ in _jobs(args, names, description)))
     columns = _columns(args, names)
     robot = f"{_label(args)} ({description.spec.variant or 'base robot'})"
-    print(f"{robot}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell "
+    stops = ", stopping 3 s from 2.4-2.9 s" if args.stops else ""
+    print(f"{robot}: falls / trials, {args.seeds} seed(s) x {args.seconds:g} s per cell{stops} "
           f"({platform.processor() or platform.machine()}, {wall:.0f} s wall, {args.workers} workers)")
     width = max(len(_column_label(*c)) for c in columns) + 2
     print("command (vx, vy, yaw)".ljust(24) + "".join(_column_label(*c).rjust(width) for c in columns))

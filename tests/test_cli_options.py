@@ -114,6 +114,29 @@ def test_asymmetric_is_refused_for_a_policy_without_a_mirror(calibration, app, a
     assert _error(app, args) == "--asymmetric is not an option of policy 'stand'"
 
 
+@pytest.mark.parametrize("app,args", [
+    (sim.app, ["run", "--policy", "stand", "--step-in-place"]),
+    (hw.app, ["run", "--port", NO_PORT, "--policy", "stand", "--step-in-place"]),
+])
+def test_step_in_place_is_refused_for_a_policy_without_a_stance(calibration, app, args):
+    if app is hw.app:
+        args = [*args, "--calibration", str(calibration)]
+    assert _error(app, args) == "--step-in-place is not an option of policy 'stand'"
+
+
+def test_eval_tracking_step_in_place_steps_where_walk_rl_stands():
+    """At a zero command walk-rl stands still by default and steps in place with `--step-in-place`."""
+    from toddlerbot.cli import eval as eval_cli
+
+    args = ["--policy", "walk-rl", "--commands", "0:0,0,0", "--seconds", "3", "--json"]
+    runs = {}
+    for extra in ([], ["--step-in-place"]):
+        result = CliRunner().invoke(eval_cli.app, [*args, *extra])
+        assert result.exit_code == 0, result.output
+        runs[bool(extra)] = json.loads(result.output)
+    assert runs[False]["position_m"] < 0.01 < runs[True]["position_m"]  # 0.004 and 0.030 m
+
+
 def test_eval_tracking_asymmetric_runs_walk_rl_alone():
     """The symmetric default and `--asymmetric` walk differently, and `--asymmetric` is the policy alone."""
     from toddlerbot.cli import eval as eval_cli

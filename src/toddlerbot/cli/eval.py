@@ -11,9 +11,11 @@ from toddlerbot.cli.options import (
     AsymmetricOption,
     MotorParamsOption,
     RobotOptions,
+    StepInPlaceOption,
     TerrainOption,
     TerrainSeedOption,
     duration,
+    stand_option,
     symmetric_option,
 )
 from toddlerbot.cli.output import console
@@ -49,6 +51,7 @@ def tracking(
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
     motor_params: MotorParamsOption = None,
     asymmetric: AsymmetricOption = False,
+    step_in_place: StepInPlaceOption = False,
     log: LogOption = None,
     mocap: MocapOption = None,
     terrain: TerrainOption = None,
@@ -56,33 +59,40 @@ def tracking(
 ) -> None:
     """Drive a walking policy through velocity commands and report position/velocity tracking errors and falls
     (exit code 1 if the robot fell); with --log, the same errors of a logged run."""
-    from toddlerbot.runtime.tracking import plot_velocity_tracking
-
     if log is None and mocap is None:
         ground = None if terrain is None else parse_terrain(terrain)
-        result, title, truth = _simulated(policy, commands, seconds, weights, plot, motor_params, asymmetric,
+        options = {**symmetric_option(policy, asymmetric), **stand_option(policy, step_in_place)}
+        result, title, truth = _simulated(policy, commands, seconds, weights, plot, motor_params, options,
                                           as_json, ground, terrain_seed)
     else:
         simulation = {"--commands": commands, "--seconds": seconds, "--weights": weights,
-                      "--motor-params": motor_params, "--asymmetric": asymmetric or None, "--terrain": terrain}
+                      "--motor-params": motor_params, "--asymmetric": asymmetric or None, "--terrain": terrain,
+                      "--step-in-place": step_in_place or None}
         given = [name for name, value in simulation.items() if value is not None]
         result, title, truth = _logged(log, mocap, plot, given)
     summary = result.summary() | truth
+    _show(result, summary, title, plot, as_json)
+    if summary["falls"]:
+        raise typer.Exit(1)
+
+
+def _show(result, summary: dict, title: str, plot: Path | None, as_json: bool) -> None:
+    """The tracking plot (with ``plot``), then the summary as JSON or for people."""
+    from toddlerbot.runtime.tracking import plot_velocity_tracking
+
     if plot is not None:
         plot_velocity_tracking(result, title, plot)
     if as_json:
         print(json_text(summary))
     else:
         _print(title, summary, plot)
-    if summary["falls"]:
-        raise typer.Exit(1)
 
 
 def _simulated(policy: str, commands: str | None, seconds: float | None, weights: Path | None, plot: Path | None,
-               motor_params: list[Path] | None, asymmetric: bool, quiet: bool, terrain: TerrainSpec | None,
+               motor_params: list[Path] | None, options: dict, quiet: bool, terrain: TerrainSpec | None,
                terrain_seed: int):
-    """The policy's tracking in the simulator (on ``terrain`` drawn from ``terrain_seed``), its title, and no
-    ground-truth figures (the simulator's)."""
+    """The policy's tracking in the simulator (on ``terrain`` drawn from ``terrain_seed``; ``options`` for its
+    factory), its title, and no ground-truth figures (the simulator's)."""
     from toddlerbot.runtime.tracking import evaluate_policy
 
     if policy not in policy_names():
@@ -94,7 +104,7 @@ def _simulated(policy: str, commands: str | None, seconds: float | None, weights
     description = robot.description()
     with console.status(f"simulating {policy} for {seconds:.0f} s", spinner="dots") if not quiet else _null():
         result = evaluate_policy(description, policy, schedule_text, seconds, weights, terrain, terrain_seed,
-                                 **symmetric_option(policy, asymmetric))
+                                 **options)
     return result, policy if terrain is None else f"{policy} on {terrain} (seed {terrain_seed})", {}
 
 

@@ -21,12 +21,14 @@ from toddlerbot.cli.options import (
     OnFallOption,
     RobotOptions,
     SpecOption,
+    StepInPlaceOption,
     TerrainOption,
     TerrainSeedOption,
     VariantOption,
     check_run_policy,
     duration,
     seed_option,
+    stand_option,
     symmetric_option,
     within,
 )
@@ -174,7 +176,8 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         control_hz: ControlHzOption = None, control_dt: DtOpt = None,
         log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,
         spec_path: SpecOption = None, variant: VariantOption = None, motor_params: MotorParamsOption = None,
-        asymmetric: AsymmetricOption = False, mocap: MocapOption = "none", on_fall: OnFallOption = "stop") -> None:
+        asymmetric: AsymmetricOption = False, mocap: MocapOption = "none", on_fall: OnFallOption = "stop",
+        step_in_place: StepInPlaceOption = False) -> None:
     """Run a policy on the real robot (or the emulator). Torque goes off at the end, on any error (a refused
     command included), on Ctrl-C, SIGTERM, SIGHUP and SIGQUIT; an error exits with code 2 and one line, a signal
     with 128 + its number, a fall (the IMU tilted past the simulator's threshold) with 1. A run that stops early
@@ -193,7 +196,7 @@ def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "st
         session = stack.enter_context(robot_session(
             options.description(), port, calibration, policy, command, seconds, control_dt, baud, latency_ms, imu,
             mocap, on_fall, motion=motion, weights=weights, checkpoint=checkpoint, camera=camera, threads=threads,
-            **symmetric_option(policy, asymmetric)))
+            **symmetric_option(policy, asymmetric), **stand_option(policy, step_in_place)))
         result = session.run(log, lambda partial: save_or_fallback(
             partial.save, log, f"the log of the {partial.time.size} steps before the stop"))
     except BusInterrupt as exc:

@@ -116,6 +116,20 @@ def symmetric_option(policy: str, asymmetric: bool) -> dict[str, bool]:
     return {"symmetric": False}
 
 
+StepInPlaceOption = Annotated[bool, typer.Option(
+    "--step-in-place", help="For --policy walk-rl: step in place at a zero command instead of standing still "
+                            "(docs/rl.md, \"Standing still\").")]
+
+
+def stand_option(policy: str, step_in_place: bool) -> dict[str, bool]:
+    """The policy option of `--step-in-place` (none when not given); one line for a policy that has no stance."""
+    if not step_in_place:
+        return {}
+    if not accepts_option(policy, "stand"):
+        raise ToddlerbotError(f"--step-in-place is not an option of policy {policy!r}")
+    return {"stand": False}
+
+
 MocapOption = Annotated[str, typer.Option("--mocap", help="Motion capture of the torso's pose, logged as ground truth "
                                           "so that the run's tracking errors are measured as in the simulator: "
                                           "none, or emulator (the true pose of `hw emulate --hil` on --port).")]

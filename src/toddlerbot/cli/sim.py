@@ -14,6 +14,7 @@ from toddlerbot.cli.options import (
     OnFallOption,
     RobotOptions,
     SpecOption,
+    StepInPlaceOption,
     TerrainOption,
     TerrainSeedOption,
     VariantOption,
@@ -21,6 +22,7 @@ from toddlerbot.cli.options import (
     duration,
     positive,
     seed_option,
+    stand_option,
     symmetric_option,
 )
 from toddlerbot.cli.output import console
@@ -76,7 +78,7 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
         checkpoint: CheckpointOpt = None, seed: SeedOpt = 0, threads: ThreadsOpt = None, spec: SpecOption = None,
         variant: VariantOption = None, motor_params: MotorParamsOption = None,
         asymmetric: AsymmetricOption = False, on_fall: OnFallOption = "stop", terrain: TerrainOption = None,
-        terrain_seed: TerrainSeedOption = 0) -> None:
+        terrain_seed: TerrainSeedOption = 0, step_in_place: StepInPlaceOption = False) -> None:
     """Run a policy on the simulated robot and print a summary (distance, tracking errors, falls)."""
     from toddlerbot.sessions.sim import sim_session
 
@@ -94,7 +96,7 @@ def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file
     session = sim_session(policy, schedule, seconds, description, control_hz, realtime, task, seed,
                           camera if video or snapshot else None, viewer, on_fall, ground, terrain_seed, motion=motion,
                           weights=weights, checkpoint=checkpoint, threads=threads,
-                          **symmetric_option(policy, asymmetric))
+                          **symmetric_option(policy, asymmetric), **stand_option(policy, step_in_place))
     with RunProgress(f"simulating {policy}", round(seconds / session.robot.control_dt)) as progress:
         result = session.run(progress, log_path=log)
     for path in session.write_video(video, snapshot):

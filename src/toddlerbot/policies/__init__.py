@@ -80,10 +80,10 @@ def _walk_zmp(robot: Robot) -> Policy:
     return WalkZMPPolicy(robot, _walk_config(robot.control_dt))
 
 
-def _walk_rl(robot: Robot, weights: str | Path | None = None, symmetric: bool = True) -> Policy:
+def _walk_rl(robot: Robot, weights: str | Path | None = None, symmetric: bool = True, stand: bool = True) -> Policy:
     from toddlerbot.policies.walk_rl import WalkRLPolicy
 
-    return WalkRLPolicy(robot, weights, symmetric)
+    return WalkRLPolicy(robot, weights, symmetric, stand)
 
 
 _BUILT_IN = {"stand": "toddlerbot.policies.stand:StandPolicy", "replay": _replay, "walk-zmp": _walk_zmp,

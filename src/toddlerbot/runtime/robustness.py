@@ -39,6 +39,18 @@ def reach_commands(reach: CommandReach) -> list[tuple[float, float, float]]:
     ]
 
 
+STOP_S = 3.0
+"""s a trial with stops holds a zero command (`stop_schedule`)."""
+
+
+def stop_schedule(command: tuple[float, float, float], seed: int) -> Callable[[float], np.ndarray]:
+    """A walk with a stop: ``command``, a zero command for `STOP_S` s from 2.4 + 0.1 x (seed mod 6) s (six seeds
+    stop at six moments 0.1 s apart, a gait cycle of walk-rl), then ``command`` again. Under kicks (at 2, 4.5 and
+    7 s) an 8 s trial is kicked walking, standing and walking again."""
+    start = 2.4 + 0.1 * (seed % 6)
+    walk, stop = np.asarray(command, dtype=float), np.zeros(3)
+    return lambda t: stop if start <= t < start + STOP_S else walk
+
 
 class KickSchedule(RunObserver):
     """A run observer: adds a horizontal velocity of ``kick_speed`` m/s in a random
@@ -148,17 +160,18 @@ class Trial:
 
 
 def run_trial(description: RobotDescription, make_policy: PolicyFactory, command: tuple[float, float, float],
-              condition: Condition, seed: int, seconds: float, terrain: TerrainSpec | None = None) -> Trial:
+              condition: Condition, seed: int, seconds: float, terrain: TerrainSpec | None = None,
+              stops: bool = False) -> Trial:
     """Walk ``command`` for ``seconds`` on the robot perturbed by ``condition`` at ``seed``, on ``terrain`` drawn from
-    ``seed`` (None: the flat floor)."""
+    ``seed`` (None: the flat floor); with ``stops``, stopping once on the way (`stop_schedule`)."""
     perturbation = replace(condition.perturb(description, seed), terrain=terrain)
     robot = perturbed_robot(description, perturbation)
     policy = make_policy(robot)
     if condition.upper_body_pose > 0:
         pose = random_upper_body_pose(description, condition.upper_body_pose, np.random.default_rng([seed, 2]))
         policy = HeldUpperBody(policy, pose)
-    result = run_policy(robot, policy, lambda t: np.asarray(command), seconds,
-                        observers=[KickSchedule(robot, perturbation)])
+    commands = stop_schedule(command, seed) if stops else lambda t: np.asarray(command)
+    result = run_policy(robot, policy, commands, seconds, observers=[KickSchedule(robot, perturbation)])
     moved = robot.base_pos - result.log.base_pos[0]
     return Trial(tuple(command), condition.name, seed, result.fall_time, (float(moved[0]), float(moved[1])),
                  str(terrain or "flat"))
