@@ -84,7 +84,7 @@ def emulate(
         output_file(write_calibration, "--write-calibration", robot.files)
     bus = EmulatedBus(robot.description(), hil=hil, faults=parsed, fast_sync_read=not no_fast_sync_read,
                       offsets_seed=offsets_seed, kicks=parse_kicks(kick or [], kick_seed),
-                      terrain=terrain and parse_terrain(terrain), terrain_seed=terrain_seed)
+                      terrain=None if terrain is None else parse_terrain(terrain), terrain_seed=terrain_seed)
     if write_calibration is not None:
         write_true_calibration(bus, write_calibration)
     report = serve_until_stopped(bus, lambda path: print(path, flush=True))
