@@ -83,6 +83,9 @@ DIVERGED_SPEED = 50.0
 """rad/s (or m/s): a joint of the robot faster than this is numerical blow-up (its motors' no-load speeds are under
 10 rad/s; a falling torso stays under 5 m/s). At 200 a step that threw the robot off a terrain at 55 m/s (both
 soles in 91 height-field contacts, 4 solver iterations) passed as sound; at 50 it is taken again and stands."""
+UNSTABLE_SPEED = 200.0
+"""rad/s: a joint still faster than this after the step was taken again stops the run (`MuJoCoRobot`); between
+`DIVERGED_SPEED` and this a retried step goes on (a hard pinch of the grippers can spin a finger that fast)."""
 
 
 def diverged(data: mujoco.MjData) -> bool:

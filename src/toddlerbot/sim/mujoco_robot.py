@@ -26,7 +26,13 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD, Observation, Robot
-from toddlerbot.sim.actuated import DIVERGED_SPEED, MotorAddresses, compile_substeps, diverged, step_one_robot
+from toddlerbot.sim.actuated import (
+    UNSTABLE_SPEED,
+    MotorAddresses,
+    compile_substeps,
+    diverged,
+    step_one_robot,
+)
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoGroundTruth, TorsoTruth
 from toddlerbot.sim.motor_drive import MotorDrive
 from toddlerbot.sim.terrain import ground_geoms
@@ -195,8 +201,8 @@ class MuJoCoRobot(Robot, TorsoGroundTruth):
         if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
             raise SimulationError(f"simulation diverged at t={d.time:.3f} s (non-finite state)")
         speed = np.max(np.abs(d.qvel[6:]))
-        if speed > DIVERGED_SPEED:
+        if speed > UNSTABLE_SPEED:
             raise SimulationError(
                 f"simulation unstable at t={d.time:.3f} s: a joint moves at {speed:.0f} rad/s "
-                f"(> {DIVERGED_SPEED:.0f}); check the gains and targets"
+                f"(> {UNSTABLE_SPEED:.0f}); check the gains and targets"
             )
