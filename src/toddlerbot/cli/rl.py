@@ -133,16 +133,12 @@ def train(
     backend: BackendOption = "auto",
     imitation_iterations: ImitationIterationsOption = None,
     motor_params: MotorParamsOption = None,
-    warm_start: WarmStartOption = None,
-    init_policy: InitPolicyOption = None,
-    terrain: TerrainOption = None,
-    terrain_seed: TerrainSeedOption = None,
+    warm_start: WarmStartOption = None, init_policy: InitPolicyOption = None,
+    terrain: TerrainOption = None, terrain_seed: TerrainSeedOption = None,
     variant: VariantOption = None,
     upper_body_pose: UpperBodyPoseOption = None,
     hand_force: HandForceOption = None,
-    push_velocity: PushVelocityOption = None,
-    push_interval: PushIntervalOption = None,
-    imu_age: ImuAgeOption = None,
+    push_velocity: PushVelocityOption = None, push_interval: PushIntervalOption = None, imu_age: ImuAgeOption = None,
     mirror_loss: MirrorLossOption = None,
     reward_weight: RewardWeightOption = None,
     tensorboard: TensorBoardOption = True, wandb: WandbOption = False, wandb_mode: WandbModeOption = None,
@@ -250,6 +246,17 @@ def _train_with_progress(plan, minutes: float | None, epochs: int | None, sinks)
     return history
 
 
+SelectOption = Annotated[int | None, typer.Option(
+    help="Export the best of the run's last N checkpoints instead of the latest: each walks the policy's reach in the "
+         "simulator under --select-kick kicks and on each --select-terrain, on seeds no benchmark uses; fewest "
+         "falls, then least stray, wins (docs/rl.md \"Checkpoint selection\").")]
+SelectKickOption = Annotated[float, typer.Option(help="With --select: m/s of the kicks on the flat floor.")]
+SelectSeedsOption = Annotated[int | None, typer.Option(
+    min=1, help="With --select: seeds per trial (default: those of toddlerbot.rl.selection.SELECTION_SEEDS).")]
+SelectTerrainOption = Annotated[list[str] | None, typer.Option(
+    help="With --select: also walk on this ground without kicks (repeatable; e.g. rough:height=0.02).")]
+
+
 @app.command()
 def export(
     run: Annotated[Path, typer.Argument(help="Training run directory, or an exported .npz (for --format onnx).")],
@@ -259,15 +266,8 @@ def export(
         "--format", help="npz (numpy inference) or onnx (onnxruntime; checked against the numpy policy).")] = "npz",
     checkpoint: Annotated[str | None, typer.Option(help="A checkpoint file name of the run (default: the latest; "
                                                         "'warm_start': the DAgger warm start).")] = None,
-    select: Annotated[int | None, typer.Option(
-        help="Export the best of the run's last N checkpoints instead of the latest: each walks the policy's reach "
-             "in the simulator under --select-kick kicks and on each --select-terrain, on seeds no benchmark uses; "
-             "fewest falls, then least stray, wins (docs/rl.md \"Checkpoint selection\").")] = None,
-    select_kick: Annotated[float, typer.Option(help="With --select: m/s of the kicks on the flat floor.")] = 0.3,
-    select_seeds: Annotated[int | None, typer.Option(min=1, help="With --select: seeds per trial (default: those of "
-                                                                 "toddlerbot.rl.selection.SELECTION_SEEDS).")] = None,
-    select_terrain: Annotated[list[str] | None, typer.Option(
-        help="With --select: also walk on this ground without kicks (repeatable; e.g. rough:height=0.02).")] = None,
+    select: SelectOption = None, select_kick: SelectKickOption = 0.3, select_seeds: SelectSeedsOption = None,
+    select_terrain: SelectTerrainOption = None,
     ship: Annotated[bool, typer.Option(help="Maintainers, in a source checkout: write the package's shipped policy "
                                             "(walk_rl.npz, or walk_rl_<variant>.npz for a variant's run) that every "
                                             "walk-rl run loads by default (docs/rl.md, \"Shipping a policy\").")]
@@ -292,17 +292,19 @@ def export(
 
     selection = None
     if select is not None:
-        if checkpoint is not None:
-            raise ToddlerbotError("--select chooses the checkpoint; drop --checkpoint")
-        checkpoint, selection = _select(run, select, select_kick, tuple(select_terrain or ()), select_seeds)
+        checkpoint, selection = _select(run, checkpoint, select, select_kick, tuple(select_terrain or ()),
+                                        select_seeds)
     path = export_run(run, out, checkpoint=checkpoint, extra_meta=selection and {"selection": selection})
     console.print(f"exported {path} ({path.stat().st_size / 1024:.0f} KiB)")
 
 
-def _select(run: Path, last: int, kick: float, terrains: tuple[str, ...], seeds: int | None) -> tuple[str, dict]:
+def _select(run: Path, checkpoint: str | None, last: int, kick: float, terrains: tuple[str, ...],
+            seeds: int | None) -> tuple[str, dict]:
     """The selected checkpoint and the record of the selection (trials, every candidate's row) for the export."""
     from dataclasses import asdict
 
+    if checkpoint is not None:
+        raise ToddlerbotError("--select chooses the checkpoint; drop --checkpoint")
     from toddlerbot.rl.selection import SELECTION_SEEDS, SelectionTrials, select_checkpoint
 
     first = SELECTION_SEEDS[0]
