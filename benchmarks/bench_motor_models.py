@@ -19,11 +19,10 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import subprocess
-import sys
 import time
 from pathlib import Path
 
+from json_workers import worker_rows
 from toddlerbot.policies import make_policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.robustness import Condition, conditions, reach_commands, run_trial
@@ -116,11 +115,7 @@ def main() -> None:
         worker(args, names)
         return
     start = time.perf_counter()
-    procs = [subprocess.Popen([sys.executable, __file__, *sys.argv[1:], "--worker", str(w)], stdout=subprocess.PIPE,
-                              text=True) for w in range(args.workers)]
-    rows = [json.loads(line) for p in procs for line in p.stdout]
-    if any(p.wait() != 0 for p in procs):
-        sys.exit("a worker failed")
+    rows = worker_rows(__file__, args.workers)
     print_table(args, names, rows, time.perf_counter() - start)
 
 

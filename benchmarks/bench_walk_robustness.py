@@ -31,10 +31,9 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import subprocess
-import sys
 import time
 
+from json_workers import worker_rows
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies import make_policy
 from toddlerbot.robot.description import RobotDescription
@@ -165,11 +164,7 @@ def main() -> None:
         grid_worker(args) if args.kick_grid is not None else worker(args, names)
         return
     start = time.perf_counter()
-    procs = [subprocess.Popen([sys.executable, __file__, *sys.argv[1:], "--worker", str(w)], stdout=subprocess.PIPE,
-                              text=True) for w in range(args.workers)]
-    rows = [json.loads(line) for p in procs for line in p.stdout]
-    if any(p.wait() != 0 for p in procs):
-        sys.exit("a worker failed")
+    rows = worker_rows(__file__, args.workers)
     wall = time.perf_counter() - start
     if args.kick_grid is not None:
         print_grid(args, rows, wall)
