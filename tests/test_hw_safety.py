@@ -93,7 +93,8 @@ def test_policy_that_outputs_nan_stops_the_run_with_torque_off(tmp_path):
     goal register that was ever written stayed inside its joint range."""
     with emulated(DESC) as (emu, port), upright_imu_stream(port):  # walk-rl refuses to run without an IMU
         proc = _hw_run(port, _calibration(emu, tmp_path / "cal.yaml"), "--imu", "emulator", "--policy", "walk-rl",
-                       "--weights", str(overflowing_weights(tmp_path / "nan_out.npz")), "--seconds", "2")
+                       "--weights", str(overflowing_weights(tmp_path / "nan_out.npz")), "--seconds", "2",
+                       "--step-in-place")  # at the zero command it would stand: the network would not run
         _, err = proc.communicate(timeout=240)
         assert proc.returncode == 2
         assert "non-finite motor target for 12 motor(s)" in _one_line(err)

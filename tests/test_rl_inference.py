@@ -200,7 +200,7 @@ def test_the_heading_hold_steers_the_policy_back_to_its_heading(tmp_path):
     from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
     robot = MuJoCoRobot()
-    policy = WalkRLPolicy(robot, _random_export(tmp_path)[0])
+    policy = WalkRLPolicy(robot, _random_export(tmp_path)[0], stand=False)  # walking from the first step
     obs = robot.reset()
     policy.reset(obs)
     given = []
