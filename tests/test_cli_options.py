@@ -124,30 +124,30 @@ def test_step_in_place_is_refused_for_a_policy_without_a_stance(calibration, app
     assert _error(app, args) == "--step-in-place is not an option of policy 'stand'"
 
 
-def test_eval_tracking_step_in_place_steps_where_walk_rl_stands():
-    """At a zero command walk-rl stands still by default and steps in place with `--step-in-place`."""
+def _tracking_with_and_without(commands: str, option: str) -> dict[bool, dict]:
+    """`eval tracking --json` of walk-rl for 3 s of ``commands``, without (False) and with (True) ``option``."""
     from toddlerbot.cli import eval as eval_cli
 
-    args = ["--policy", "walk-rl", "--commands", "0:0,0,0", "--seconds", "3", "--json"]
+    args = ["--policy", "walk-rl", "--commands", commands, "--seconds", "3", "--json"]
     runs = {}
-    for extra in ([], ["--step-in-place"]):
+    for extra in ([], [option]):
         result = CliRunner().invoke(eval_cli.app, [*args, *extra])
         assert result.exit_code == 0, result.output
         runs[bool(extra)] = json.loads(result.output)
+    return runs
+
+
+def test_eval_tracking_step_in_place_steps_where_walk_rl_stands():
+    """At a zero command walk-rl stands still by default and steps in place with `--step-in-place`."""
+    runs = _tracking_with_and_without("0:0,0,0", "--step-in-place")
     assert runs[False]["position_m"] < 0.01 < runs[True]["position_m"]  # 0.004 and 0.030 m
 
 
 def test_eval_tracking_asymmetric_runs_walk_rl_alone():
     """The symmetric default and `--asymmetric` walk differently, and `--asymmetric` is the policy alone."""
-    from toddlerbot.cli import eval as eval_cli
     from toddlerbot.runtime.tracking import evaluate_policy
 
-    args = ["--policy", "walk-rl", "--commands", "0:0,0.05,0", "--seconds", "3", "--json"]
-    runs = {}
-    for extra in ([], ["--asymmetric"]):
-        result = CliRunner().invoke(eval_cli.app, [*args, *extra])
-        assert result.exit_code == 0, result.output
-        runs[bool(extra)] = json.loads(result.output)
+    runs = _tracking_with_and_without("0:0,0.05,0", "--asymmetric")
     alone = evaluate_policy(RobotDescription.load(), "walk-rl", "0:0,0.05,0", 3.0, symmetric=False).summary()
     assert runs[True]["position_m"] == pytest.approx(alone["position_m"], abs=1e-9)
     assert abs(runs[True]["position_m"] - runs[False]["position_m"]) > 1e-4
