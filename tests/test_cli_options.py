@@ -104,24 +104,15 @@ def test_model_base_overrides_the_variants_and_unknown_variant_is_named():
     assert unknown.exit_code == 2 and "'wings' is not one of floating, fixed, gripper" in unknown.output
 
 
+@pytest.mark.parametrize("option", ["--asymmetric", "--step-in-place"])  # stand has no mirror and no stance
 @pytest.mark.parametrize("app,args", [
-    (sim.app, ["run", "--policy", "stand", "--asymmetric"]),
-    (hw.app, ["run", "--port", NO_PORT, "--policy", "stand", "--asymmetric"]),
+    (sim.app, ["run", "--policy", "stand"]),
+    (hw.app, ["run", "--port", NO_PORT, "--policy", "stand"]),
 ])
-def test_asymmetric_is_refused_for_a_policy_without_a_mirror(calibration, app, args):
+def test_a_walk_rl_option_is_refused_for_a_policy_without_it(calibration, app, args, option):
     if app is hw.app:
         args = [*args, "--calibration", str(calibration)]
-    assert _error(app, args) == "--asymmetric is not an option of policy 'stand'"
-
-
-@pytest.mark.parametrize("app,args", [
-    (sim.app, ["run", "--policy", "stand", "--step-in-place"]),
-    (hw.app, ["run", "--port", NO_PORT, "--policy", "stand", "--step-in-place"]),
-])
-def test_step_in_place_is_refused_for_a_policy_without_a_stance(calibration, app, args):
-    if app is hw.app:
-        args = [*args, "--calibration", str(calibration)]
-    assert _error(app, args) == "--step-in-place is not an option of policy 'stand'"
+    assert _error(app, [*args, option]) == f"{option} is not an option of policy 'stand'"
 
 
 def _tracking_with_and_without(commands: str, option: str) -> dict[bool, dict]:

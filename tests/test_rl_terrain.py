@@ -45,7 +45,7 @@ def _on_the_ground(model, x: float) -> mujoco.MjData:
 
 @pytest.fixture(scope="module")
 def step_model(description):
-    return training_model(description, smoke_env_config(), STEP)
+    return training_model(description, replace(smoke_env_config(), terrain=str(STEP)))
 
 
 def test_the_pruned_training_model_keeps_the_feet_and_hands_colliding_with_the_terrain(description, step_model):

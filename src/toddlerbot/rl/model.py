@@ -8,8 +8,8 @@ parameters as the CPU simulator) with, per `EnvConfig`:
   (the floor and, on a terrain, its height field: both collide through contype/conaffinity, so pruning the robot's
   geoms keeps them) and the two feet against each other. Every other robot geom stops colliding; the spec's
   self-collision pairs (thighs, ankle links) are dropped. Fewer candidate contacts make every MJX step cheaper;
-* optionally a terrain (`toddlerbot.sim.terrain`: a height field, which MJX collides with the feet and hands'
-  boxes), drawn from its seed;
+* the configuration's terrain (`EnvConfig.terrain`, `toddlerbot.sim.terrain`: a height field, which MJX collides
+  with the feet and hands' boxes), drawn from its seed;
 * the constraint Jacobian layout (dense or sparse);
 * with ``linkage_loops=False`` each parallel linkage (the knees) coupled joint to joint instead of closed by
   weld loops: driven = drive, rod and bearing = ``rod_sign`` x driven (the transmission map's relation, so the
@@ -28,7 +28,7 @@ from toddlerbot.rl.config import EnvConfig
 from toddlerbot.robot.builder import build_mjspec
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.spec import ParallelLinkage
-from toddlerbot.sim.terrain import TerrainSpec, add_terrain, terrain_heights
+from toddlerbot.sim.terrain import add_terrain, parse_terrain, terrain_heights
 
 _JACOBIANS = {"dense": mujoco.mjtJacobian.mjJAC_DENSE, "sparse": mujoco.mjtJacobian.mjJAC_SPARSE}
 
@@ -41,13 +41,11 @@ def contact_geoms(description: RobotDescription) -> tuple[str, ...]:
     return (*handles.feet_geoms, *hands)
 
 
-def training_mjspec(description: RobotDescription, cfg: EnvConfig, terrain: TerrainSpec | None = None,
-                    terrain_seed: int = 0) -> mujoco.MjSpec:
-    """The robot's MjSpec (with floor, and ``terrain`` drawn from ``terrain_seed`` if given) carrying the training
+def training_mjspec(description: RobotDescription, cfg: EnvConfig) -> mujoco.MjSpec:
+    """The robot's MjSpec (with floor, and ``cfg.terrain`` drawn from ``cfg.terrain_seed``) carrying the training
     options of ``cfg``."""
     mj = build_mjspec(description.spec, scene=True, catalogue=description.catalogue)
-    if terrain is not None:
-        add_terrain(mj, terrain_heights(terrain, terrain_seed))
+    add_terrain(mj, terrain_heights(parse_terrain(cfg.terrain, "terrain"), cfg.terrain_seed))  # flat: nothing
     mj.option.timestep = cfg.sim_dt
     mj.option.iterations = cfg.solver_iterations
     mj.option.ls_iterations = cfg.solver_ls_iterations
@@ -86,7 +84,6 @@ def _couple_linkages(mj: mujoco.MjSpec, description: RobotDescription) -> None:
             couple(pair.bearing, t.driven, float(t.rod_sign))
 
 
-def training_model(description: RobotDescription, cfg: EnvConfig, terrain: TerrainSpec | None = None,
-                   terrain_seed: int = 0) -> mujoco.MjModel:
+def training_model(description: RobotDescription, cfg: EnvConfig) -> mujoco.MjModel:
     """The compiled training variant (see the module docstring)."""
-    return training_mjspec(description, cfg, terrain, terrain_seed).compile()
+    return training_mjspec(description, cfg).compile()

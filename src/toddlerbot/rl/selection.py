@@ -20,9 +20,8 @@ import numpy as np
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies import make_policy
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.runtime.robustness import Condition, reach_commands, run_trial
+from toddlerbot.runtime.robustness import Condition, conditions, reach_commands, run_trial
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
-from toddlerbot.sim.perturbation import Perturbation
 from toddlerbot.sim.terrain import parse_terrain
 
 SELECTION_SEEDS = (1000, 1001)
@@ -46,8 +45,9 @@ class SelectionTrials:
             parse_terrain(text, "--select-terrain")  # one line for a bad one, before anything is walked
 
     def columns(self) -> list[tuple[Condition, str | None]]:
-        kicked = Condition(f"kicks {self.kick:g} m/s", lambda d, s: Perturbation(seed=s, kick_speed=self.kick))
-        nominal = Condition("nominal", lambda d, s: Perturbation(seed=s))
+        """(condition, terrain) of each column: the benchmark's kick condition on the flat floor, then its nominal
+        condition on each terrain."""
+        nominal, *_, kicked = conditions(kicks=(self.kick,), poses=())  # nominal first, the kick last
         return [(kicked, None), *((nominal, text) for text in self.terrains)]
 
 

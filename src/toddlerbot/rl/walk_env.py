@@ -52,7 +52,7 @@ from toddlerbot.rl.run_files import ACTION_SPACE, REFERENCE_RECORD
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.mirror import Mirror, robot_mirror
 from toddlerbot.robot.upper_body import upper_body_mask
-from toddlerbot.sim.terrain import Ground, parse_terrain
+from toddlerbot.sim.terrain import Ground
 
 
 def _yaw_quat(yaw: jax.Array) -> jax.Array:
@@ -112,8 +112,7 @@ class WalkEnv(RLEnvironment):
             cfg = replace(cfg, obs=replace(cfg.obs, gait_period=reference.period))
         self.cfg = cfg
         """The configuration with the gait period, the backend and the reward weights resolved (save this one)."""
-        terrain = parse_terrain(cfg.terrain, "terrain")
-        model = training_model(description, cfg, None if terrain.is_flat else terrain, cfg.terrain_seed)
+        model = training_model(description, cfg)
         self.mj_model = model
         self.ground = Ground.of(model)
         """The terrain's ground heights, None on the flat floor."""
