@@ -113,7 +113,8 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
     run = _run_at(tmp_path, 400)
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
                                            "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
-                                           "terrain": "flat", "terrain_seed": 0, "num_timesteps": 1000}]
+                                           "terrain": "flat", "terrain_seed": 0, "desired_kl": 0.01,
+                                           "num_timesteps": 1000}]
     plan = resume_plan(run, TrainRequest(push_velocity=(0.25, 0.4), timesteps=2000))
     assert plan.resume and plan.env is None  # the run reads its (new) configuration itself
     env_cfg, ppo_cfg = train.load_config(run)
@@ -170,8 +171,8 @@ def test_stages_recorded_before_the_interval_could_change_read_as_the_configurat
     (run / "config.json").write_text(json.dumps(raw))
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
                                            "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
-                                           "terrain": "flat", "terrain_seed": 0,
-                                           "num_timesteps": 1000}]  # and read fresh IMU readings, on the flat floor
+                                           "terrain": "flat", "terrain_seed": 0, "desired_kl": 0.01,
+                                           "num_timesteps": 1000}]  # fresh IMU readings, the flat floor, its KL
 
 
 def test_a_resumed_run_goes_on_on_other_ground_as_a_recorded_stage(tmp_path):
@@ -189,7 +190,21 @@ def test_a_resumed_run_goes_on_on_other_ground_as_a_recorded_stage(tmp_path):
         resume_plan(run, TrainRequest(terrain="rough:height=0.5"))
 
 
+def test_a_resumed_run_goes_on_with_another_kl_target_as_a_recorded_stage(tmp_path):
+    """A continued policy whose step size sat at its floor: `rl train --resume --desired-kl 0.03` loosens PPO's KL
+    target from the last checkpoint on (docs/rl.md "Walking on terrain")."""
+    from toddlerbot.rl import train
+    from toddlerbot.rl.launch import TrainRequest, resume_plan
+
+    run = _run_at(tmp_path, 400)
+    resume_plan(run, TrainRequest(desired_kl=0.03))
+    _, ppo_cfg = train.load_config(run)
+    assert ppo_cfg.desired_kl == 0.03
+    assert [(s["from_env_steps"], s["desired_kl"]) for s in train.training_stages(run)] == [(0, 0.01), (400, 0.03)]
+
+
 @pytest.mark.parametrize(("request_fields", "message"), [
+    ({"desired_kl": 0.0}, r"^--desired-kl: desired KL 0\.0: expected 0 < KL <= 1$"),
     ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
     ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),
     ({"hand_force": 1.0}, r"^--hand-force: a resumed run keeps the settings it started with"),
@@ -199,7 +214,7 @@ def test_a_resumed_run_goes_on_on_other_ground_as_a_recorded_stage(tmp_path):
     ({"imu_age": (0.02, 0.01)}, r"^--imu-age: IMU age 0\.02\.\.0\.01: expected 0 <= youngest <= oldest, s$"),
     ({"imu_age": (0.0, 0.03)}, r"^--imu-age: IMU age up to 0\.03 s: expected at most the control period 0\.02 s$"),
     ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval, --imu-age, "
-                      r"--terrain, --terrain-seed and --timesteps start a next stage"),
+                      r"--terrain, --terrain-seed, --desired-kl and --timesteps start a next stage"),
 ])
 def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_was(tmp_path, request_fields,
                                                                                      message):

@@ -97,6 +97,9 @@ InitPolicyOption = Annotated[Path | None, typer.Option(
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
+DesiredKlOption = Annotated[float | None, typer.Option(
+    help="The KL per minibatch PPO's adaptive step size aims at (default 0.01; with --resume a next stage; a "
+         "continued policy may need a looser target, docs/rl.md \"Walking on terrain\").")]
 RewardWeightOption = Annotated[list[str] | None, typer.Option(
     help="Override a reward term's weight, NAME=WEIGHT (repeatable; e.g. path_xy=5 for the position-tracking term "
          "that is off by default: docs/rl.md \"Rewards\").")]
@@ -139,7 +142,7 @@ def train(
     upper_body_pose: UpperBodyPoseOption = None,
     hand_force: HandForceOption = None,
     push_velocity: PushVelocityOption = None, push_interval: PushIntervalOption = None, imu_age: ImuAgeOption = None,
-    mirror_loss: MirrorLossOption = None,
+    mirror_loss: MirrorLossOption = None, desired_kl: DesiredKlOption = None,
     reward_weight: RewardWeightOption = None,
     tensorboard: TensorBoardOption = True, wandb: WandbOption = False, wandb_mode: WandbModeOption = None,
     compile_cache: CompileCacheOption = True,
@@ -154,7 +157,7 @@ def train(
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
                            hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()),
-                           env, motion, terrain, terrain_seed, init_policy)
+                           env, motion, terrain, terrain_seed, init_policy, desired_kl)
     plan = _plan(out, resume, request, compile_cache, processes)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 

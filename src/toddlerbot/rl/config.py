@@ -95,6 +95,8 @@ MAX_IMITATION_ITERATIONS = 1000
 """Most DAgger iterations of a warm start (the CPU recipe makes 12)."""
 MAX_LOSS_WEIGHT = 10_000.0
 """Largest weight of a reward term or of the mirror loss: 20 times the largest of appendix Table 6 (500)."""
+MAX_DESIRED_KL = 1.0
+"""Largest KL target of the adaptive step size: beyond it PPO's clipping, not the KL, bounds every update."""
 
 
 @dataclass(frozen=True)
@@ -294,6 +296,8 @@ class PPOConfig:
             raise ValueError(f"{self.num_timesteps} env steps: expected 1-{MAX_TIMESTEPS:,} (a 32-bit step counter)")
         if not 1 <= self.num_envs <= MAX_NUM_ENVS:
             raise ValueError(f"{self.num_envs} envs: expected 1-{MAX_NUM_ENVS:,}")
+        if self.desired_kl is not None and not 0 < self.desired_kl <= MAX_DESIRED_KL:
+            raise ValueError(f"desired KL {self.desired_kl}: expected 0 < KL <= {MAX_DESIRED_KL:g}")
         if not 0 <= self.mirror_loss <= MAX_LOSS_WEIGHT:
             raise ValueError(f"mirror_loss {self.mirror_loss}: expected a weight in [0, {MAX_LOSS_WEIGHT:g}]")
         if (self.batch_size * self.num_minibatches) % self.num_envs:

@@ -55,6 +55,8 @@ class TrainRequest:
     terrain_seed: int | None = None
     init_policy: Path | None = None
     """An exported walk policy to continue training from (`toddlerbot.rl.policy_start`)."""
+    desired_kl: float | None = None
+    """`PPOConfig.desired_kl`, the KL the adaptive step size aims at (None: the recipe's)."""
 
 
 @dataclass(frozen=True)
@@ -82,9 +84,9 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
 
 
 STAGE_OPTIONS = {"push_velocity": "--push-velocity", "push_interval": "--push-interval", "imu_age": "--imu-age",
-                 "terrain": "--terrain", "terrain_seed": "--terrain-seed"}
-"""`TrainRequest` fields of the randomisation and the ground that a resume may change: each starts a next stage
-(as a new step budget, ``--timesteps``, does)."""
+                 "terrain": "--terrain", "terrain_seed": "--terrain-seed", "desired_kl": "--desired-kl"}
+"""`TrainRequest` fields of the randomisation, the ground and PPO's step-size target that a resume may change: each
+starts a next stage (as a new step budget, ``--timesteps``, does)."""
 
 
 def resume_plan(run_dir: Path, request: TrainRequest, write: bool = True) -> TrainPlan:
@@ -115,7 +117,7 @@ def _next_stage(run_dir: Path, request: TrainRequest, write: bool) -> None:
     start = train.checkpoint_env_steps(paths[-1]) if paths else 0
     stage_request = TrainRequest(**{field: getattr(request, field) for field in STAGE_OPTIONS})
     env_cfg = _ground(_robot_variant(env_cfg, stage_request), stage_request)
-    ppo_cfg = _ppo_overrides(ppo_cfg, TrainRequest(timesteps=request.timesteps))
+    ppo_cfg = _ppo_overrides(ppo_cfg, TrainRequest(timesteps=request.timesteps, desired_kl=request.desired_kl))
     if ppo_cfg.num_timesteps <= start:
         raise ToddlerbotError(f"--timesteps {ppo_cfg.num_timesteps}: the run is already at {start} PPO env steps; "
                               "expected more")
@@ -293,7 +295,8 @@ def reward_weights(weights: dict[str, float], request: TrainRequest) -> dict[str
 def _ppo_overrides(ppo_cfg: config.PPOConfig, request: TrainRequest) -> config.PPOConfig:
     overrides = (("--timesteps", request.timesteps, lambda cfg, v: replace(cfg, num_timesteps=v)),
                  ("--num-envs", request.num_envs, config.with_num_envs),
-                 ("--mirror-loss", request.mirror_loss, lambda cfg, v: replace(cfg, mirror_loss=v)))
+                 ("--mirror-loss", request.mirror_loss, lambda cfg, v: replace(cfg, mirror_loss=v)),
+                 ("--desired-kl", request.desired_kl, lambda cfg, v: replace(cfg, desired_kl=v)))
     for option, value, apply in overrides:
         if value is None:
             continue
