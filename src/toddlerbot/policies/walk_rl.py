@@ -26,9 +26,9 @@ from toddlerbot.robot.mirror import robot_mirror
 
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights"
 DEFAULT_WEIGHTS = SHIPPED_WEIGHTS / "walk_rl.npz"
+"""The CPU recipe's policy (docs/rl.md); ``walk_rl_gpu.npz`` beside it is the GPU run's."""
 WALK_ENVIRONMENT = "walk"
 """The training environment whose exports this policy plays."""
-"""The CPU recipe's policy (docs/rl.md); ``walk_rl_gpu.npz`` beside it is the GPU run's."""
 
 
 def default_weights(variant: str | None) -> Path:

@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field, replace
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.locomotion.config import WALK_REACH, WalkConfig
 from toddlerbot.policies.rl_inference import ObsConfig
+from toddlerbot.policies.walk_rl import WALK_ENVIRONMENT
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
 from toddlerbot.sim.terrain import parse_terrain
 
@@ -162,7 +163,7 @@ JACOBIANS = ("dense", "sparse")
 PHYSICS_BACKENDS = ("cpu", "mjx")
 
 
-DEFAULT_ENVIRONMENT = "walk"
+DEFAULT_ENVIRONMENT = WALK_ENVIRONMENT
 """What `rl train` trains without ``--env``, and what a run saved before environments had names trained."""
 
 
