@@ -25,8 +25,6 @@ import time
 from collections import defaultdict
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 
 @dataclass(frozen=True)
 class Segment:
@@ -146,7 +144,7 @@ def draw(segments: list[Segment], steps: list[tuple[float, float]], path: str, s
                     and s.kind == kind]
             if bars:
                 ax.broken_barh(bars, (row - 0.35, 0.7), color=colours[kind])
-    for a, b in steps[:shown]:
+    for a, _ in steps[:shown]:
         ax.axvspan((a - t0) * 1e3, (a - t0) * 1e3 + 0.05, color="k")
     ax.set_yticks(range(len(names)), names)
     ax.set_xlabel("ms")
