@@ -190,6 +190,16 @@ def test_a_resumed_run_goes_on_on_other_ground_as_a_recorded_stage(tmp_path):
         resume_plan(run, TrainRequest(terrain="rough:height=0.5"))
 
 
+def test_a_new_run_takes_its_kl_target_from_the_option_and_refuses_a_bad_one(tmp_path):
+    from toddlerbot.rl.launch import TrainRequest, new_run_plan
+
+    assert new_run_plan(tmp_path / "run", TrainRequest(smoke=True), write=False).ppo.desired_kl == 0.01
+    assert new_run_plan(tmp_path / "run", TrainRequest(smoke=True, desired_kl=0.03), write=False).ppo.desired_kl \
+        == 0.03
+    with pytest.raises(ToddlerbotError, match=r"^--desired-kl: desired KL 2\.0: expected 0 < KL <= 1$"):
+        new_run_plan(tmp_path / "run", TrainRequest(smoke=True, desired_kl=2.0), write=False)
+
+
 def test_a_resumed_run_goes_on_with_another_kl_target_as_a_recorded_stage(tmp_path):
     """A continued policy whose step size sat at its floor: `rl train --resume --desired-kl 0.03` loosens PPO's KL
     target from the last checkpoint on (docs/rl.md "Walking on terrain")."""
