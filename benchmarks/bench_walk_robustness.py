@@ -35,7 +35,7 @@ import time
 
 from json_workers import worker_rows
 from toddlerbot.errors import ToddlerbotError
-from toddlerbot.policies import make_policy
+from toddlerbot.policies import check_policy_options, make_policy
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.runtime.robustness import conditions, directed_kick_trial, kick_grid, reach_commands, run_trial
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -150,6 +150,7 @@ def main() -> None:
     parser.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     try:
+        check_policy_options(args.policy, weights=args.weights)  # walk-zmp would ignore --weights
         for text in args.terrain or []:
             parse_terrain(text)
         _description(args)
