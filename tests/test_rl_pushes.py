@@ -113,8 +113,8 @@ def test_a_resumed_run_goes_on_with_a_new_band_from_its_last_checkpoint_as_a_rec
     run = _run_at(tmp_path, 400)
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
                                            "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
-                                           "terrain": "flat", "terrain_seed": 0, "desired_kl": 0.01,
-                                           "num_timesteps": 1000}]
+                                           "terrain": "flat", "terrain_seed": 0, "terrain_start": 0.25,
+                                           "desired_kl": 0.01, "num_timesteps": 1000}]
     plan = resume_plan(run, TrainRequest(push_velocity=(0.25, 0.4), timesteps=2000))
     assert plan.resume and plan.env is None  # the run reads its (new) configuration itself
     env_cfg, ppo_cfg = train.load_config(run)
@@ -171,8 +171,8 @@ def test_stages_recorded_before_the_interval_could_change_read_as_the_configurat
     (run / "config.json").write_text(json.dumps(raw))
     assert train.training_stages(run) == [{"from_env_steps": 0, "push_velocity": [0.15, 0.35],
                                            "push_interval_s": [2.0, 5.0], "imu_age_s": [0.0, 0.0],
-                                           "terrain": "flat", "terrain_seed": 0, "desired_kl": 0.01,
-                                           "num_timesteps": 1000}]  # fresh IMU readings, the flat floor, its KL
+                                           "terrain": "flat", "terrain_seed": 0, "terrain_start": 0.25,
+                                           "desired_kl": 0.01, "num_timesteps": 1000}]  # fresh IMU, flat, its KL
 
 
 def test_a_resumed_run_goes_on_on_other_ground_as_a_recorded_stage(tmp_path):
@@ -188,6 +188,19 @@ def test_a_resumed_run_goes_on_on_other_ground_as_a_recorded_stage(tmp_path):
         (0, "flat", 0), (400, "rough:height=0.02,cell=0.1", 5)]
     with pytest.raises(ToddlerbotError, match=r"^--terrain 'rough:height=0\.5': .*height"):
         resume_plan(run, TrainRequest(terrain="rough:height=0.5"))
+
+
+def test_a_resumed_run_goes_on_from_a_smaller_start_square_as_a_recorded_stage(tmp_path):
+    """`rl train --resume --terrain-start 0.08`: the training ground's flat start square shrinks to the feet, so
+    every episode walks onto the tiles at once (docs/rl.md "Walking on terrain")."""
+    from toddlerbot.rl import train
+    from toddlerbot.rl.launch import TrainRequest, resume_plan
+
+    run = _run_at(tmp_path, 400)
+    resume_plan(run, TrainRequest(terrain="rough:height=0.01", terrain_start=0.08))
+    env_cfg, _ = train.load_config(run)
+    assert env_cfg.terrain_start == 0.08
+    assert [(s["from_env_steps"], s["terrain_start"]) for s in train.training_stages(run)] == [(0, 0.25), (400, 0.08)]
 
 
 def test_a_new_run_takes_its_kl_target_from_the_option_and_refuses_a_bad_one(tmp_path):
@@ -215,6 +228,7 @@ def test_a_resumed_run_goes_on_with_another_kl_target_as_a_recorded_stage(tmp_pa
 
 @pytest.mark.parametrize(("request_fields", "message"), [
     ({"desired_kl": 0.0}, r"^--desired-kl: desired KL 0\.0: expected 0 < KL <= 1$"),
+    ({"terrain_start": 0.05}, r"^--terrain-start: terrain start 0\.05 m: expected a half-width of 0\.08-0\.25 m$"),
     ({"push_velocity": (0.5, 0.3)}, r"--push-velocity: push velocities 0\.5\.\.0\.3: expected"),
     ({"timesteps": 400}, r"--timesteps 400: the run is already at 400 PPO env steps; expected more"),
     ({"hand_force": 1.0}, r"^--hand-force: a resumed run keeps the settings it started with"),
@@ -224,7 +238,7 @@ def test_a_resumed_run_goes_on_with_another_kl_target_as_a_recorded_stage(tmp_pa
     ({"imu_age": (0.02, 0.01)}, r"^--imu-age: IMU age 0\.02\.\.0\.01: expected 0 <= youngest <= oldest, s$"),
     ({"imu_age": (0.0, 0.03)}, r"^--imu-age: IMU age up to 0\.03 s: expected at most the control period 0\.02 s$"),
     ({"num_envs": 8}, r"a resumed run keeps the settings .*only --push-velocity, --push-interval, --imu-age, "
-                      r"--terrain, --terrain-seed, --desired-kl and --timesteps start a next stage"),
+                      r"--terrain, --terrain-seed, --terrain-start, --desired-kl and --timesteps start a next stage"),
 ])
 def test_a_resume_refuses_a_bad_stage_or_other_changes_and_leaves_the_run_as_it_was(tmp_path, request_fields,
                                                                                      message):

@@ -17,6 +17,7 @@ from toddlerbot.runtime.robustness import conditions, run_trial
 from toddlerbot.sim.ground_truth import FALL_HEIGHT_FRACTION, TorsoTruth
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.sim.terrain import (
+    MIN_START,
     START,
     TERRAIN_GEOM,
     TERRAINS,
@@ -102,6 +103,20 @@ def test_rough_tiles_are_cell_wide_and_at_most_height_high():
     grid = terrain_heights(parse_terrain("rough:height=0.02,cell=0.1"), seed=1)
     assert 0.019 < grid.z.max() <= 0.02 and grid.z.min() == 0.0
     assert len(np.unique(grid.z[0])) == pytest.approx(2 * grid.extent / 0.1, abs=1)  # one height per 0.1 m tile
+
+
+def test_the_start_square_is_flat_to_its_half_width_and_tiled_beyond():
+    """Training may shrink the start square to the feet (`EnvConfig.terrain_start`); the simulator keeps `START`."""
+    for start in (START, MIN_START):
+        grid = terrain_heights(parse_terrain("rough:height=0.02"), seed=1, start=start)
+        axis = np.linspace(-grid.extent, grid.extent, grid.z.shape[0])
+        x, y = np.meshgrid(axis, axis)
+        ring = np.maximum(np.abs(x), np.abs(y))
+        assert np.all(grid.z[ring < start + 0.015] == 0.0)  # the square and the cells touching it
+        assert np.count_nonzero(grid.z[(ring > start + 0.03) & (ring < start + 0.1)]) > 0.9 * np.count_nonzero(
+            (ring > start + 0.03) & (ring < start + 0.1))  # tiles right beyond it
+    with pytest.raises(ToddlerbotError, match=r"^start square half-width 0\.05 m: expected 0\.08-1\.0 m$"):
+        terrain_heights(parse_terrain("rough:height=0.02"), seed=1, start=0.05)
 
 
 @pytest.mark.parametrize(("text", "message"), [

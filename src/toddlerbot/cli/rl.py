@@ -97,6 +97,9 @@ InitPolicyOption = Annotated[Path | None, typer.Option(
 MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
+TerrainStartOption = Annotated[float | None, typer.Option(
+    help="Half-width of the flat square the training envs start on, m (default 0.25, the simulator's; at least "
+         "0.08; with --resume a next stage): smaller, every episode walks onto the --terrain at once.")]
 DesiredKlOption = Annotated[float | None, typer.Option(
     help="The KL per minibatch PPO's adaptive step size aims at (default 0.01; with --resume a next stage; a "
          "continued policy may need a looser target, docs/rl.md \"Walking on terrain\").")]
@@ -137,7 +140,7 @@ def train(
     imitation_iterations: ImitationIterationsOption = None,
     motor_params: MotorParamsOption = None,
     warm_start: WarmStartOption = None, init_policy: InitPolicyOption = None,
-    terrain: TerrainOption = None, terrain_seed: TerrainSeedOption = None,
+    terrain: TerrainOption = None, terrain_seed: TerrainSeedOption = None, terrain_start: TerrainStartOption = None,
     variant: VariantOption = None,
     upper_body_pose: UpperBodyPoseOption = None,
     hand_force: HandForceOption = None,
@@ -157,7 +160,7 @@ def train(
     request = TrainRequest(smoke, timesteps, num_envs, seed, solver_iterations, ls_iterations, backend,
                            imitation_iterations, tuple(motor_params or ()), warm_start, variant, upper_body_pose,
                            hand_force, push_velocity, push_interval, imu_age, mirror_loss, tuple(reward_weight or ()),
-                           env, motion, terrain, terrain_seed, init_policy, desired_kl)
+                           env, motion, terrain, terrain_seed, init_policy, desired_kl, terrain_start)
     plan = _plan(out, resume, request, compile_cache, processes)
     _report(plan.run_dir, _train_with_progress(plan, minutes, epochs, sinks))
 

@@ -14,7 +14,7 @@ from toddlerbot.locomotion.config import WALK_REACH, WalkConfig
 from toddlerbot.policies.rl_inference import ObsConfig
 from toddlerbot.policies.walk_rl import WALK_ENVIRONMENT
 from toddlerbot.robot.interface import CONTROL_DT, FALL_TILT_RAD
-from toddlerbot.sim.terrain import parse_terrain
+from toddlerbot.sim.terrain import MIN_START, START, parse_terrain
 
 __all__ = ["ObsConfig"]
 
@@ -217,12 +217,17 @@ class EnvConfig:
     """The ground every env walks on (`toddlerbot.sim.terrain`, ``NAME[:KEY=VALUE,...]``), drawn from
     ``terrain_seed``; `rl train --resume --terrain` starts a next stage on other ground (a curriculum)."""
     terrain_seed: int = 0
+    terrain_start: float = START
+    """Half-width of the flat square the envs start on, m (the simulator's and the benchmarks' `START`): a smaller
+    one makes every episode walk onto the ground within its first steps (docs/rl.md "Walking on terrain")."""
 
     def __post_init__(self) -> None:
         try:
             parse_terrain(self.terrain, "terrain")
         except ToddlerbotError as exc:
             raise ValueError(str(exc)) from None
+        if not MIN_START <= self.terrain_start <= START:
+            raise ValueError(f"terrain start {self.terrain_start} m: expected a half-width of {MIN_START}-{START} m")
         if not (1 <= self.solver_iterations <= MAX_SOLVER_ITERATIONS
                 and 1 <= self.solver_ls_iterations <= MAX_SOLVER_ITERATIONS):
             raise ValueError(f"solver iterations {self.solver_iterations}/{self.solver_ls_iterations}: expected "

@@ -126,6 +126,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "imu_age_stages": [[stage["from_env_steps"], *stage["imu_age_s"]] for stage in stages],
             "terrain": stages[-1]["terrain"],
             "terrain_stages": [[stage["from_env_steps"], stage["terrain"], stage["terrain_seed"]] for stage in stages],
+            "terrain_start_stages": [[stage["from_env_steps"], stage["terrain_start"]] for stage in stages],
             "desired_kl_stages": [[stage["from_env_steps"], stage["desired_kl"]] for stage in stages],
             "init_policy": train.load_imitation_config(run_dir).policy,
             "motor_params": json.loads(read_run_text(record, "motor record")) if record.is_file() else [],

@@ -57,6 +57,8 @@ class TrainRequest:
     """An exported walk policy to continue training from (`toddlerbot.rl.policy_start`)."""
     desired_kl: float | None = None
     """`PPOConfig.desired_kl`, the KL the adaptive step size aims at (None: the recipe's)."""
+    terrain_start: float | None = None
+    """Half-width of the flat start square in training, m (None: the configuration's)."""
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,8 @@ KEPT_ON_RESUME = {"motor_params": "--motor-params", "solver_iterations": "--solv
 
 
 STAGE_OPTIONS = {"push_velocity": "--push-velocity", "push_interval": "--push-interval", "imu_age": "--imu-age",
-                 "terrain": "--terrain", "terrain_seed": "--terrain-seed", "desired_kl": "--desired-kl"}
+                 "terrain": "--terrain", "terrain_seed": "--terrain-seed", "terrain_start": "--terrain-start",
+                 "desired_kl": "--desired-kl"}
 """`TrainRequest` fields of the randomisation, the ground and PPO's step-size target that a resume may change: each
 starts a next stage (as a new step budget, ``--timesteps``, does)."""
 
@@ -270,6 +273,11 @@ def _ground(env_cfg: config.EnvConfig, request: TrainRequest) -> config.EnvConfi
         env_cfg = replace(env_cfg, terrain=str(parse_terrain(request.terrain)))
     if request.terrain_seed is not None:
         env_cfg = replace(env_cfg, terrain_seed=request.terrain_seed)
+    if request.terrain_start is not None:
+        try:
+            env_cfg = replace(env_cfg, terrain_start=request.terrain_start)
+        except ValueError as exc:
+            raise ToddlerbotError(f"--terrain-start: {exc}") from None
     return env_cfg
 
 

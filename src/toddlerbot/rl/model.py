@@ -45,7 +45,8 @@ def training_mjspec(description: RobotDescription, cfg: EnvConfig) -> mujoco.MjS
     """The robot's MjSpec (with floor, and ``cfg.terrain`` drawn from ``cfg.terrain_seed``) carrying the training
     options of ``cfg``."""
     mj = build_mjspec(description.spec, scene=True, catalogue=description.catalogue)
-    add_terrain(mj, terrain_heights(parse_terrain(cfg.terrain, "terrain"), cfg.terrain_seed))  # flat: nothing
+    add_terrain(mj, terrain_heights(parse_terrain(cfg.terrain, "terrain"), cfg.terrain_seed,  # flat: nothing
+                                    start=cfg.terrain_start))
     mj.option.timestep = cfg.sim_dt
     mj.option.iterations = cfg.solver_iterations
     mj.option.ls_iterations = cfg.solver_ls_iterations

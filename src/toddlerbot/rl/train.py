@@ -72,6 +72,7 @@ from toddlerbot.rl.run_files import (
     read_run_text,
 )
 from toddlerbot.rl.wrappers import wrap_for_training
+from toddlerbot.sim.terrain import START
 from toddlerbot.yaml_input import read_bytes
 
 AXIS = "devices"
@@ -316,7 +317,8 @@ def training_stage(from_env_steps: int, env_cfg: EnvConfig, ppo_cfg: PPOConfig) 
     band = env_cfg.randomization
     return {"from_env_steps": int(from_env_steps), "push_velocity": [band.push_velocity_min, band.push_velocity],
             "push_interval_s": list(band.push_interval_s), "imu_age_s": list(band.imu_age_s),
-            "terrain": env_cfg.terrain, "terrain_seed": env_cfg.terrain_seed, "desired_kl": ppo_cfg.desired_kl,
+            "terrain": env_cfg.terrain, "terrain_seed": env_cfg.terrain_seed, "terrain_start": env_cfg.terrain_start,
+            "desired_kl": ppo_cfg.desired_kl,
             "num_timesteps": ppo_cfg.num_timesteps}
 
 
@@ -324,13 +326,13 @@ def training_stages(run_dir: Path) -> list[dict]:
     """The run's stages, oldest first: one unless `rl train --resume` changed the pushes, the IMU age, the ground
     or the budget. Stages recorded before a resume could change the push interval ran the configuration's; those
     recorded before the IMU age existed, fresh readings; those before terrains, the flat floor; those before the KL
-    target could change, the configuration's."""
+    target or the start square could change, the configuration's (the start square: `sim.terrain.START`)."""
     raw = json.loads(read_run_text(run_dir / CONFIG, "training configuration"))
     env_cfg, ppo_cfg = load_config(run_dir)
     if "stages" in raw:
         interval = list(env_cfg.randomization.push_interval_s)
         return [{"push_interval_s": interval, "imu_age_s": [0.0, 0.0], "terrain": "flat", "terrain_seed": 0,
-                 "desired_kl": ppo_cfg.desired_kl, **stage}
+                 "terrain_start": START, "desired_kl": ppo_cfg.desired_kl, **stage}
                 for stage in raw["stages"]]
     return [training_stage(0, env_cfg, ppo_cfg)]
 

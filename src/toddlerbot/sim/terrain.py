@@ -45,6 +45,8 @@ CELL = 0.02
 """Spacing of the height field's samples, m: an edge (a tile's, a stair's) rises over one cell."""
 START = 0.25
 """Half-width of the flat square at z = 0 around the start (the robot's feet at home span 0.12 x 0.12 m)."""
+MIN_START = 0.08
+"""Smallest start square, half-width, m: the feet at home (0.06 m from the centre) with 2 cm to spare."""
 BASE_DEPTH = 0.05
 """Thickness of the height field's solid base below its lowest point, m."""
 FLOOR_DROP = BASE_DEPTH
@@ -254,15 +256,19 @@ class HeightGrid:
         return not np.any(self.z)
 
 
-def terrain_heights(terrain: TerrainSpec, seed: int, extent: float = EXTENT, cell: float = CELL) -> HeightGrid:
-    """The ground of ``terrain`` drawn from ``seed``, the start square (and the cells it touches) flat at z = 0."""
+def terrain_heights(terrain: TerrainSpec, seed: int, extent: float = EXTENT, cell: float = CELL,
+                    start: float = START) -> HeightGrid:
+    """The ground of ``terrain`` drawn from ``seed``, the start square of half-width ``start`` (and the cells it
+    touches) flat at z = 0."""
+    if not MIN_START <= start <= extent / 2:
+        raise ToddlerbotError(f"start square half-width {start} m: expected {MIN_START}-{extent / 2} m")
     n = round(2 * extent / cell) + 1
     axis = np.linspace(-extent, extent, n)
     x, y = np.meshgrid(axis, axis)  # rows along y, columns along x
     z = np.asarray(terrain.build().heights(x, y, np.random.default_rng(seed)), dtype=float)
     if z.shape != x.shape or not np.all(np.isfinite(z)):
         raise ToddlerbotError(f"terrain {terrain}: heights must be finite, one per grid point {x.shape}")
-    z[(np.abs(x) < START + cell) & (np.abs(y) < START + cell)] = 0.0  # every cell touching the square
+    z[(np.abs(x) < start + cell) & (np.abs(y) < start + cell)] = 0.0  # every cell touching the square
     return HeightGrid(z, extent, cell)
 
 
