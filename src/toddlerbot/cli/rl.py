@@ -26,6 +26,7 @@ from toddlerbot.rl.distributed import Processes
 from toddlerbot.rl.environments import ENVIRONMENTS
 from toddlerbot.rl.launch import TrainRequest
 from toddlerbot.rl.onnx_export import EXPORT_FORMATS
+from toddlerbot.sim.terrain import MIN_START, START
 
 app = typer.Typer(help="Reinforcement-learning locomotion (needs the \\[train] extra: jax, mujoco-mjx, brax).",
                   no_args_is_help=True)
@@ -98,8 +99,8 @@ MirrorLossOption = Annotated[float | None, typer.Option(
     help="Weight of a mirror-symmetry loss in PPO: the policy is trained to act as its own left-right mirror "
          "image (default 0: off; docs/rl.md \"Mirror symmetry\").")]
 TerrainStartOption = Annotated[float | None, typer.Option(
-    help="Half-width of the flat square the training envs start on, m (default 0.25, the simulator's; at least "
-         "0.08; with --resume a next stage): smaller, every episode walks onto the --terrain at once.")]
+    help=f"Half-width of the flat square the training envs start on, m (default {START:g}, the simulator's; at least "
+         f"{MIN_START:g}; with --resume a next stage): smaller, every episode walks onto the --terrain at once.")]
 DesiredKlOption = Annotated[float | None, typer.Option(
     help="The KL per minibatch PPO's adaptive step size aims at (default 0.01; with --resume a next stage; a "
          "continued policy may need a looser target, docs/rl.md \"Walking on terrain\").")]
