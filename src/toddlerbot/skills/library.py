@@ -238,6 +238,12 @@ class ScriptedGrasp(Skill):
             goal_rot = np.column_stack([np.cross(fingers, closing), fingers, closing])
             goal = np.array([bar[0], pos[1], bar[2]]) + p.depth * tilt
             self._plans.append((pos, goal - p.back * tilt, goal, goal_rot))
+        if all(np.linalg.norm(start - goal) < p.back for start, _, goal, _ in self._plans):
+            # the hands are already at the bar (a re-grasp): backing out would drag it along; reach from here
+            self._plans = [(start, start, goal, rot) for start, _, goal, rot in self._plans]
+            self._skipped = p.approach_s
+        else:
+            self._skipped = 0.0
         self._q = np.array(targets, dtype=float)
         self._open = self._q[self.grippers].copy()
         self._correction = [GraspPointCorrection(p.correction_gain, p.max_correction) for _ in self.iks]
@@ -245,6 +251,7 @@ class ScriptedGrasp(Skill):
     def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
         p, base = self.p, self.env.base_qpos()
         q = self._q
+        elapsed += self._skipped
         for k, (ik, (start, pregrasp, goal, rot)) in enumerate(zip(self.iks, self._plans)):
             if elapsed < p.approach_s:
                 a, b, s = start, pregrasp, min_jerk(elapsed / p.approach_s)

@@ -3,11 +3,17 @@
 Everything comes from the shipped chain (`chains/wagon.yaml`): its grasp skill's parameters (the scripted
 demonstrator, a `Policy`, *is* the chain's `ScriptedGrasp`, and the task steps at that skill's gains), its
 ``until`` check (success: the chain's ``grasped`` predicate, both grippers commanded closed and pinching the
-handle, which is when the chain would switch to its next skill) and its timeout (the episode's limit). The robot
-starts as the chain does: home pose, wagon shifted by the seed exactly as `chain run wagon --seed N` shifts it.
+handle, which is when the chain would switch to its next skill) and its timeout (the episode's limit).
+
+The scene's seeded variation is declared once, in `WagonRanges`: the wagon's shift, the handle's height, the arms'
+start pose and the light level, drawn per seed by `draw_scene` alike for `chain run wagon --seed N` and for the
+task's episodes (`manip demo`, `dp eval`). A share of the task's episodes starts where a chain's re-grasp does: the
+hands open at the handle after it slipped.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -23,11 +29,9 @@ from toddlerbot.tasks.base import StartPerturbation, Task
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.predicates import Context, holds
 from toddlerbot.tasks.probe import SceneProbe
-from toddlerbot.tasks.scenes import add_wagon_scene, scene_model, shift_wagon
+from toddlerbot.tasks.scenes import HandleHeight, LightLevel, add_wagon_scene, scene_model, shift_wagon
 from toddlerbot.tasks.space import ManipulationSpace
 
-WAGON_OFFSET = ((-0.01, 0.01), (-0.03, 0.03))
-"""Seeded shift of the wagon from its layout position: (x range, y range), m."""
 CHAIN = "wagon"
 GRASP_SKILL = "grasp"
 HOLD_S = 0.6
@@ -35,10 +39,59 @@ HOLD_S = 0.6
 (the chain's check fires at the ramp's end, a policy that reopens right after would drop the handle)."""
 
 
-def wagon_shift(rng: np.random.Generator) -> np.ndarray:
-    """The seed's shift of the wagon (x, y), m: the first draws of the seed's generator (the task's reset and a
-    chain's start draw it alike, so `manip demo --task wagon` and `chain run wagon` place the wagon alike)."""
-    return np.array([rng.uniform(*WAGON_OFFSET[0]), rng.uniform(*WAGON_OFFSET[1])])
+@dataclass(frozen=True)
+class WagonRanges:
+    """The wagon scene's seeded variation: a seed draws each value uniformly from its range (`draw_scene`)."""
+
+    wagon_x: tuple[float, float] = (-0.01, 0.01)
+    """Shift of the wagon from its layout position along x (away from the robot), m."""
+    wagon_y: tuple[float, float] = (-0.03, 0.03)
+    """... and along y, m."""
+    handle_height: tuple[float, float] = (-0.01, 0.01)
+    """Offset of the handle bar from the layout's height, m."""
+    arm_pose: float = 0.05
+    """Each arm motor starts up to this far off the home pose, rad."""
+    light: tuple[float, float] = (0.6, 1.0)
+    """Scale of the scene's light levels (what the head camera sees)."""
+    regrasp_share: float = 0.25
+    """Share of the task's episodes (not a chain's runs) that start as a chain's re-grasp does: the hands at the
+    handle, open (the recover's back-off), after the handle slipped by `slip_x`, `slip_y`."""
+    slip_x: tuple[float, float] = (-0.005, 0.015)
+    """How far the handle moved from the open hands' grasp point, along x, m."""
+    slip_y: tuple[float, float] = (-0.015, 0.015)
+    """... and along y, m."""
+
+
+RANGES = WagonRanges()
+"""The ranges of the shipped task and chain."""
+
+
+@dataclass(frozen=True)
+class WagonScene:
+    """One seed's draw of `WagonRanges`."""
+
+    shift: np.ndarray
+    handle_height: float
+    arm_offset: np.ndarray
+    """Start offset of every motor (non-zero on the arms only), rad."""
+    light: float
+    regrasp: bool
+    slip: np.ndarray
+
+
+def draw_scene(rng: np.random.Generator, description: RobotDescription, ranges: WagonRanges = RANGES) -> WagonScene:
+    """The seed's scene: the first draws of the seed's generator (a task's reset and a chain's start draw it alike,
+    so `manip demo --task wagon` and `chain run wagon` place the wagon alike). Every value is drawn, used or not, so
+    that one range's change leaves the others' draws alone."""
+    shift = np.array([rng.uniform(*ranges.wagon_x), rng.uniform(*ranges.wagon_y)])
+    handle_height = rng.uniform(*ranges.handle_height)
+    light = rng.uniform(*ranges.light)
+    arms = description.groups["arm"]
+    arm_offset = np.zeros(description.n_motors)
+    arm_offset[arms] = rng.uniform(-1.0, 1.0, len(arms)) * ranges.arm_pose
+    regrasp = rng.uniform() < ranges.regrasp_share
+    slip = np.array([rng.uniform(*ranges.slip_x), rng.uniform(*ranges.slip_y)])
+    return WagonScene(shift, handle_height, arm_offset, light, regrasp, slip)
 
 
 class WagonTask(Task):
@@ -48,8 +101,9 @@ class WagonTask(Task):
     instruction = "grasp the wagon handle with both hands"
     add_scene = staticmethod(add_wagon_scene)
 
-    def __init__(self, description: RobotDescription | None = None) -> None:
+    def __init__(self, description: RobotDescription | None = None, ranges: WagonRanges = RANGES) -> None:
         self.description = description = task_description(description)
+        self.ranges = ranges
         chain = load_chain(CHAIN, description.groups)
         grasp = next(s for s in chain.skills if s.name == GRASP_SKILL)
         self.grasp_params: GraspParams = grasp.params  # type: ignore[assignment]
@@ -57,6 +111,7 @@ class WagonTask(Task):
         """The chain's switch condition after its grasp: ``grasped`` with its parameters."""
         self.episode_seconds = float(grasp.timeout)
         self.model = scene_model(description, chain.scene)
+        self.handle_height, self.light = HandleHeight(self.model), LightLevel(self.model)
         self.robot = MuJoCoRobot(description, model=self.model)
         self.space = ManipulationSpace.of(description)
         self.kp = grasp_gains(description, self.grasp_params)
@@ -81,21 +136,36 @@ class WagonTask(Task):
         return self.robot
 
     def chain_start(self, seed: int, perturbation: StartPerturbation) -> tuple[WagonStart, np.ndarray]:
-        """The robot at home (offset by the perturbation), the wagon shifted for the seed (and by the
-        perturbation's shift)."""
+        """The robot at home (offset by the seed's arm pose and the perturbation), the wagon shifted for the seed
+        (and by the perturbation's shift), the seed's handle height and light; a chain always starts at home."""
         rng = np.random.default_rng(seed)
-        shift = wagon_shift(rng) + perturbation.object_shift
-        offset = perturbation.motor_offset(rng, self.description.n_motors)
-        return WagonStart(self.description, self.model, offset, shift), self.description.home_motor_pos + offset
+        scene = draw_scene(rng, self.description, self.ranges)
+        self._set_scene(scene)
+        offset = scene.arm_offset + perturbation.motor_offset(rng, self.description.n_motors)
+        start = WagonStart(self.description, self.model, offset, scene.shift + perturbation.object_shift)
+        return start, self.description.home_motor_pos + offset
 
     def reset(self, seed: int) -> Observation:
-        """Home pose, wagon shifted for `seed`; returns the first observation."""
-        self.robot.reset()
-        shift_wagon(self.model, self.robot.data, wagon_shift(np.random.default_rng(seed)))
-        mujoco.mj_forward(self.model, self.robot.data)
+        """The seed's scene (`draw_scene`): the robot at home with its arm offsets, or, for a re-grasp start, with
+        its open hands at the handle, which then slips; returns the first observation."""
+        scene = draw_scene(np.random.default_rng(seed), self.description, self.ranges)
+        self._set_scene(scene)
+        robot = self.robot
+        robot.initial_motor_offset = scene.arm_offset
+        robot.reset()
+        shift_wagon(self.model, robot.data, scene.shift)
+        mujoco.mj_forward(self.model, robot.data)
+        if scene.regrasp:
+            self._reach_open()
+            robot.start_qpos, robot.initial_motor_offset = robot.data.qpos.copy(), np.zeros(len(scene.arm_offset))
+            robot.reset()  # at rest, time 0, the hands where the reach left them
+            robot.start_qpos = None
+            shift_wagon(self.model, robot.data, scene.slip)
+            mujoco.mj_forward(self.model, robot.data)
+        robot.initial_motor_offset = np.zeros(len(scene.arm_offset))  # the next reset of the robot is home
         self.probe.mark()
         self._succeeded = False
-        return self.robot.observe()
+        return robot.observe()
 
     def step(self, motor_targets: np.ndarray, kp: np.ndarray | None = None, kd: np.ndarray | None = None
              ) -> Observation:
@@ -105,6 +175,34 @@ class WagonTask(Task):
         context = Context(self.robot, obs, np.asarray(motor_targets, dtype=float), self.probe)
         self._succeeded = self._succeeded or holds(self.check.predicate, self.check.params, context)
         return obs
+
+    def start_targets(self, obs: Observation) -> np.ndarray:
+        """Where a grasp starts commanding: the ready pose, the arms where they are."""
+        targets = self.ready_pose.copy()
+        arms = self.description.groups["arm"]
+        targets[arms] = obs.motor_pos[arms]
+        return targets
+
+    def scripted_grasp(self, why: str) -> ScriptedGrasp:
+        """The chain's scripted grasp in this scene (the handle where the simulation has it)."""
+        data = self.robot.data
+        env = SkillEnv(self.robot, self.model, lambda: data.qpos, self.probe.geom_pos, self.probe.geom_pos,
+                       self.head_image, simulated=True)
+        return ScriptedGrasp(env, self.grasp_params, why)
+
+    def _set_scene(self, scene: WagonScene) -> None:
+        self.handle_height.set(scene.handle_height)
+        self.light.set(scene.light)
+
+    def _reach_open(self) -> None:
+        """The scripted grasp's approach and reach with the hands open: where a chain's re-grasp starts."""
+        p, robot = self.grasp_params, self.robot
+        skill = self.scripted_grasp("re-grasp start")
+        obs = robot.observe()
+        skill.start(obs, self.start_targets(obs))
+        for _ in range(round((p.approach_s + p.reach_s) / robot.control_dt)):
+            targets, kp = skill.act(obs, obs.time)
+            obs = robot.step(targets, kp=kp)
 
 
 class ScriptedWagonGrasp(Policy):
@@ -116,10 +214,7 @@ class ScriptedWagonGrasp(Policy):
     def __init__(self, task: WagonTask) -> None:
         super().__init__(task.robot)
         self.task = task
-        data = task.robot.data
-        env = SkillEnv(task.robot, task.model, lambda: data.qpos, task.probe.geom_pos, task.probe.geom_pos,
-                       task.head_image, simulated=True)
-        self.skill = ScriptedGrasp(env, task.grasp_params, "wagon demonstration")
+        self.skill = task.scripted_grasp("wagon demonstration")
         p = task.grasp_params
         self.duration = p.approach_s + p.reach_s + p.close_s + HOLD_S
         self._steps = round(self.duration / self.control_dt)
@@ -131,9 +226,9 @@ class ScriptedWagonGrasp(Policy):
         return self._step >= self._steps
 
     def reset(self, task_obs: Observation) -> None:
-        """Plan from the handle's position (right after `WagonTask.reset`: the run loop's reset of the task's
-        `TaskRobot`); the seed's wagon shift is the episode's only variation."""
-        self.skill.start(task_obs, self.task.ready_pose)
+        """Plan from the hands' and the handle's positions (right after `WagonTask.reset`: the run loop's reset of
+        the task's `TaskRobot`)."""
+        self.skill.start(task_obs, self.task.start_targets(task_obs))
         self._start_time = task_obs.time
         self._step = 0
 

@@ -256,3 +256,50 @@ def shift_wagon(model: mujoco.MjModel, data: mujoco.MjData, offset_xy: np.ndarra
     adr, dadr = joint.qposadr[0], joint.dofadr[0]
     data.qpos[adr : adr + 2] += offset_xy
     data.qvel[dadr : dadr + 6] = 0.0
+
+
+class HandleHeight:
+    """Raises or lowers the wagon handle of a compiled wagon scene by an offset from the layout's height (the
+    posts that carry it follow); each `set` starts from the layout, so offsets do not add up. Call mj_forward
+    after."""
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.model = model
+        self.handle = model.geom(WAGON_HANDLE_GEOM).id
+        self.posts = [model.geom(f"wagon_post_{side}").id for side in SIDES]
+        self.handle_z = float(model.geom_pos[self.handle, 2])
+        self.post_ends = [self._ends(g) for g in self.posts]
+
+    def _ends(self, geom: int) -> tuple[np.ndarray, np.ndarray]:
+        """(bottom, top) of a capsule in its body's frame."""
+        axis = np.zeros(9)
+        mujoco.mju_quat2Mat(axis, self.model.geom_quat[geom])
+        half = self.model.geom_size[geom, 1] * axis.reshape(3, 3)[:, 2]
+        ends = sorted((self.model.geom_pos[geom] - half, self.model.geom_pos[geom] + half), key=lambda p: p[2])
+        return ends[0].copy(), ends[1].copy()
+
+    def set(self, offset: float) -> None:
+        self.model.geom_pos[self.handle, 2] = self.handle_z + offset
+        for geom, (bottom, top) in zip(self.posts, self.post_ends):
+            top = top + (0.0, 0.0, offset)
+            quat = np.zeros(4)
+            mujoco.mju_quatZ2Vec(quat, top - bottom)
+            self.model.geom_pos[geom] = (bottom + top) / 2
+            self.model.geom_quat[geom] = quat
+            self.model.geom_size[geom, 1] = np.linalg.norm(top - bottom) / 2
+
+
+class LightLevel:
+    """Scales the scene's lights (every light's and the headlight's ambient and diffuse) from the model's own
+    levels; each `set` starts from those, so scales do not multiply."""
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.model = model
+        self.lights = model.light_ambient.copy(), model.light_diffuse.copy()
+        self.headlight = model.vis.headlight.ambient.copy(), model.vis.headlight.diffuse.copy()
+
+    def set(self, scale: float) -> None:
+        self.model.light_ambient[:] = scale * self.lights[0]
+        self.model.light_diffuse[:] = scale * self.lights[1]
+        self.model.vis.headlight.ambient[:] = scale * self.headlight[0]
+        self.model.vis.headlight.diffuse[:] = scale * self.headlight[1]
