@@ -13,6 +13,7 @@ from toddlerbot.cli.main import app  # noqa: E402
 from toddlerbot.dp import data  # noqa: E402
 from toddlerbot.dp.checkpoint import CheckpointError, load_policy, load_training_state  # noqa: E402
 from toddlerbot.dp.data import DatasetError  # noqa: E402
+from toddlerbot.errors import ToddlerbotError  # noqa: E402
 
 runner = CliRunner()
 
@@ -60,3 +61,24 @@ def test_dp_train_on_a_missing_gpu_is_refused_before_anything_is_written(tmp_pat
                                  "--config", "tiny", "--threads", "1", "--device", "cuda"])
     assert "device 'cuda'" in str(result.exception) and "sees no CUDA GPU" in str(result.exception)
     assert not (tmp_path / "r").exists()
+
+
+def test_dp_train_seed_gives_a_new_run_other_weights_and_a_resumed_run_refuses_it(tmp_path, monkeypatch):
+    monkeypatch.setattr(data, "open_window_dataset", lambda *_: SyntheticWindows(episodes=3, frames=5))
+    weights = {}
+    for seed in (None, 0, 1):
+        run = tmp_path / f"run_{seed}"
+        args = ["dp", "train", str(tmp_path / "ds"), "-o", str(run), "--config", "tiny", "--threads", "1",
+                "--steps", "1"] + ([] if seed is None else ["--seed", str(seed)])
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, result.output
+        state = load_training_state(run / "checkpoint.pt")
+        assert state.policy.config.seed == (0 if seed is None else seed)
+        weights[seed] = torch.cat([p.flatten() for p in load_policy(run / "checkpoint.pt").parameters()])
+    assert torch.equal(weights[None], weights[0])  # the preset's seed is 0
+    assert (weights[0] - weights[1]).abs().max() > 1e-3
+    result = runner.invoke(app, ["dp", "train", str(tmp_path / "ds"), "-o", str(tmp_path / "run_1"), "--config",
+                                 "tiny", "--threads", "1", "--steps", "2", "--resume", "--seed", "2"])
+    assert isinstance(result.exception, ToddlerbotError)
+    assert str(result.exception) == "--seed sets a new run's seed; a resumed run keeps its own (drop --seed)"
+    assert load_training_state(tmp_path / "run_1" / "checkpoint.pt").step == 1  # untouched

@@ -62,6 +62,8 @@ def train(
     checkpoint_every: CheckpointEveryOption = 500,
     log_every: LogEveryOption = 50,
     batch_size: BatchSizeOption = None,
+    seed: Annotated[int | None, seed_option(help="Training seed of a new run (network, batches, noise, validation "
+                                                 "episodes); default: the preset's (0).")] = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,
@@ -77,7 +79,7 @@ def train(
 
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
-    preset = _preset(config, batch_size, resume)
+    preset = _preset(config, batch_size, seed, resume)
     training_budget(minutes, steps)
     output_dir(out, "--out", [dataset, imagenet_weights])
     main = launched_rank() == 0  # under torchrun only rank 0 prints
@@ -97,11 +99,14 @@ def _announce(dataset: Path, out: Path, main: bool):
     return opened
 
 
-def _preset(config: str, batch_size: int | None, resume: bool):
-    """The named configuration, with the global batch ``--batch-size`` gives a new run."""
-    if resume and batch_size is not None:
-        raise ToddlerbotError("--batch-size sets a new run's batch; a resumed run keeps its own (drop --batch-size)")
-    return PRESETS[config] if batch_size is None else replace(PRESETS[config], batch_size=batch_size)
+def _preset(config: str, batch_size: int | None, seed: int | None, resume: bool):
+    """The named configuration, with the global batch ``--batch-size`` and the seed ``--seed`` give a new run."""
+    for flag, value in (("--batch-size", batch_size), ("--seed", seed)):
+        if resume and value is not None:
+            raise ToddlerbotError(f"{flag} sets a new run's {flag[2:].replace('-', ' ')}; a resumed run keeps its own "
+                                  f"(drop {flag})")
+    preset = PRESETS[config] if batch_size is None else replace(PRESETS[config], batch_size=batch_size)
+    return preset if seed is None else replace(preset, seed=seed)
 
 
 def _print_result(result) -> None:
