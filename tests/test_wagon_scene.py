@@ -105,3 +105,27 @@ def test_a_regrasp_start_has_the_open_hands_at_the_slipped_handle_and_the_script
                 # grasped where it lay: backing out first dragged the bar 3 cm
                 assert np.linalg.norm(_handle(model, data) - handle) < 0.008, seed
     assert len(grasped) >= 5, (seeds, grasped)
+
+
+def test_a_failed_wagon_episode_says_how_it_started_and_what_each_hand_ended_in(task):
+    from toddlerbot.dp.evaluate import EpisodeResult, EvalResult
+    from toddlerbot.skills.library import range_fraction
+
+    seed = next(s for s in range(100) if not draw_scene(np.random.default_rng(s), task.description).regrasp)
+    task.reset(seed)
+    for _ in range(5):
+        task.step(task.ready_pose)
+    assert task.failure_kind() == "home start: left open, right open"
+    grippers = [task.description.motor_names.index(f"{side}_gripper_drive") for side in ("left", "right")]
+    closed = task.ready_pose.copy()
+    closed[grippers] = range_fraction(task.description, grippers, task.check.params.closed_fraction)
+    for _ in range(5):
+        task.step(closed)
+    assert task.failure_kind() == "home start: left closed off the bar, right closed off the bar"
+    regrasp = next(s for s in range(100) if draw_scene(np.random.default_rng(s), task.description).regrasp)
+    task.reset(regrasp)
+    task.step(task.robot.observe().motor_pos)
+    assert task.failure_kind().startswith("re-grasp start: ")
+    result = EvalResult("wagon", "x.pt", 0, [EpisodeResult(0, True, 3.0, 5, 0.5),
+                                            EpisodeResult(1, False, 6.0, 12, 0.4, "home start: left open, right open")])
+    assert result.summary()["failures"] == {"1": "home start: left open, right open"}

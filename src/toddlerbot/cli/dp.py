@@ -219,5 +219,7 @@ def evaluate(
     console.print(f"{task}: success {summary['success_rate']:.0%} over seeds {seed}..{seed + episodes - 1} "
                   f"(failed: {summary['failed_seeds'] or 'none'}), {summary['inference_ms']:.1f} ms per inference "
                   f"({checkpoint})")
+    for failed, kind in summary["failures"].items():
+        console.print(f"  seed {failed}: {kind}")
     if video:
         console.print(f"wrote {video}")

@@ -48,6 +48,8 @@ class EpisodeResult:
     chunks_used: int
     max_target_offset: float
     """Largest |policy target - start pose| over the policy's motors and steps, rad (0: the policy never moved)."""
+    failure: str | None = None
+    """What a failed episode ended in (`Task.failure_kind`); None on success."""
 
 
 @dataclass
@@ -70,7 +72,8 @@ class EvalResult:
     def summary(self) -> dict:
         return {"success_rate": self.success_rate, "episodes": len(self.episodes), "inference_ms": self.inference_ms,
                 "task": self.task, "checkpoint": self.checkpoint, "seed": self.seed,
-                "failed_seeds": [e.seed for e in self.episodes if not e.success]}
+                "failed_seeds": [e.seed for e in self.episodes if not e.success],
+                "failures": {str(e.seed): e.failure for e in self.episodes if not e.success}}
 
 
 def check_fits(config: DPConfig, task: Task) -> None:
@@ -137,7 +140,7 @@ def run_episode(task: Task, robot: TaskRobot, policy: LiveDPPolicy, seed: int, s
     # a robot that tips over (the wagon task stands on the floor) is a failed episode, run to its end as before
     run_policy(robot, policy, seconds=seconds, observers=observers, stop_on_fall=False)
     return EpisodeResult(seed, task.succeeded, float(outcome.sim_seconds), policy.status.chunks_used,
-                         outcome.max_target_offset)
+                         outcome.max_target_offset, None if task.succeeded else task.failure_kind())
 
 
 def evaluate(checkpoint: str | Path, episodes: int, seed: int, seconds: float | None = None,

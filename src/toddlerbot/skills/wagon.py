@@ -29,7 +29,7 @@ from toddlerbot.tasks.base import StartPerturbation, Task
 from toddlerbot.tasks.camera import HeadCamera
 from toddlerbot.tasks.predicates import Context, holds
 from toddlerbot.tasks.probe import SceneProbe
-from toddlerbot.tasks.scenes import HandleHeight, LightLevel, add_wagon_scene, scene_model, shift_wagon
+from toddlerbot.tasks.scenes import SIDES, HandleHeight, LightLevel, add_wagon_scene, scene_model, shift_wagon
 from toddlerbot.tasks.space import ManipulationSpace
 
 CHAIN = "wagon"
@@ -122,6 +122,7 @@ class WagonTask(Task):
         self.camera = HeadCamera(self.model, self.robot.data, description.handles.head_camera or "head_camera")
         self.probe = SceneProbe(self.model, self.robot.data)
         self._succeeded = False
+        self._start = "home"
 
     @property
     def succeeded(self) -> bool:
@@ -165,6 +166,7 @@ class WagonTask(Task):
             shift_wagon(self.model, robot.data, scene.slip)
             mujoco.mj_forward(self.model, robot.data)
         robot.initial_motor_offset = np.zeros(len(scene.arm_offset))  # the next reset of the robot is home
+        self._start = "re-grasp" if scene.regrasp else "home"
         self.probe.mark()
         self._succeeded = False
         return robot.observe()
@@ -177,6 +179,22 @@ class WagonTask(Task):
         context = Context(self.robot, obs, np.asarray(motor_targets, dtype=float), self.probe)
         self._succeeded = self._succeeded or holds(self.check.predicate, self.check.params, context)
         return obs
+
+    def failure_kind(self) -> str:
+        """The start (home or re-grasp), then each hand: open (not commanded closed as far as the chain's check
+        asks), closed off the bar (not both pads on it) or pinching; or that the robot fell."""
+        if self.robot.fallen:
+            return f"{self._start} start: fell"
+        d, fraction = self.description, self.check.params.closed_fraction
+        hands = []
+        for side in SIDES:
+            i = d.motor_names.index(f"{side}_gripper_drive")
+            lo, hi = d.motor_range[i]
+            closed = (self.robot.last_targets[i] - lo) / (hi - lo) >= fraction - 1e-6
+            state = "pinching" if closed and self.probe.pinching(side, self.check.params.target) else (
+                "closed off the bar" if closed else "open")
+            hands.append(f"{side} {state}")
+        return f"{self._start} start: {', '.join(hands)}"
 
     def start_targets(self, obs: Observation) -> np.ndarray:
         """Where a grasp starts commanding: the ready pose, the arms where they are."""

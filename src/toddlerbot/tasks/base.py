@@ -78,6 +78,10 @@ class Task(ABC):
     def succeeded(self) -> bool:
         """Whether the episode has succeeded (it stays so once it has)."""
 
+    def failure_kind(self) -> str:
+        """What a failed episode ended in, for `dp eval`'s report: by default, no more than that."""
+        return "not succeeded"
+
     def head_image(self) -> np.ndarray:
         """The head camera's 96x96 RGB image (uint8) of the current state."""
         return self.camera.image()
