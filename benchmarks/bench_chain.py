@@ -4,10 +4,11 @@ end), the wagon's displacement, the grasp -> next switch time, the grasp retries
 recoveries) with their times, each hand's grip through the push (the weaker finger pad's least normal force, how far
 the handle slid along the fingers, how near the grasp point came to the handle's end) and the wall time of one run
 (no video); then the success rate and the retries and re-grasps in all. `--pose-offset` and
-`--wagon-shift` perturb the start to show the margin.
+`--wagon-shift` perturb the start to show the margin; `--variation wide` draws each seed's scene from the wagon
+task's wide ranges (handle height, arm start pose, light; docs/manipulation.md).
 
 Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 20] [--first-seed 0] [--pose-offset 0.01]
-                                                    [--wagon-shift 0.01,0]
+                                                    [--wagon-shift 0.01,0] [--variation wide]
                                                     [--scripted-grasp]
 The grasp is the chain's: the shipped wagon diffusion policy (`dp/checkpoints/wagon.pt`, torch: the [dp] extra; its
 sampling noise seeded by the run's seed), or with `--scripted-grasp` the script.
@@ -33,6 +34,7 @@ def main() -> None:
     parser.add_argument("--pose-offset", type=float, default=0.0, help="rad, each motor's start off home, at most")
     parser.add_argument("--wagon-shift", default="0,0", help="x,y m, added to the seed's wagon shift")
     parser.add_argument("--scripted-grasp", action="store_true", help="grasp by script, not with the chain's policy")
+    parser.add_argument("--variation", default="default", help="the wagon scene's variation the seeds draw from")
     args = parser.parse_args()
     shift = tuple(float(v) for v in args.wagon_shift.split(","))
     perturbation = StartPerturbation(args.pose_offset, (shift[0], shift[1]))
@@ -40,12 +42,13 @@ def main() -> None:
     chain = load_chain("wagon", tuple(description.groups))
     if args.scripted_grasp:
         chain = chain.with_scripted_grasps()
-    print(f"wagon chain, {perturbation}")
+    print(f"wagon chain, {perturbation}, scene variation {args.variation}")
     print("seed  outcome                  moved m  switch s  grip N (L/R)   slide mm (L/R)  to end mm (L/R)  wall s  "
           "retries, re-grasps (s)")
     results = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
-        results.append(run_in_sim(chain, seed, description=description, perturbation=perturbation))
+        results.append(run_in_sim(chain, seed, description=description, perturbation=perturbation,
+                                  variation=args.variation))
         print(_row(results[-1]), flush=True)
     moved = np.array([r.displacement_m["wagon"] for r in results])
     forces = np.array([g.min_force_n for r in results for g in r.grip.values()])

@@ -687,10 +687,11 @@ def test_a_hand_that_lets_go_of_the_handle_mid_push_is_noticed_and_the_chain_gra
 
     chain = load_chain("wagon", GROUPS).with_scripted_grasps()
     slip = _Slip(at=7.0)  # 2.5 s into the push
-    out = run_in_sim(chain, 2, description=DESCRIPTION, disturbances=[slip]).as_json()
-    # Measured (seed 2, the scene's declared ranges): the left hand let go at once; the chain noticed from its
-    # gripper's torque at 7.40 s, stood, opened, grasped again and pushed on. The script's re-grasp is not robust:
-    # 2 of seeds 0-7 recover (docs/manipulation.md, "The wagon scene's declared ranges").
+    out = run_in_sim(chain, 0, description=DESCRIPTION, disturbances=[slip]).as_json()
+    # Measured (seed 0): the left hand let go at once; the chain noticed from its gripper's torque at 7.18 s, stood,
+    # opened, grasped again (the first re-grasp closed on nothing, its retry closed on the handle) and pushed on:
+    # wagon moved 0.656 m, both hands on it at the end; 11 s wall. The script's re-grasp is not robust: in the
+    # wide scene variation 2 of seeds 0-7 recover (docs/manipulation.md, "The wagon scene's declared ranges").
     recover = out["recoveries"][0]
     assert recover["kind"] == "recover" and recover["skill"] == "push" and recover["resume"] == "grasp"
     assert 7.0 < recover["time_s"] < 7.5

@@ -1,6 +1,8 @@
-"""The wagon scene's declared ranges (`skills.wagon.WagonRanges`): each seed draws the wagon's shift, the handle's
-height, the arms' start pose and the light level, alike for the task and the chain; a share of the task's episodes
-starts where a chain's re-grasp does, and the scripted grasp grasps from there without dragging the handle."""
+"""The wagon scene's declared ranges (`skills.wagon.WagonRanges`, named in `VARIATIONS`): each seed draws the
+wagon's shift, the handle's height, the arms' start pose and the light level, alike for the task and the chain; in
+the ``wide`` variation a share of the task's episodes starts where a chain's re-grasp does, and the scripted grasp
+grasps from there without dragging the handle. The ``default`` variation is the scene the shipped policy was
+measured in."""
 
 from __future__ import annotations
 
@@ -8,14 +10,19 @@ import mujoco
 import numpy as np
 import pytest
 
-from toddlerbot.skills.wagon import RANGES, WagonTask, draw_scene
+from toddlerbot.errors import ToddlerbotError
+from toddlerbot.skills.wagon import VARIATIONS, WagonTask, draw_scene
+from toddlerbot.tasks import make_task
 from toddlerbot.tasks.base import StartPerturbation
 from toddlerbot.tasks.scenes import WAGON_BODY, WAGON_HANDLE_GEOM, grasp_site
 
 
+WIDE = VARIATIONS["wide"]
+
+
 @pytest.fixture(scope="module")
 def task():
-    return WagonTask()
+    return make_task("wagon:wide")
 
 
 def _handle(model, data):
@@ -23,23 +30,24 @@ def _handle(model, data):
 
 
 def test_each_seed_draws_every_range_within_its_bounds_and_the_same_seed_draws_the_same(task):
-    scenes = [draw_scene(np.random.default_rng(seed), task.description) for seed in range(400)]
+    assert task.variation == "wide" and task.ranges == WIDE
+    scenes = [draw_scene(np.random.default_rng(seed), task.description, WIDE) for seed in range(400)]
     shifts = np.array([s.shift for s in scenes])
-    assert shifts[:, 0].min() >= RANGES.wagon_x[0] and shifts[:, 0].max() <= RANGES.wagon_x[1]
-    assert shifts[:, 1].min() >= RANGES.wagon_y[0] and shifts[:, 1].max() <= RANGES.wagon_y[1]
+    assert shifts[:, 0].min() >= WIDE.wagon_x[0] and shifts[:, 0].max() <= WIDE.wagon_x[1]
+    assert shifts[:, 1].min() >= WIDE.wagon_y[0] and shifts[:, 1].max() <= WIDE.wagon_y[1]
     heights = np.array([s.handle_height for s in scenes])
-    assert heights.min() >= RANGES.handle_height[0] and heights.max() <= RANGES.handle_height[1]
-    assert np.ptp(heights) > 0.9 * (RANGES.handle_height[1] - RANGES.handle_height[0])  # used, not a point
+    assert heights.min() >= WIDE.handle_height[0] and heights.max() <= WIDE.handle_height[1]
+    assert np.ptp(heights) > 0.9 * (WIDE.handle_height[1] - WIDE.handle_height[0])  # used, not a point
     lights = np.array([s.light for s in scenes])
-    assert lights.min() >= RANGES.light[0] and lights.max() <= RANGES.light[1]
+    assert lights.min() >= WIDE.light[0] and lights.max() <= WIDE.light[1]
     offsets = np.array([s.arm_offset for s in scenes])
     arms = task.description.groups["arm"]
     others = np.setdiff1d(np.arange(task.description.n_motors), arms)
-    assert np.abs(offsets[:, arms]).max() <= RANGES.arm_pose and np.abs(offsets[:, arms]).max() > 0.045
+    assert np.abs(offsets[:, arms]).max() <= WIDE.arm_pose and np.abs(offsets[:, arms]).max() > 0.045
     assert not offsets[:, others].any()  # legs, neck, waist and grippers start at home
     share = np.mean([s.regrasp for s in scenes])
-    assert abs(share - RANGES.regrasp_share) < 0.06  # 400 draws: 3 standard deviations is 0.065
-    again = draw_scene(np.random.default_rng(7), task.description)
+    assert abs(share - WIDE.regrasp_share) < 0.06  # 400 draws: 3 standard deviations is 0.065
+    again = draw_scene(np.random.default_rng(7), task.description, WIDE)
     assert np.array_equal(again.shift, scenes[7].shift) and again.light == scenes[7].light
 
 
@@ -47,7 +55,7 @@ def test_the_handle_height_moves_the_bar_and_its_posts_and_a_new_height_starts_f
     model = task.model
     task.reset(0)
     bar_z = model.geom_pos[model.geom(WAGON_HANDLE_GEOM).id, 2] - draw_scene(
-        np.random.default_rng(0), task.description).handle_height  # the layout's height, in the wagon's frame
+        np.random.default_rng(0), task.description, WIDE).handle_height  # the layout's height, in the wagon's frame
     for offset in (0.01, -0.01, 0.0):
         task.handle_height.set(offset)
         assert model.geom_pos[model.geom(WAGON_HANDLE_GEOM).id, 2] == pytest.approx(bar_z + offset, abs=1e-12)
@@ -70,7 +78,7 @@ def test_the_light_level_scales_the_scene_lights_from_the_models_own(task):
 
 
 def test_the_task_and_the_chain_put_the_wagon_and_the_handle_alike_for_a_seed(task):
-    seed = next(s for s in range(100) if not draw_scene(np.random.default_rng(s), task.description).regrasp)
+    seed = next(s for s in range(100) if not draw_scene(np.random.default_rng(s), task.description, WIDE).regrasp)
     obs = task.reset(seed)
     task_handle = _handle(task.model, task.robot.data)
     start, targets = task.chain_start(seed, StartPerturbation())
@@ -82,11 +90,11 @@ def test_the_task_and_the_chain_put_the_wagon_and_the_handle_alike_for_a_seed(ta
 
 @pytest.mark.slow
 def test_a_regrasp_start_has_the_open_hands_at_the_slipped_handle_and_the_script_grasps_it_in_place(task):
-    seeds = [s for s in range(80) if draw_scene(np.random.default_rng(s), task.description).regrasp][:6]
+    seeds = [s for s in range(80) if draw_scene(np.random.default_rng(s), task.description, WIDE).regrasp][:6]
     model, data = task.model, task.robot.data
     grasped = []
     for seed in seeds:
-        scene = draw_scene(np.random.default_rng(seed), task.description)
+        scene = draw_scene(np.random.default_rng(seed), task.description, WIDE)
         obs = task.reset(seed)
         assert obs.time == 0.0 and np.abs(obs.motor_vel).max() == 0.0
         handle = _handle(model, data)
@@ -111,7 +119,7 @@ def test_a_failed_wagon_episode_says_how_it_started_and_what_each_hand_ended_in(
     from toddlerbot.dp.evaluate import EpisodeResult, EvalResult
     from toddlerbot.skills.library import range_fraction
 
-    seed = next(s for s in range(100) if not draw_scene(np.random.default_rng(s), task.description).regrasp)
+    seed = next(s for s in range(100) if not draw_scene(np.random.default_rng(s), task.description, WIDE).regrasp)
     task.reset(seed)
     for _ in range(5):
         task.step(task.ready_pose)
@@ -122,10 +130,25 @@ def test_a_failed_wagon_episode_says_how_it_started_and_what_each_hand_ended_in(
     for _ in range(5):
         task.step(closed)
     assert task.failure_kind() == "home start: left closed off the bar, right closed off the bar"
-    regrasp = next(s for s in range(100) if draw_scene(np.random.default_rng(s), task.description).regrasp)
+    regrasp = next(s for s in range(100) if draw_scene(np.random.default_rng(s), task.description, WIDE).regrasp)
     task.reset(regrasp)
     task.step(task.robot.observe().motor_pos)
     assert task.failure_kind().startswith("re-grasp start: ")
     result = EvalResult("wagon", "x.pt", 0, [EpisodeResult(0, True, 3.0, 5, 0.5),
                                             EpisodeResult(1, False, 6.0, 12, 0.4, "home start: left open, right open")])
     assert result.summary()["failures"] == {"1": "home start: left open, right open"}
+
+
+def test_the_default_variation_is_the_measured_scene_and_a_variation_is_named_or_refused_in_one_line():
+    default = WagonTask()
+    assert default.variation == "default" and WagonTask.variations == ("default", "wide")
+    for seed in range(50):
+        scene = draw_scene(np.random.default_rng(seed), default.description, default.ranges)
+        old = np.random.default_rng(seed)  # the shift is the generator's first two draws, as before the ranges
+        assert np.array_equal(scene.shift, [old.uniform(-0.01, 0.01), old.uniform(-0.03, 0.03)])
+        assert scene.handle_height == 0.0 and scene.light == 1.0 and not scene.arm_offset.any() and not scene.regrasp
+    with pytest.raises(ToddlerbotError, match=r"^task 'wagon' has no scene variation 'windy'; expected one of "
+                                              r"default, wide$"):
+        make_task("wagon:windy")
+    with pytest.raises(ToddlerbotError, match=r"^task 'pick' has no scene variation 'wide'; expected one of default$"):
+        make_task("pick:wide")

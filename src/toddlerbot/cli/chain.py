@@ -41,7 +41,9 @@ ScriptedGraspOption = Annotated[bool, typer.Option(
 def run(name: NameArgument, chain_file: ChainFileOption = None, seed: SeedOption = 0, json_output: JsonOption = False,
         video: VideoOption = None, port: PortOption = None, calibration: CalibrationOption = None,
         imu: ImuOption = "bno08x", scripted_grasp: ScriptedGraspOption = False, spec: SpecOption = None,
-        variant: VariantOption = GRIPPER, motor_params: MotorParamsOption = None) -> None:
+        variant: VariantOption = GRIPPER, motor_params: MotorParamsOption = None,
+        variation: Annotated[str, typer.Option(help="Sim: the scene variation the seed draws from (wagon: default or "
+                                                    "wide, docs/manipulation.md).")] = "default") -> None:
     """Run a chain to its end (`--json` says which policy or script drove each skill). Sim: success is the
     chain's success predicates (wagon: moved >= 0.5 m and the handle still held; pick: the cube lifted 3 cm and
     held). With --port and --calibration it runs on the real robot through the same interface. Exit code 1 when the
@@ -54,8 +56,10 @@ def run(name: NameArgument, chain_file: ChainFileOption = None, seed: SeedOption
         chain = chain.with_scripted_grasps()
     if (port is None) != (calibration is None):
         raise ToddlerbotError("the real robot needs both --port and --calibration")
+    if port is not None and variation != "default":
+        raise ToddlerbotError(f"--variation {variation!r} draws a simulated scene; the real robot has its own")
     if port is None:
-        success, outcome, lines = _run_sim(chain, seed, video, description)
+        success, outcome, lines = _run_sim(chain, seed, video, description, variation)
     else:
         success, outcome, lines = _run_real(chain, description, port, calibration, imu, video,  # type: ignore[arg-type]
                                             say=(lambda _: None) if json_output else console.print)
@@ -68,12 +72,12 @@ def run(name: NameArgument, chain_file: ChainFileOption = None, seed: SeedOption
         raise typer.Exit(1)
 
 
-def _run_sim(chain, seed: int, video: Path | None, description) -> tuple[bool, dict, list[str]]:
+def _run_sim(chain, seed: int, video: Path | None, description, variation: str) -> tuple[bool, dict, list[str]]:
     from toddlerbot.skills.sim_run import run_in_sim
 
     if video is not None:
         output_file(video, "--video")
-    result = run_in_sim(chain, seed, video, description)
+    result = run_in_sim(chain, seed, video, description, variation=variation)
     return result.success, result.as_json(), result.summary() + ([f"wrote {video}"] if video is not None else [])
 
 

@@ -170,7 +170,8 @@ def export(
 
 
 TaskOption = Annotated[str, typer.Option("--task", help="Task: pick (lift the cube and hold it for 1 s) or wagon "
-                                         "(grasp the wagon handle with both hands).")]
+                                         "(grasp the wagon handle with both hands); NAME:VARIATION for one of its "
+                                         "declared scene variations, e.g. wagon:wide.")]
 EvalCheckpointOption = Annotated[Path | None, typer.Option(help="Checkpoint to run (default: the one shipped for the "
                                                                 "task, if any).")]
 EpisodesOption = Annotated[int, typer.Option(min=1, max=10_000, help="Episodes (seeds --seed, --seed+1, ...).")]
@@ -201,13 +202,13 @@ def evaluate(
     from toddlerbot.dp.shipped import shipped_checkpoint
     from toddlerbot.tasks import TASKS
 
-    if task not in TASKS:
+    if task.partition(":")[0] not in TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS.names())}")
     if seconds is not None:
         duration(seconds, "--seconds", MAX_EPISODE_SECONDS)
     if video is not None:
         output_file(video, "--video", [checkpoint])
-    checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task)
+    checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task.partition(":")[0])
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{task} episodes", total=episodes)
         result = run_evaluation(checkpoint, episodes, seed, seconds, task, video_path=video,

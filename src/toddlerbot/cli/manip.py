@@ -17,13 +17,14 @@ app = typer.Typer(help="Manipulation: scripted demonstrations, datasets (LeRobot
 dataset_app = typer.Typer(help="Inspect and validate LeRobot v3.0 datasets.", no_args_is_help=True)
 app.add_typer(dataset_app, name="dataset")
 
-TASK_HELP = "Task: pick (lift the cube and hold it for 1 s) or wagon (grasp the wagon handle with both hands)."
+TASK_HELP = ("Task: pick (lift the cube and hold it for 1 s) or wagon (grasp the wagon handle with both hands); "
+             "NAME:VARIATION for one of its declared scene variations, e.g. wagon:wide.")
 
 
 def _check_task(task: str) -> None:
     from toddlerbot.tasks import TASKS
 
-    if task not in TASKS:
+    if task.partition(":")[0] not in TASKS:
         raise ToddlerbotError(f"unknown task {task!r}; expected one of {', '.join(TASKS.names())}")
 
 

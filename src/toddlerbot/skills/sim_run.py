@@ -88,20 +88,23 @@ class SimChainResult:
 
 
 def scene_robot(chain: ChainSpec, seed: int, description: RobotDescription,
-                perturbation: StartPerturbation = StartPerturbation()) -> tuple[Robot, np.ndarray]:
-    """(robot, start targets): the start of the task whose scene the chain names, for the seed (`Task.chain_start`),
-    which `run_policy`'s reset puts in place."""
-    return make_task(chain.scene, description).chain_start(seed, perturbation)
+                perturbation: StartPerturbation = StartPerturbation(), variation: str = "default"
+                ) -> tuple[Robot, np.ndarray]:
+    """(robot, start targets): the start of the task whose scene the chain names, for the seed (`Task.chain_start`)
+    in the task's scene `variation`, which `run_policy`'s reset puts in place."""
+    task = make_task(chain.scene if variation == "default" else f"{chain.scene}:{variation}", description)
+    return task.chain_start(seed, perturbation)
 
 
 def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,
                description: RobotDescription | None = None,
                perturbation: StartPerturbation = StartPerturbation(),
-               disturbances: Sequence[RunObserver] = ()) -> SimChainResult:
-    """The chain run to its end in its scene for `seed`; `disturbances` are more run observers, each told the
-    robot and the chain (`on_start`) and called after every step (a test's slip: the handle made slippery)."""
+               disturbances: Sequence[RunObserver] = (), variation: str = "default") -> SimChainResult:
+    """The chain run to its end in its scene (drawn from the scene task's `variation`) for `seed`; `disturbances`
+    are more run observers, each told the robot and the chain (`on_start`) and called after every step (a test's
+    slip: the handle made slippery)."""
     description = task_description(description)
-    robot, start = scene_robot(chain, seed, description, perturbation)
+    robot, start = scene_robot(chain, seed, description, perturbation, variation)
     model = robot.model
     probe = SceneProbe(model, robot.data)
     camera = _head_camera(robot)

@@ -6,6 +6,7 @@ names a higher layer. Factories are imported on first use, so listing names impo
 
 from __future__ import annotations
 
+from toddlerbot.errors import ToddlerbotError
 from toddlerbot.registry import Registry
 from toddlerbot.robot.description import GRIPPER, RobotDescription
 
@@ -23,5 +24,13 @@ def task_description(description: RobotDescription | None = None) -> RobotDescri
 
 
 def make_task(name: str, description: RobotDescription | None = None):
-    """The task registered as `name`, on `description` as its gripper variant (default: the packaged robot's)."""
-    return TASKS.get(name)(task_description(description))
+    """The task registered as `name`, on `description` as its gripper variant (default: the packaged robot's);
+    ``NAME:VARIATION`` builds it with one of its declared scene variations (`Task.variations`)."""
+    name, _, variation = name.partition(":")
+    factory = TASKS.get(name)
+    if not variation:
+        return factory(task_description(description))
+    known = getattr(factory, "variations", ("default",))
+    if variation not in known:
+        raise ToddlerbotError(f"task {name!r} has no scene variation {variation!r}; expected one of {', '.join(known)}")
+    return factory(task_description(description), variation=variation)

@@ -43,6 +43,8 @@ class Task(ABC):
 
     mounted: ClassVar[bool] = False
     """Whether the scene holds the torso in place (at a table): then no walking policy drives the robot."""
+    variations: ClassVar[tuple[str, ...]] = ("default",)
+    """Named scene variations its constructor takes as ``variation`` (`make_task("NAME:VARIATION")`)."""
 
     name: str
     instruction: str
