@@ -82,3 +82,16 @@ def test_dp_train_seed_gives_a_new_run_other_weights_and_a_resumed_run_refuses_i
     assert isinstance(result.exception, ToddlerbotError)
     assert str(result.exception) == "--seed sets a new run's seed; a resumed run keeps its own (drop --seed)"
     assert load_training_state(tmp_path / "run_1" / "checkpoint.pt").step == 1  # untouched
+
+
+def test_dp_eval_prints_what_each_failed_episode_ended_in(capsys):
+    from pathlib import Path
+
+    from toddlerbot.cli.dp import _print_evaluation
+
+    summary = {"success_rate": 0.5, "failed_seeds": [8001], "inference_ms": 12.34,
+               "failures": {"8001": "home start: left closed off the bar, right open"}}
+    _print_evaluation(summary, "wagon:wide", 8000, 2, Path("run/checkpoint.pt"))
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("wagon:wide: success 50% over seeds 8000..8001 (failed: [8001]), 12.3 ms")
+    assert lines[1] == "  seed 8001: home start: left closed off the bar, right open"

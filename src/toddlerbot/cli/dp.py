@@ -217,10 +217,15 @@ def evaluate(
     if json_output:
         print(json_text(summary))
         return
+    _print_evaluation(summary, task, seed, episodes, checkpoint)
+    if video:
+        console.print(f"wrote {video}")
+
+
+def _print_evaluation(summary: dict, task: str, seed: int, episodes: int, checkpoint: Path) -> None:
+    """The success rate with its seeds, then what each failed episode ended in."""
     console.print(f"{task}: success {summary['success_rate']:.0%} over seeds {seed}..{seed + episodes - 1} "
                   f"(failed: {summary['failed_seeds'] or 'none'}), {summary['inference_ms']:.1f} ms per inference "
                   f"({checkpoint})")
     for failed, kind in summary["failures"].items():
         console.print(f"  seed {failed}: {kind}")
-    if video:
-        console.print(f"wrote {video}")
