@@ -5,10 +5,11 @@ demonstrator, a `Policy`, *is* the chain's `ScriptedGrasp`, and the task steps a
 ``until`` check (success: the chain's ``grasped`` predicate, both grippers commanded closed and pinching the
 handle, which is when the chain would switch to its next skill) and its timeout (the episode's limit).
 
-The scene's seeded variation is declared once, in `WagonRanges`: the wagon's shift, the handle's height, the arms'
-start pose and the light level, drawn per seed by `draw_scene` alike for `chain run wagon --seed N` and for the
-task's episodes (`manip demo`, `dp eval`). A share of the task's episodes starts where a chain's re-grasp does: the
-hands open at the handle after it slipped.
+The scene's seeded variation is declared once, in `WagonRanges`, named in `VARIATIONS` (``default``: the wagon's
+shift alone, the scene the shipped policy was measured in; ``wide``: also the handle's height, the arms' start pose,
+the light level and, for the task's episodes, a share of starts where a chain's re-grasp does: the hands open at the
+handle after it slipped), drawn per seed by `draw_scene` alike for `chain run wagon --seed N` and for the task's
+episodes (`manip demo`, `dp eval`).
 """
 
 from __future__ import annotations
