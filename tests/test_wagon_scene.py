@@ -14,8 +14,7 @@ from toddlerbot.errors import ToddlerbotError
 from toddlerbot.skills.wagon import VARIATIONS, WagonTask, draw_scene
 from toddlerbot.tasks import make_task
 from toddlerbot.tasks.base import StartPerturbation
-from toddlerbot.tasks.scenes import WAGON_BODY, WAGON_HANDLE_GEOM, grasp_site
-
+from toddlerbot.tasks.scenes import WAGON_HANDLE_GEOM, grasp_site
 
 WIDE = VARIATIONS["wide"]
 

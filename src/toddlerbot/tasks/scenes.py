@@ -281,7 +281,7 @@ class HandleHeight:
     def set(self, offset: float) -> None:
         self.model.geom_pos[self.handle, 2] = self.handle_z + offset
         for geom, (bottom, top) in zip(self.posts, self.post_ends):
-            top = top + (0.0, 0.0, offset)
+            top = top + np.array([0.0, 0.0, offset])
             quat = np.zeros(4)
             mujoco.mju_quatZ2Vec(quat, top - bottom)
             self.model.geom_pos[geom] = (bottom + top) / 2
