@@ -28,7 +28,7 @@ from toddlerbot.skills.spec import load_chain
 from toddlerbot.tasks import task_description
 from toddlerbot.tasks.base import StartPerturbation, Task
 from toddlerbot.tasks.camera import HeadCamera
-from toddlerbot.tasks.predicates import Context, holds
+from toddlerbot.tasks.predicates import Context, commanded_closed, holds
 from toddlerbot.tasks.probe import SceneProbe
 from toddlerbot.tasks.scenes import SIDES, HandleHeight, LightLevel, add_wagon_scene, scene_model, shift_wagon
 from toddlerbot.tasks.space import ManipulationSpace
@@ -129,7 +129,8 @@ class WagonTask(Task):
         self.camera = HeadCamera(self.model, self.robot.data, description.handles.head_camera or "head_camera")
         self.probe = SceneProbe(self.model, self.robot.data)
         self._succeeded = False
-        self._start = "home"
+        self._scene: WagonScene | None = None
+        """The scene of the latest episode (`reset`)."""
 
     @property
     def succeeded(self) -> bool:
@@ -163,17 +164,17 @@ class WagonTask(Task):
         robot = self.robot
         robot.initial_motor_offset = scene.arm_offset
         robot.reset()
+        robot.initial_motor_offset = np.zeros_like(scene.arm_offset)  # applied: the robot's next reset is home
         shift_wagon(self.model, robot.data, scene.shift)
         mujoco.mj_forward(self.model, robot.data)
         if scene.regrasp:
             self._reach_open()
-            robot.start_qpos, robot.initial_motor_offset = robot.data.qpos.copy(), np.zeros(len(scene.arm_offset))
+            robot.start_qpos = robot.data.qpos.copy()
             robot.reset()  # at rest, time 0, the hands where the reach left them
             robot.start_qpos = None
             shift_wagon(self.model, robot.data, scene.slip)
             mujoco.mj_forward(self.model, robot.data)
-        robot.initial_motor_offset = np.zeros(len(scene.arm_offset))  # the next reset of the robot is home
-        self._start = "re-grasp" if scene.regrasp else "home"
+        self._scene = scene
         self.probe.mark()
         self._succeeded = False
         return robot.observe()
@@ -190,18 +191,18 @@ class WagonTask(Task):
     def failure_kind(self) -> str:
         """The start (home or re-grasp), then each hand: open (not commanded closed as far as the chain's check
         asks), closed off the bar (not both pads on it) or pinching; or that the robot fell."""
+        start = "re-grasp" if self._scene is not None and self._scene.regrasp else "home"
         if self.robot.fallen:
-            return f"{self._start} start: fell"
-        d, fraction = self.description, self.check.params.closed_fraction
+            return f"{start} start: fell"
+        params = self.check.params
+        context = Context(self.robot, self.robot.observe(), self.robot.last_targets, self.probe)
         hands = []
         for side in SIDES:
-            i = d.motor_names.index(f"{side}_gripper_drive")
-            lo, hi = d.motor_range[i]
-            closed = (self.robot.last_targets[i] - lo) / (hi - lo) >= fraction - 1e-6
-            state = "pinching" if closed and self.probe.pinching(side, self.check.params.target) else (
+            closed = commanded_closed(params, context, side)[0]
+            state = "pinching" if closed and self.probe.pinching(side, params.target) else (
                 "closed off the bar" if closed else "open")
             hands.append(f"{side} {state}")
-        return f"{self._start} start: {', '.join(hands)}"
+        return f"{start} start: {', '.join(hands)}"
 
     def start_targets(self, obs: Observation) -> np.ndarray:
         """Where a grasp starts commanding: the ready pose, the arms where they are."""

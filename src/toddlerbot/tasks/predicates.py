@@ -92,7 +92,8 @@ def _sides(hands: Hands) -> tuple[tuple[str, ...], Callable]:
     return SIDES, all if hands == "both" else any
 
 
-def _commanded_closed(p: GraspedParams | HoldingParams, ctx: Context, side: str) -> tuple[bool, int]:
+def commanded_closed(p: GraspedParams | HoldingParams, ctx: Context, side: str) -> tuple[bool, int]:
+    """(whether the `side` gripper is commanded at least ``p.closed_fraction`` closed, its motor index)."""
     d = ctx.robot.description
     i = d.motor_names.index(f"{side}_gripper_drive")
     lo, hi = d.motor_range[i]
@@ -101,7 +102,7 @@ def _commanded_closed(p: GraspedParams | HoldingParams, ctx: Context, side: str)
 
 def _grasped_sim(p: GraspedParams, ctx: Context) -> bool:
     sides, combine = _sides(p.hands)
-    return combine(_commanded_closed(p, ctx, side)[0] and ctx.probe.pinching(side, p.target)  # type: ignore
+    return combine(commanded_closed(p, ctx, side)[0] and ctx.probe.pinching(side, p.target)  # type: ignore
                    for side in sides)
 
 
@@ -109,7 +110,7 @@ def _grasped_hardware(p: GraspedParams, ctx: Context) -> bool:
     sides, combine = _sides(p.hands)
     held = []
     for side in sides:
-        closed, i = _commanded_closed(p, ctx, side)
+        closed, i = commanded_closed(p, ctx, side)
         held.append(closed and abs(ctx.targets[i] - ctx.obs.motor_pos[i]) > p.stall_error)
     return combine(held)
 
@@ -120,7 +121,7 @@ def _holding(p: HoldingParams, ctx: Context) -> bool:
     d = ctx.robot.description
     held = []
     for side in sides:
-        closed, i = _commanded_closed(p, ctx, side)
+        closed, i = commanded_closed(p, ctx, side)
         closing = np.sign(d.motor_range[i, 1] - d.motor_range[i, 0])
         held.append(closed and closing * ctx.obs.motor_torque[i] >= p.min_torque)
     return combine(held)
