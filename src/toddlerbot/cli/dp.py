@@ -200,15 +200,15 @@ def evaluate(
 
     from toddlerbot.dp.evaluate import evaluate as run_evaluation
     from toddlerbot.dp.shipped import shipped_checkpoint
-    from toddlerbot.tasks import TASKS
+    from toddlerbot.tasks import TASKS, task_name
 
-    if task.partition(":")[0] not in TASKS:
+    if task_name(task) not in TASKS:
         raise ToddlerbotError(f"--task {task!r}: expected one of {', '.join(TASKS.names())}")
     if seconds is not None:
         duration(seconds, "--seconds", MAX_EPISODE_SECONDS)
     if video is not None:
         output_file(video, "--video", [checkpoint])
-    checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task.partition(":")[0])
+    checkpoint = checkpoint if checkpoint is not None else shipped_checkpoint(task_name(task))
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{task} episodes", total=episodes)
         result = run_evaluation(checkpoint, episodes, seed, seconds, task, video_path=video,

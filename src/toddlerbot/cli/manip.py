@@ -22,9 +22,9 @@ TASK_HELP = ("Task: pick (lift the cube and hold it for 1 s) or wagon (grasp the
 
 
 def _check_task(task: str) -> None:
-    from toddlerbot.tasks import TASKS
+    from toddlerbot.tasks import TASKS, task_name
 
-    if task.partition(":")[0] not in TASKS:
+    if task_name(task) not in TASKS:
         raise ToddlerbotError(f"unknown task {task!r}; expected one of {', '.join(TASKS.names())}")
 
 

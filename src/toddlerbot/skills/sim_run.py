@@ -92,8 +92,7 @@ def scene_robot(chain: ChainSpec, seed: int, description: RobotDescription,
                 ) -> tuple[Robot, np.ndarray]:
     """(robot, start targets): the start of the task whose scene the chain names, for the seed (`Task.chain_start`)
     in the task's scene `variation`, which `run_policy`'s reset puts in place."""
-    task = make_task(chain.scene if variation == "default" else f"{chain.scene}:{variation}", description)
-    return task.chain_start(seed, perturbation)
+    return make_task(chain.scene, description, variation).chain_start(seed, perturbation)
 
 
 def run_in_sim(chain: ChainSpec, seed: int, video: str | Path | None = None,

@@ -23,14 +23,20 @@ def task_description(description: RobotDescription | None = None) -> RobotDescri
     return description if description.spec.variant == GRIPPER else description.with_variant(GRIPPER)
 
 
-def make_task(name: str, description: RobotDescription | None = None):
-    """The task registered as `name`, on `description` as its gripper variant (default: the packaged robot's);
-    ``NAME:VARIATION`` builds it with one of its declared scene variations (`Task.variations`)."""
-    name, _, variation = name.partition(":")
+def task_name(spec: str) -> str:
+    """The task's name in ``NAME`` or ``NAME:VARIATION``."""
+    return spec.partition(":")[0]
+
+
+def make_task(spec: str, description: RobotDescription | None = None, variation: str = "default"):
+    """The task registered as ``NAME`` (or ``NAME:VARIATION``), on `description` as its gripper variant (default:
+    the packaged robot's), in one of its declared scene variations (`Task.variations`)."""
+    name, _, named = spec.partition(":")
+    variation = named or variation
     factory = TASKS.get(name)
-    if not variation:
-        return factory(task_description(description))
     known = getattr(factory, "variations", ("default",))
     if variation not in known:
         raise ToddlerbotError(f"task {name!r} has no scene variation {variation!r}; expected one of {', '.join(known)}")
+    if variation == "default":
+        return factory(task_description(description))
     return factory(task_description(description), variation=variation)
