@@ -34,15 +34,14 @@ from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
 from toddlerbot.tasks.demonstrator import min_jerk
 from toddlerbot.tasks.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, GraspPointCorrection
-from toddlerbot.tasks.scenes import SIDES, grasp_site
+from toddlerbot.tasks.scenes import SIDES, grasp_site, rack_travel
 
 MAX_ARM_KP_SCALE = 3.0
 """Largest arm gain multiple a chain may ask for (walk-zmp's swing leg runs at 3x the spec's gains)."""
 
 
-BAR_CLEARANCE = 0.012
-"""How far across the open fingers (m) a grasp point may be from the bar's axis with the bar still between them:
-each open pad is 24 mm from the grasp point, the bar's radius is 8 mm, 4 mm kept in hand."""
+BAR_MARGIN = 0.004
+"""Kept between an open finger pad and the bar when judging the bar to be between the fingers, m."""
 
 
 @dataclass(frozen=True)
@@ -225,6 +224,10 @@ class ScriptedGrasp(Skill):
         self.grippers = [d.motor_names.index(f"{side}_gripper_drive") for side in sides]
         self.kp = grasp_gains(d, p)
         self._stiffness = d.actuator_arrays(self.kp).kp
+        if p.in_place:  # how far across the open fingers the bar's axis may be: pad travel - bar radius - margin
+            bar = env.model.geom(p.target)
+            self._clearance = (min(rack_travel(d, f"{side}_gripper_drive") for side in sides)
+                               - bar.size[0] - BAR_MARGIN)
 
     def _bar(self) -> np.ndarray:
         if self.env.target_pos is not None:  # sim: where the bar is now
@@ -260,7 +263,7 @@ class ScriptedGrasp(Skill):
     def _between_fingers(self, offset: np.ndarray, closing: np.ndarray) -> bool:
         """Whether a grasp point this far (m) from its goal holds the bar between the open fingers: within the
         pre-grasp distance, and across the fingers by less than the open gap leaves around the bar."""
-        return bool(np.linalg.norm(offset) < self.p.back and abs(offset @ closing) < BAR_CLEARANCE)
+        return bool(np.linalg.norm(offset) < self.p.back and abs(offset @ closing) < self._clearance)
 
     def act(self, obs: Observation, elapsed: float) -> tuple[np.ndarray, np.ndarray]:
         p, base = self.p, self.env.base_qpos()

@@ -206,7 +206,7 @@ def _add_grasp_sites_and_pads(mj: mujoco.MjSpec, description: RobotDescription) 
             name=grasp_site(side), pos=(rot.T @ (midpoint - data.xpos[gripper.id])).tolist(), size=[0.004, 0, 0],
             rgba=(0.1, 0.9, 0.1, 0.6), group=4,
         )
-        travel = _rack_travel(description, f"{side}_gripper_drive")
+        travel = rack_travel(description, f"{side}_gripper_drive")
         for name, centre, pad in zip(names, centres, finger_pads(side)):
             geom = mj.geom(name)
             geom.contype, geom.conaffinity = 0, 0
@@ -224,7 +224,7 @@ def _add_grasp_sites_and_pads(mj: mujoco.MjSpec, description: RobotDescription) 
             )
 
 
-def _rack_travel(description: RobotDescription, drive: str) -> float:
+def rack_travel(description: RobotDescription, drive: str) -> float:
     """Finger travel from open to closed, m: the rack's pitch radius times the drive's range."""
     rack = next(t for t in description.spec.transmissions if getattr(t, "drive", None) == drive)
     lo, hi = description.spec.joints[drive].range or (0.0, 0.0)
