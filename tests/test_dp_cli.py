@@ -84,6 +84,26 @@ def test_dp_train_seed_gives_a_new_run_other_weights_and_a_resumed_run_refuses_i
     assert load_training_state(tmp_path / "run_1" / "checkpoint.pt").step == 1  # untouched
 
 
+def test_dp_train_and_export_binary_actions_by_name(tmp_path, monkeypatch):
+    monkeypatch.setattr(data, "open_window_dataset", lambda *_: SyntheticWindows(episodes=3, frames=5))
+    args = ["dp", "train", str(tmp_path / "ds"), "--config", "tiny", "--threads", "1", "--steps", "1"]
+    result = runner.invoke(app, [*args, "-o", str(tmp_path / "run"), "--binary-action", "target_1"])
+    assert result.exit_code == 0, result.output
+    assert load_policy(tmp_path / "run" / "checkpoint.pt").config.binary_actions == ("target_1",)
+    result = runner.invoke(app, [*args, "-o", str(tmp_path / "bad"), "--binary-action", "gripper"])
+    assert "binary_actions ['gripper'] (expected distinct action names, of target_0, target_1)" in str(
+        result.exception)
+    assert not (tmp_path / "bad").exists()  # refused before anything is written
+    result = runner.invoke(app, [*args, "-o", str(tmp_path / "run"), "--resume", "--binary-action", "target_0"])
+    assert str(result.exception) == ("--binary-action sets a new run's binary action; a resumed run keeps its own "
+                                     "(drop --binary-action)")
+    out = tmp_path / "both.pt"
+    result = runner.invoke(app, ["dp", "export", str(tmp_path / "run" / "checkpoint.pt"), "-o", str(out),
+                                 "--binary-action", "target_0", "--binary-action", "target_1"])
+    assert result.exit_code == 0, result.output
+    assert load_policy(out).config.binary_actions == ("target_0", "target_1")
+
+
 def test_dp_eval_prints_what_each_failed_episode_ended_in(capsys):
     from pathlib import Path
 

@@ -11,6 +11,7 @@ torch = pytest.importorskip("torch")
 from dp_support import SyntheticWindows  # noqa: E402
 from toddlerbot.dp.checkpoint import (  # noqa: E402
     CheckpointError,
+    export_policy,
     load_policy,
     load_training_state,
 )
@@ -160,3 +161,36 @@ def test_the_image_path_conditions_the_chunk():
     error = float((policy.sample(test, torch.Generator().manual_seed(1)) - test["action"]).abs().mean())
     blind = float((test["action"] - test["action"].mean()).abs().mean())  # best guess without the image
     assert error < 0.5 * blind  # measured: 0.09 against 0.50
+
+
+def test_binary_actions_snap_to_the_demonstrated_open_or_closed_end(tmp_path):
+    """A gripper demonstrated closing to 0.78 of its range: the sampled command lands on 0.78 or on open, never
+    just short of the closed value (where the chain's "commanded closed" check fails)."""
+    data = SyntheticWindows(episodes=3, frames=6)
+    result = train(data, dataclasses.replace(TINY, binary_actions=("target_1",)), tmp_path / "run",
+                   schedule=TrainSchedule(max_steps=2, log_every=1, val_batches=1), show_progress=False)
+    policy = load_policy(result.checkpoint)
+    assert policy.config.binary_actions == ("target_1",)
+    lo, hi = (float(policy.action_norm.unnormalize(torch.full((1, 2), v))[0, 1]) for v in (-1.0, 1.0))
+    sample = data[1]
+    batch = {k: torch.as_tensor(sample[k])[None].expand(64, *np.shape(sample[k]))
+             for k in ("observation.state", "observation.images.head")}
+    chunk = policy.sample(batch, torch.Generator().manual_seed(3))
+    gripper = chunk[..., 1].flatten()
+    assert torch.all((gripper == lo) | (gripper == hi)) and lo < hi
+    plain = load_policy(result.checkpoint, binary_actions=())
+    free = plain.sample(batch, torch.Generator().manual_seed(3))
+    assert torch.equal(free[..., 0], chunk[..., 0])  # the other action is untouched
+    inside = (free[..., 1] > lo + 1e-3) & (free[..., 1] < hi - 1e-3)
+    assert float(inside.float().mean()) > 0.5  # unsnapped, an untrained network's samples lie between the ends
+    expected = torch.where(free[..., 1] > (lo + hi) / 2, hi, lo)
+    assert torch.allclose(chunk[..., 1], expected)
+    # set on export, replacing the checkpoint's; an unknown name is refused in one line, nothing written
+    exported = export_policy(result.checkpoint, tmp_path / "plain.pt", binary_actions=())
+    assert load_policy(exported).config.binary_actions == ()
+    with pytest.raises(DPConfigError, match=r"binary_actions \['gripper'\] \(expected distinct action names, of "
+                                            r"target_0, target_1\)"):
+        export_policy(result.checkpoint, tmp_path / "bad.pt", binary_actions=("gripper",))
+    assert not (tmp_path / "bad.pt").exists()
+    with pytest.raises(DPConfigError, match="binary_actions"):
+        dataclasses.replace(TINY, binary_actions=("a", "a"))

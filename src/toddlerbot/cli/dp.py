@@ -43,6 +43,10 @@ CheckpointEveryOption = Annotated[int, typer.Option(min=1, help="Save checkpoint
                                                                 "the end).")]
 LogEveryOption = Annotated[int, typer.Option(min=1, help="Record the losses (metrics, TensorBoard, progress bar) every "
                                                          "this many steps (and at the end).")]
+BinaryActionOption = Annotated[list[str] | None, typer.Option(
+    "--binary-action", help="An action the demonstrations only open or close (a gripper motor, e.g. "
+                            "left_gripper_drive; repeat for each): the policy commands one end of its demonstrated "
+                            "range or the other, never a value between.")]
 BatchSizeOption = Annotated[int | None, typer.Option(min=1, help="Global batch of a new run (under torchrun: all "
                                                                  "processes together, split evenly); default: the "
                                                                  "preset's.")]
@@ -62,6 +66,7 @@ def train(
     checkpoint_every: CheckpointEveryOption = 500,
     log_every: LogEveryOption = 50,
     batch_size: BatchSizeOption = None,
+    binary_action: BinaryActionOption = None,
     seed: Annotated[int | None, seed_option(help="Training seed of a new run (network, batches, noise, validation "
                                                  "episodes); default: the preset's (0).")] = None,
     tensorboard: TensorBoardOption = True,
@@ -79,7 +84,7 @@ def train(
 
     if minutes is None and steps is None:
         raise ToddlerbotError("give --minutes or --steps (or both)")
-    preset = _preset(config, batch_size, seed, resume)
+    preset = _preset(config, batch_size, seed, binary_action, resume)
     training_budget(minutes, steps)
     output_dir(out, "--out", [dataset, imagenet_weights])
     main = launched_rank() == 0  # under torchrun only rank 0 prints
@@ -99,14 +104,16 @@ def _announce(dataset: Path, out: Path, main: bool):
     return opened
 
 
-def _preset(config: str, batch_size: int | None, seed: int | None, resume: bool):
-    """The named configuration, with the global batch ``--batch-size`` and the seed ``--seed`` give a new run."""
-    for flag, value in (("--batch-size", batch_size), ("--seed", seed)):
+def _preset(config: str, batch_size: int | None, seed: int | None, binary_actions: list[str] | None, resume: bool):
+    """The named configuration, with the global batch ``--batch-size``, the seed ``--seed`` and the binary actions
+    ``--binary-action`` give a new run."""
+    for flag, value in (("--batch-size", batch_size), ("--seed", seed), ("--binary-action", binary_actions)):
         if resume and value is not None:
             raise ToddlerbotError(f"{flag} sets a new run's {flag[2:].replace('-', ' ')}; a resumed run keeps its own "
                                   f"(drop {flag})")
     preset = PRESETS[config] if batch_size is None else replace(PRESETS[config], batch_size=batch_size)
-    return preset if seed is None else replace(preset, seed=seed)
+    preset = preset if seed is None else replace(preset, seed=seed)
+    return replace(preset, binary_actions=tuple(binary_actions)) if binary_actions else preset
 
 
 def _print_result(result) -> None:
@@ -147,15 +154,18 @@ def export(
     export_format: Annotated[Literal["pt", "onnx"], typer.Option(  # dp.onnx_export.FORMATS, which imports torch
         "--format", help="pt (torch, for dp eval / sim run) or onnx (observation encoder and noise U-Net, checked "
                          "against torch).")] = "pt",
+    binary_action: BinaryActionOption = None,
 ) -> None:
     """Write a checkpoint's EMA network alone (no optimiser state): the file to ship or deploy; or, with --format
-    onnx, its per-inference networks as ONNX graphs (observation_encoder.onnx, noise_unet.onnx)."""
+    onnx, its per-inference networks as ONNX graphs (observation_encoder.onnx, noise_unet.onnx). --binary-action
+    sets the actions the exported policy snaps open or closed (replacing the checkpoint's)."""
     require_torch()
+    binary = tuple(binary_action) if binary_action else None
     if export_format == "onnx":
         from toddlerbot.dp.onnx_export import export_onnx
 
         output_dir(out, "--out", [checkpoint])
-        paths, report = export_onnx(checkpoint, out)
+        paths, report = export_onnx(checkpoint, out, binary)
         for name, path in paths.items():
             console.print(f"wrote {path}: {path.stat().st_size / 1e6:.1f} MB; onnxruntime vs torch on random "
                           f"inputs, max abs difference {report[name]:.2g} (outputs up to "
@@ -164,7 +174,7 @@ def export(
     from toddlerbot.dp.checkpoint import export_policy
 
     output_file(out, "--out", [checkpoint])
-    written = export_policy(checkpoint, out)
+    written = export_policy(checkpoint, out, binary)
     console.print(f"wrote {written}: {written.stat().st_size / 1e6:.1f} MB (from {checkpoint}, "
                   f"{checkpoint.stat().st_size / 1e6:.1f} MB)")
 

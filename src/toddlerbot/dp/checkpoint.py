@@ -9,7 +9,7 @@ global generator) and ``data_rng`` (the sampling generator) let `train` continue
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -100,6 +100,10 @@ def _read(path: Path) -> dict[str, Any]:
 
 def _network(path: Path, body: dict[str, Any], key: str) -> DiffusionPolicy:
     config = DPConfig.from_json(body["config"], source=f"{path} config")
+    return _weights(path, body, key, config)
+
+
+def _weights(path: Path, body: dict[str, Any], key: str, config: DPConfig) -> DiffusionPolicy:
     policy = DiffusionPolicy(config)
     try:
         policy.load_state_dict(body[key])
@@ -108,20 +112,26 @@ def _network(path: Path, body: dict[str, Any], key: str) -> DiffusionPolicy:
     return policy
 
 
-def load_policy(path: str | Path, use_ema: bool = True) -> DiffusionPolicy:
-    """The network of a checkpoint, in eval mode: the EMA weights unless ``use_ema`` is False."""
+def load_policy(path: str | Path, use_ema: bool = True, binary_actions: tuple[str, ...] | None = None
+                ) -> DiffusionPolicy:
+    """The network of a checkpoint, in eval mode: the EMA weights unless ``use_ema`` is False; ``binary_actions``
+    (names) replaces the config's (`DPConfig.binary_actions`: how the sampled actions are read, not the weights)."""
     path = Path(path)
     body = _read(path)
-    return _network(path, body, "ema" if use_ema else "model").eval()
+    config = DPConfig.from_json(body["config"], source=f"{path} config")
+    if binary_actions is not None:
+        config = replace(config, binary_actions=tuple(binary_actions))
+    return _weights(path, body, "ema" if use_ema else "model", config).eval()
 
 
-def export_policy(checkpoint: str | Path, out: str | Path) -> Path:
+def export_policy(checkpoint: str | Path, out: str | Path, binary_actions: tuple[str, ...] | None = None) -> Path:
     """Write only what inference needs (config, EMA weights with the normaliser ranges, step, history): the file
-    to ship. `load_policy` and `checkpoint_summary` read it; it cannot resume training."""
+    to ship, with ``binary_actions`` in its config if given (as `load_policy`). `load_policy` and
+    `checkpoint_summary` read it; it cannot resume training."""
     checkpoint = Path(checkpoint)
     body = _read(checkpoint)
-    _network(checkpoint, body, "ema")  # the weights fit the config
-    policy_only = {key: body[key] for key in ("format", "config", "ema", "step", "history")}
+    config = load_policy(checkpoint, binary_actions=binary_actions).config  # the weights fit the config
+    policy_only = {key: body[key] for key in ("format", "ema", "step", "history")} | {"config": config.to_json()}
     return atomic_write(out, lambda tmp: torch.save(policy_only, tmp))
 
 

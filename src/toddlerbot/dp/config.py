@@ -28,6 +28,10 @@ class DPConfig:
     """Name of each state dimension (the dataset's joint names), so a runtime can map the policy to robot joints."""
     action_names: tuple[str, ...] = ()
     """Name of each action dimension."""
+    binary_actions: tuple[str, ...] = ()
+    """Action dimensions the demonstrations only open or close (a gripper): each sampled value snaps to the nearer
+    end of the demonstrated range (the normalised sign), so a learned close commands the demonstrations' closed
+    value instead of landing just short of it, where a check of "commanded closed" fails (docs/manipulation.md)."""
     n_obs_steps: int = 2
     """Observation history, at the policy rate."""
     horizon: int = 16
@@ -107,6 +111,11 @@ class DPConfig:
         for names, dim in ((self.state_names, self.state_dim), (self.action_names, self.action_dim)):
             if names and len(names) != dim:
                 problems.append(f"{len(names)} names for {dim} dimensions")
+        unknown = [n for n in self.binary_actions if self.action_names and n not in self.action_names]
+        unnamed = self.binary_actions and self.action_dim and not self.action_names
+        if unknown or unnamed or len(set(self.binary_actions)) != len(self.binary_actions):
+            problems.append(f"binary_actions {list(self.binary_actions)} (expected distinct action names, of "
+                            f"{', '.join(self.action_names)})")
         if self.n_obs_steps < 1 or self.state_dim < 0 or self.action_dim < 0:
             problems.append("n_obs_steps >= 1, state_dim >= 0 and action_dim >= 0 expected")
         if not 0.0 <= self.val_fraction < 1.0:
@@ -132,7 +141,7 @@ class DPConfig:
         unknown = sorted(set(raw) - known)
         if unknown:
             raise DPConfigError(f"{source}: unknown config field(s) {', '.join(unknown)}")
-        for name in ("small_cnn_channels", "down_dims", "state_names", "action_names"):
+        for name in ("small_cnn_channels", "down_dims", "state_names", "action_names", "binary_actions"):
             if name in raw:
                 raw[name] = tuple(raw[name])
         try:

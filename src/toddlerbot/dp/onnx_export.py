@@ -140,9 +140,11 @@ def verify(policy: DiffusionPolicy, folder: Path, batch: int = 4, seed: int = 1)
     return report
 
 
-def export_onnx(checkpoint: str | Path, folder: str | Path) -> tuple[dict[str, Path], dict[str, float]]:
+def export_onnx(checkpoint: str | Path, folder: str | Path, binary_actions: tuple[str, ...] | None = None
+                ) -> tuple[dict[str, Path], dict[str, float]]:
     """Write ``folder``/observation_encoder.onnx and ``folder``/noise_unet.onnx for a checkpoint's EMA network and
-    check them against torch; returns the paths and the differences (`verify`)."""
+    check them against torch; returns the paths and the differences (`verify`). The graphs' metadata carries the
+    config (``binary_actions`` replaced if given): a runtime snaps those actions after the last denoising step."""
     try:
         import onnx  # noqa: F401
         import onnxruntime  # noqa: F401
@@ -151,7 +153,7 @@ def export_onnx(checkpoint: str | Path, folder: str | Path) -> tuple[dict[str, P
                               f"([onnx] extra): {exc}") from None
     from toddlerbot.dp.checkpoint import load_policy
 
-    return export_policy_onnx(load_policy(checkpoint), folder, Path(checkpoint).name)
+    return export_policy_onnx(load_policy(checkpoint, binary_actions=binary_actions), folder, Path(checkpoint).name)
 
 
 def export_policy_onnx(policy: DiffusionPolicy, folder: str | Path, source: str = "a DiffusionPolicy"

@@ -68,6 +68,7 @@ class DiffusionPolicy(nn.Module):
                                       config.kernel_size, config.n_groups, config.step_embed_dim)
         self.schedule = NoiseSchedule(config.train_timesteps, config.beta_schedule, config.clip_sample,
                                       config.prediction)
+        self.binary_dims = [config.action_names.index(name) for name in config.binary_actions]
 
     def condition(self, batch: dict[str, torch.Tensor], crops: torch.Tensor | None = None) -> torch.Tensor:
         """Observation features (B, n_obs * (state_dim [+ image_feature_dim])): normalised state, encoded images
@@ -141,4 +142,6 @@ class DiffusionPolicy(nn.Module):
             else:
                 noise = normal_noise(x.shape, generator, x.device) if s >= 0 else None
                 x = self.schedule.ddpm_step(x, output, t, s, noise)
+        if self.binary_dims:  # open or closed, as demonstrated (config.binary_actions)
+            x[..., self.binary_dims] = torch.where(x[..., self.binary_dims] > 0, 1.0, -1.0)
         return self.action_norm.unnormalize(x)
