@@ -92,6 +92,30 @@ def test_the_shipped_wagon_checkpoint_fits_the_wagon_task_and_is_small():
     task.camera.close()
 
 
+def test_the_shipped_wagon_policy_commands_its_grippers_open_or_at_the_chains_closed_check():
+    """The grippers are binary actions: a sampled command is the demonstrations' open or closed value, and closed
+    passes the chain's check (0.78 of the range), never 0.77 (a third of the failures before they were)."""
+    from toddlerbot.dp.checkpoint import load_policy
+    from toddlerbot.robot.description import RobotDescription
+
+    policy = load_policy(shipped.shipped_checkpoint("wagon"))
+    names = ("left_gripper_drive", "right_gripper_drive")
+    assert policy.config.binary_actions == names
+    description = RobotDescription.load(variant="gripper")
+    generator = torch.Generator().manual_seed(0)
+    state = policy.state_norm.unnormalize(torch.rand(32, 2, policy.config.state_dim, generator=generator) * 2 - 1)
+    images = torch.randint(0, 256, (32, 2, 3, 96, 96), dtype=torch.uint8, generator=generator)
+    chunk = policy.sample({"observation.state": state, "observation.images.head": images}, generator)
+    seen = set()
+    for name in names:
+        lo, hi = description.motor_range[description.motor_names.index(name)]
+        fraction = (chunk[..., policy.config.action_names.index(name)].double() - lo) / (hi - lo)
+        ends = torch.where(fraction > 0.5, fraction - 0.78, fraction)
+        assert float(ends.abs().max()) < 1e-6  # open (0) or the chain's closed_fraction 0.78, nothing between
+        seen |= {round(float(f), 2) for f in fraction.flatten()}
+    assert seen == {0.0, 0.78}  # random inputs give both
+
+
 @pytest.mark.parametrize("command", [["manip", "demo", "-o", "unused"], ["manip", "demo-rate"], ["dp", "eval"]])
 def test_an_unknown_task_is_a_one_line_error_naming_the_tasks(command, tmp_path):
     result = runner.invoke(app, [*command, "--task", "wagn"])
