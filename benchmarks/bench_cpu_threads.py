@@ -2,12 +2,14 @@
 environment's jitted, vmapped step on the CPU physics backend, every host call timed on every thread it touches.
 
 Each control step is one `jax.pure_callback` into `CPUPhysics._host_step` on the calling thread, which splits the
-batch into one chunk per worker thread (`mujoco_*`); each chunk writes its envs' state and randomised model fields
-(Python, holding the GIL), runs the compiled substep loop (`_substeps`: numba and MuJoCo's C, without the GIL) per
-env, and reads the results back (Python). Timed here, per segment, in wall time and in the thread's own CPU time
-(`time.thread_time`): a thread that holds no GIL-free work and whose wall time exceeds its CPU time was waiting, for
-the GIL or for a core. Printed: the share of each kind of work, the waits, and what that serial share allows on more
-cores (Amdahl); drawn: the threads' timeline of a few steps.
+batch into one chunk per worker thread (`mujoco_*`); each chunk gathers its envs' state and randomised model
+fields into arrays (Python, holding the GIL, a few numpy calls per chunk), makes one call into compiled code
+(`toddlerbot.sim.actuated.step_batch`'s `_batch`: numba and MuJoCo's C, without the GIL) that writes them into each
+env's MuJoCo model and data, runs its substeps and copies the results out, then reads each env's contacts
+(Python). Timed here, per segment, in wall time and in the thread's own CPU time (`time.thread_time`): a thread
+that holds no GIL-free work and whose wall time exceeds its CPU time was waiting, for the GIL or for a core.
+Printed: the share of each kind of work, the waits, and what that serial share allows on more cores (Amdahl);
+drawn: the threads' timeline of a few steps.
 
     PYTHONPATH=src python benchmarks/bench_cpu_threads.py [--envs 256] [--steps 30] [--threads 0]
                                                           [--out docs/figures/rl_cpu_threads.png]
@@ -30,8 +32,8 @@ from dataclasses import dataclass, replace
 class Segment:
     thread: str
     kind: str
-    """``host`` (the callback on the calling thread), ``chunk`` (one worker's share) or ``physics`` (one env's
-    compiled substeps, without the GIL)."""
+    """``host`` (the callback on the calling thread), ``chunk`` (one worker's share) or ``physics`` (the chunk's
+    compiled step, without the GIL)."""
     start: float
     end: float
     cpu: float
@@ -60,7 +62,7 @@ class Recorder:
 
 
 class TimedDispatcher:
-    """The compiled substep loop, timed; `step_actuated` also reads its ``signatures``."""
+    """The compiled batch step, timed; `step_batch` also reads its ``signatures``."""
 
     def __init__(self, dispatcher, recorder: Recorder) -> None:
         self.dispatcher = dispatcher
@@ -73,8 +75,8 @@ class TimedDispatcher:
         return self._call(*args)
 
     def dispatch_seconds(self, repeats: int = 2000) -> float:
-        """One call's cost with no substep to run: numba checking and unboxing the arguments, with the GIL held."""
-        args = (*self.last_arguments[:-1], 0)
+        """One call's cost with no env to step: numba checking and unboxing the arguments, with the GIL held."""
+        args = (*(x[:0] for x in self.last_arguments[:7]), *self.last_arguments[7:])
         t0 = time.thread_time()
         for _ in range(repeats):
             self.dispatcher(*args)
@@ -87,10 +89,10 @@ def instrument(recorder: Recorder) -> TimedDispatcher:
     from toddlerbot.rl import physics
     from toddlerbot.sim import actuated
 
-    actuated._substeps = TimedDispatcher(actuated._substeps, recorder)
+    actuated._batch = TimedDispatcher(actuated._batch, recorder)
     physics.CPUPhysics._host_step = recorder.timed("host", physics.CPUPhysics._host_step)
     physics.CPUPhysics._step_chunk = recorder.timed("chunk", physics.CPUPhysics._step_chunk)
-    return actuated._substeps
+    return actuated._batch
 
 
 def summarise(segments: list[Segment], steps: list[tuple[float, float]], threads: int, dispatch: float) -> dict:
@@ -197,14 +199,14 @@ def main() -> None:
     print(f"env steps/s {args.envs * n / f['steps_wall']:.0f}; per step {1e3 * f['steps_wall'] / n:.2f} ms wall")
     rows = (("JAX outside the callback (calling thread)", f["outside_callback"], None),
             ("callback, calling thread: split/join the batch (GIL)", f["host_serial"], None),
-            ("workers: Python per env (GIL), with the compiled loop's calls", f["chunk_python_wall"],
+            ("workers: Python (GIL), with the compiled step's call", f["chunk_python_wall"],
              f["chunk_python_cpu"]),
             ("workers: compiled physics (no GIL)", f["physics_wall"], f["physics_cpu"]))
     for label, wall, cpu in rows:
         extra = "" if cpu is None else f", CPU {1e3 * cpu / n:7.2f} ms, waiting {1e3 * (wall - cpu) / n:6.2f} ms"
         print(f"  {label:55s} wall {1e3 * wall / n:7.2f} ms{extra}")
-    print(f"  (one call of the compiled loop costs {1e6 * f['dispatch']:.1f} us of argument handling under the GIL; "
-          "two calls per env and step)")
+    print(f"  (one call of the compiled step costs {1e6 * f['dispatch']:.1f} us of argument handling under the GIL; "
+          "one call per worker and step)")
     serial = f["outside_callback"] + f["host_serial"] + f["chunk_python_cpu"]
     work = serial + f["physics_cpu"]
     share = serial / work

@@ -3,6 +3,8 @@ and torque limits) and `step_actuated`, and the hardware-in-the-loop plant stepp
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -123,3 +125,59 @@ def test_one_robot_with_its_own_parameter_row_steps_like_the_shared_parameters(d
     assert MotorDrive(rows).per_robot and not MotorDrive(shared).per_robot
     assert np.abs(taus[0]).max() > 0.1
     np.testing.assert_array_equal(taus[0], taus[1])
+
+
+def test_a_batch_in_one_compiled_call_steps_each_robot_as_step_actuated_does(description):
+    """`step_batch` writes each robot's fields and state, steps it and reads it back: the same torques, state and
+    last-substep sensors as writing them in Python and calling `step_actuated`, bit for bit; the sensor flag it
+    toggles is restored, and a robot MuJoCo had to reset is reported."""
+    from toddlerbot.sim.actuated import BatchArrays, step_batch
+
+    model = description.model("floating", scene=True)
+    motors = MotorAddresses.of(model, description.motor_names)
+    rng = np.random.default_rng(3)
+    n, n_substeps = 3, 4
+    shared = description.actuator_arrays()
+    rows = type(shared)(*(np.asarray(x) * rng.uniform(0.9, 1.1, (n, len(np.asarray(x)))) for x in shared))
+    targets = description.home_motor_pos + rng.uniform(-0.3, 0.3, (n, len(description.motor_names)))
+    home = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, home, model.key("home").id)
+    qvel = rng.normal(0.0, 0.1, (n, model.nv))
+    pull = np.zeros((n, model.nbody, 6))
+    pull[2, 1, 2] = 1e15  # N: MuJoCo finds a bad acceleration, resets this robot and warns
+    damping = model.dof_damping * rng.uniform(0.5, 2.0, (n, model.nv))
+    flags = model.opt.disableflags
+
+    def pairs():
+        models = [copy.copy(model) for _ in range(n)]
+        datas = [mujoco.MjData(model) for _ in range(n)]
+        for d in datas:
+            mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
+        return models, datas
+
+    models, datas = pairs()  # as the RL backend did it: Python writes, then step_actuated
+    for i, (m, d) in enumerate(zip(models, datas, strict=True)):
+        m.dof_damping[:] = damping[i]
+        d.qvel[:] = qvel[i]
+        d.xfrc_applied[:] = pull[i]
+    expected = step_actuated(models, datas, motors, targets, MotorDrive(rows), n_substeps, sensors_last_only=True)
+
+    models2, datas2 = pairs()
+    arrays = BatchArrays.of(models2, datas2, ("model.dof_damping", "data.qpos", "data.qvel", "data.xfrc_applied"),
+                            ("data.qpos", "data.qvel", "data.sensordata"))
+    written = np.concatenate([damping, np.tile(home.qpos, (n, 1)), qvel, pull.reshape(n, -1)], axis=1)
+    torques, reads, warned = step_batch(arrays, np.arange(n), motors, targets, MotorDrive(rows), n_substeps,
+                                        written, sensors_last_only=True)
+    np.testing.assert_array_equal(torques, expected)
+    nq, nv = model.nq, model.nv
+    for i, d in enumerate(datas):
+        np.testing.assert_array_equal(reads[i, :nq], d.qpos)
+        np.testing.assert_array_equal(reads[i, nq:nq + nv], d.qvel)
+        np.testing.assert_array_equal(reads[i, nq + nv:], d.sensordata)
+        np.testing.assert_array_equal(datas2[i].qpos, d.qpos)
+        assert models2[i].opt.disableflags == flags  # the sensors' flag is back
+    assert np.abs(torques).max() > 0.1 and np.abs(reads[0, :nq] - home.qpos).max() > 1e-4  # it moved
+    assert warned.tolist() == [False, False, True]
+    assert datas[2].warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+    with pytest.raises(ValueError, match=r"written has shape \(3, \d+\), expected \(2, "):
+        step_batch(arrays, np.arange(2), motors, targets[:2], MotorDrive(rows), n_substeps, written)

@@ -48,6 +48,47 @@ def _run(hide_numba: bool, dc_motor: bool) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+_BATCH = """
+import copy, json, sys
+import numpy as np
+{hide}
+import mujoco
+from toddlerbot.sim import native
+from toddlerbot.robot.description import RobotDescription
+from toddlerbot.sim.actuated import BatchArrays, MotorAddresses, step_batch
+from toddlerbot.sim.motor_drive import MotorDrive
+
+description = RobotDescription.load()
+model = description.model("floating", scene=True)
+models, datas = [copy.copy(model) for _ in range(2)], [mujoco.MjData(model) for _ in range(2)]
+home = mujoco.MjData(model)
+mujoco.mj_resetDataKeyframe(model, home, model.key("home").id)
+arrays = BatchArrays.of(models, datas, ("model.dof_damping", "data.qpos"), ("data.qpos", "data.sensordata"))
+written = np.concatenate([np.stack([model.dof_damping, 2 * model.dof_damping]), np.tile(home.qpos, (2, 1))], axis=1)
+n = len(description.home_motor_pos)
+targets = description.home_motor_pos + 0.3 * np.sin(np.arange(2 * n).reshape(2, n))
+torques, reads, warned = step_batch(arrays, np.arange(2), MotorAddresses.of(model, description.motor_names), targets,
+                                    MotorDrive(description.actuator_arrays()), 5, written, sensors_last_only=True)
+print(json.dumps({{"compiled": native.HAVE_NUMBA, "torques": torques.tolist(), "reads": reads.tolist(),
+                  "flags": [m.opt.disableflags for m in models], "warned": warned.tolist()}}))
+"""
+
+
+def test_the_batch_step_runs_compiled_as_interpreted():
+    """`step_batch` reads and writes MuJoCo's arrays by address: compiled through numba's pointers, interpreted
+    (numba hidden) through ctypes, with the same bits."""
+    runs = []
+    for hide in ("", "sys.modules['numba'] = None"):
+        out = subprocess.run([sys.executable, "-c", _BATCH.format(hide=hide)], capture_output=True, text=True,
+                             check=True, timeout=300)
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    compiled, interpreted = runs
+    assert compiled["compiled"] and not interpreted["compiled"]
+    assert np.abs(compiled["torques"]).max() > 0.1 and compiled["warned"] == [False, False]
+    assert compiled["reads"][0] != compiled["reads"][1]  # the damping written per robot took effect
+    assert compiled == {**interpreted, "compiled": True}
+
+
 @pytest.mark.parametrize("dc_motor", [False, True], ids=["appendix", "dc_motor"])
 def test_compiled_loop_steps_like_the_interpreted_one(dc_motor):
     compiled, interpreted = _run(False, dc_motor), _run(True, dc_motor)

@@ -7,9 +7,11 @@ physics (observations, rewards, commands, randomisation draws, pushes, terminati
 definition, whatever the backend.
 
 * `MJXPhysics`: ``mjx.step`` in a ``lax.scan``; the state is ``mjx.Data``.
-* `CPUPhysics`: `toddlerbot.sim.actuated.step_actuated` (the simulator's substep loop) over per-env ``MjModel`` /
-  ``MjData`` pairs, the batch split into chunks stepped on a thread pool (``mj_step`` releases the GIL), entered
-  from jitted code through ``jax.pure_callback`` (batched: one call for the whole batch). The state is a small
+* `CPUPhysics`: the simulator's substep loop over per-env ``MjModel`` / ``MjData`` pairs, the batch split into
+  chunks stepped on a thread pool, entered from jitted code through ``jax.pure_callback`` (batched: one call for
+  the whole batch). Each chunk is one call of `toddlerbot.sim.actuated.step_batch`, which writes every env's
+  randomised fields and state, steps it and copies its results out in compiled code without the GIL; what stays in
+  Python per chunk is a few numpy calls and each env's contact list. The state is a small
   pytree of arrays (`CPUState`) that the host writes into scratch ``MjData`` before stepping, so the callback is a
   pure function of its inputs. Positions and velocities are carried as float32 pairs (hi + lo, about 48 bits) so
   that the float64 simulation continues where it stopped instead of being rounded to float32 every 20 ms.
@@ -34,7 +36,7 @@ from mujoco import mjx
 
 from toddlerbot.actuation.model import ActuatorArrays, friction_excess, motor_torque
 from toddlerbot.robot.description import RobotDescription
-from toddlerbot.sim.actuated import MotorAddresses, step_actuated
+from toddlerbot.sim.actuated import BatchArrays, MotorAddresses, step_batch
 from toddlerbot.sim.motor_drive import MotorDrive
 from toddlerbot.sim.terrain import ground_geoms
 
@@ -152,15 +154,20 @@ def _home(model: mujoco.MjModel) -> mujoco.MjData:
     return data
 
 
+def contacts_of(a: Addresses, datas: list[mujoco.MjData]) -> tuple[np.ndarray, np.ndarray]:
+    """`contact_state` of each classic MuJoCo data (batch first)."""
+    n = len(datas)
+    ncon = [d.ncon for d in datas]
+    return contact_state(a, np.concatenate([d.contact.geom[:k] for d, k in zip(datas, ncon, strict=True)]),
+                         np.concatenate([d.contact.dist[:k] for d, k in zip(datas, ncon, strict=True)]), xp=np,
+                         env=np.repeat(np.arange(n), ncon), n_envs=n)
+
+
 def frames_of(a: Addresses, datas: list[mujoco.MjData], torque: np.ndarray) -> Frame:
     """The frames of classic MuJoCo data, stacked (batch first; ``torque`` (batch, n_motors))."""
     stack = lambda name: np.stack([getattr(d, name) for d in datas])  # noqa: E731
     n = len(datas)
-    ncon = [d.ncon for d in datas]
-    contact, self_collision = contact_state(
-        a, np.concatenate([d.contact.geom[:k] for d, k in zip(datas, ncon, strict=True)]),
-        np.concatenate([d.contact.dist[:k] for d, k in zip(datas, ncon, strict=True)]), xp=np,
-        env=np.repeat(np.arange(n), ncon), n_envs=n)
+    contact, self_collision = contacts_of(a, datas)
     return read_frame(a, stack("qpos"), stack("qvel"), stack("xmat").reshape(n, -1, 3, 3), stack("site_xpos"),
                       stack("site_xmat").reshape(n, -1, 3, 3), stack("sensordata"), contact, self_collision, torque)
 
@@ -258,6 +265,8 @@ class CPUPhysics:
         self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="mujoco") if self.threads > 1 else None
         self._models: list[mujoco.MjModel] = []
         self._datas: list[mujoco.MjData] = []
+        self._arrays: BatchArrays | None = None
+        """Where `step_batch` writes and reads each scratch pair's arrays (`WRITTEN`, `READ`)."""
         home = _home(model)
         self.home_state = jax.tree.map(lambda x: jnp.asarray(x[0]), CPUState.of_batch([home]))
         self.home_frame = jax.tree.map(lambda x: jnp.asarray(x[0], jnp.float32),
@@ -301,29 +310,42 @@ class CPUPhysics:
                 jax.tree.map(lambda *xs: join(*xs).astype(np.float32), *(r[1] for r in results)))
 
     def _ensure(self, n: int) -> None:
+        if len(self._datas) >= n:
+            return
         while len(self._datas) < n:  # one scratch model/data pair per env, reused by every call
             self._models.append(copy.copy(self.model))
             self._datas.append(mujoco.MjData(self.model))
+        self._arrays = BatchArrays.of(self._models, self._datas, WRITTEN, READ)
 
     def _step_chunk(self, idx: np.ndarray, state: CPUState, targets: np.ndarray, fields: dict,
                     actuators: ActuatorArrays, hand_force: np.ndarray) -> tuple[CPUState, Frame]:
-        models = [self._models[i] for i in idx]
-        datas = [self._datas[i] for i in idx]
+        n = len(idx)
         qpos, qvel, warmstart = state.float64(idx)  # the whole chunk at once: numpy calls cost per call
-        for j, (i, m, d) in enumerate(zip(idx, models, datas, strict=True)):
-            for name in MODEL_FIELDS:
-                getattr(m, name)[:] = fields[name][i] if fields else self._nominal[name]
-            d.qpos[:], d.qvel[:], d.qacc_warmstart[:] = qpos[j], qvel[j], warmstart[j]
-            d.xfrc_applied[:] = 0.0
-            d.xfrc_applied[self.addresses.hand_bodies, :3] = hand_force[i]
-            d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
-        torque = step_actuated(models, datas, self.addresses.motors, targets[idx],
-                               MotorDrive(ActuatorArrays(*(x[idx] for x in actuators))), self.n_substeps,
-                               sensors_last_only=True)
-        for d in datas:
-            if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo reset the diverged data: end it
-                d.qpos[:] = np.nan
-        return CPUState.of_batch(datas), frames_of(self.addresses, datas, torque)
+        pull = np.zeros((n, self.model.nbody, 6))
+        pull[:, self.addresses.hand_bodies, :3] = hand_force[idx][:, None, :]
+        nominal = {name: np.broadcast_to(x, (n, *x.shape)) for name, x in self._nominal.items()}
+        model_rows = [(fields[name][idx] if fields else nominal[name]).reshape(n, -1) for name in MODEL_FIELDS]
+        written = np.concatenate([*model_rows, qpos, qvel, warmstart, pull.reshape(n, -1)], axis=1)
+        torque, reads, warned = step_batch(self._arrays, idx, self.addresses.motors, targets[idx],
+                                           MotorDrive(ActuatorArrays(*(x[idx] for x in actuators))),
+                                           self.n_substeps, written, sensors_last_only=True)
+        read = dict(zip(READ, np.split(reads, np.cumsum(self._arrays.sizes[len(WRITTEN):])[:-1], axis=1),
+                        strict=True))
+        read["data.qpos"][warned] = np.nan  # MuJoCo reset the diverged data: end it
+        contact, self_collision = contacts_of(self.addresses, [self._datas[i] for i in idx])
+        frame = read_frame(self.addresses, read["data.qpos"], read["data.qvel"], read["data.xmat"].reshape(n, -1, 3, 3),
+                           read["data.site_xpos"].reshape(n, -1, 3), read["data.site_xmat"].reshape(n, -1, 3, 3),
+                           read["data.sensordata"], contact, self_collision, torque)
+        parts = [_split(read[f"data.{name}"]) for name in ("qpos", "qvel", "qacc_warmstart")]
+        return CPUState(*(x for part in parts for x in part)), frame
+
+
+WRITTEN = (*(f"model.{name}" for name in MODEL_FIELDS), "data.qpos", "data.qvel", "data.qacc_warmstart",
+           "data.xfrc_applied")
+"""What the CPU backend writes into each env's scratch model and data before a control step."""
+READ = ("data.qpos", "data.qvel", "data.qacc_warmstart", "data.xmat", "data.site_xpos", "data.site_xmat",
+        "data.sensordata")
+"""What it reads back after (with the contacts, read by `contacts_of`)."""
 
 
 BACKENDS = {"mjx": MJXPhysics, "cpu": CPUPhysics}

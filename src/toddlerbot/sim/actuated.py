@@ -8,10 +8,15 @@ the GIL, so callers may step disjoint batches on several threads. Everything tha
 steps through it: `toddlerbot.sim.mujoco_robot.MuJoCoRobot` (a batch of one), the RL environment's CPU backend
 (`toddlerbot.rl.physics`, chunks of its batch on a thread pool), the hardware-in-the-loop plant behind the
 Dynamixel emulator (`toddlerbot.hardware.plant.HilPlant`) and the sysID ``robot_joint`` rig.
+
+`step_batch` runs the same loop for many robots in one compiled call and also writes each robot's inputs (model
+fields, state) before it and copies its outputs after, by address (`BatchArrays`): the RL CPU backend's per-env
+Python, which held the GIL while the other workers wanted it, is then a few numpy calls per chunk.
 """
 
 from __future__ import annotations
 
+import ctypes
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -20,7 +25,7 @@ import numpy as np
 
 from toddlerbot.actuation.model import friction_excess
 from toddlerbot.sim.motor_drive import MotorDrive, drive_torque, parameters_of
-from toddlerbot.sim.native import HAVE_NUMBA, compile_now, compiled, mj_step
+from toddlerbot.sim.native import HAVE_NUMBA, address, compile_now, compiled, doubles, ints, mj_step
 
 
 @dataclass(frozen=True)
@@ -154,3 +159,144 @@ def _substeps(model_address: int, data_address: int, qpos: np.ndarray, qvel: np.
 
 
 _NO_SENSOR = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+
+def _disableflags_offset() -> int | None:
+    """Byte offset of ``opt.disableflags`` in MuJoCo's ``mjModel`` struct, found by setting it to two patterns and
+    finding the one int of the struct's start that follows both (the bindings give no address for it); None if
+    that is not one place (then `step_batch` leaves the sensors on in every substep: the same state, 3 % slower)."""
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+    seen = []
+    for pattern in (0x2AAA, 0x1555):
+        model.opt.disableflags = pattern
+        seen.append(np.frombuffer(ctypes.string_at(model._address, 2048), dtype=np.int32) == pattern)
+    found = np.flatnonzero(seen[0] & seen[1])
+    return int(found[0]) * 4 if len(found) == 1 else None
+
+
+_FLAGS_OFFSET = _disableflags_offset()
+
+
+@dataclass(frozen=True)
+class BatchArrays:
+    """Each robot's MuJoCo arrays that `step_batch` writes before stepping and reads after, by address (a model's
+    or data's arrays stay where they are for its lifetime), so that one compiled call steps a whole batch without
+    touching Python per robot. Named ``model.FIELD`` or ``data.FIELD``; every robot shares the model's sizes."""
+
+    writes: tuple[str, ...]
+    reads: tuple[str, ...]
+    sizes: np.ndarray
+    """Length of each written, then each read array (float64 values)."""
+    addresses: np.ndarray
+    """(robots, writes + reads) int64."""
+    robots: np.ndarray
+    """(robots, 6) int64: the model, the data, qpos, qvel, ctrl, the model's dof_frictionloss."""
+    flags: np.ndarray
+    """(robots,) int64: each model's ``opt.disableflags`` (0: unknown, sensors stay on)."""
+    warnings: np.ndarray
+    """(robots,) int64: each data's count of bad-acceleration warnings (`mjWARN_BADQACC`)."""
+    state_sizes: np.ndarray
+    """nq, nv, nu of the model."""
+
+    @classmethod
+    def of(cls, models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjData], writes: Sequence[str],
+           reads: Sequence[str]) -> BatchArrays:
+        def array(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray:
+            owner, field = name.split(".")
+            values = getattr(model if owner == "model" else data, field)
+            if values.dtype != np.float64:
+                raise ValueError(f"{name} is {values.dtype}, not float64")
+            return values
+
+        names = (*writes, *reads)
+        bad = np.int64(mujoco.mjtWarning.mjWARN_BADQACC)
+        return cls(tuple(writes), tuple(reads),
+                   np.array([array(models[0], datas[0], name).size for name in names], dtype=np.int64),
+                   np.array([[address(array(m, d, name)) for name in names] for m, d in zip(models, datas,
+                                                                                              strict=True)],
+                            dtype=np.int64).reshape(len(models), len(names)),
+                   np.array([[m._address, d._address, address(d.qpos), address(d.qvel), address(d.ctrl),
+                              address(m.dof_frictionloss)] for m, d in zip(models, datas, strict=True)],
+                            dtype=np.int64).reshape(len(models), 6),
+                   np.array([0 if _FLAGS_OFFSET is None else m._address + _FLAGS_OFFSET for m in models],
+                            dtype=np.int64),
+                   np.array([address(d.warning.number[bad:bad + 1]) for d in datas], dtype=np.int64),
+                   np.array([models[0].nq, models[0].nv, models[0].nu], dtype=np.int64))
+
+    @property
+    def write_size(self) -> int:
+        return int(self.sizes[:len(self.writes)].sum())
+
+    @property
+    def read_size(self) -> int:
+        return int(self.sizes[len(self.writes):].sum())
+
+
+def step_batch(arrays: BatchArrays, robots: np.ndarray, motors: MotorAddresses, targets: np.ndarray,
+               drive: MotorDrive, n_substeps: int, written: np.ndarray, sensors_last_only: bool = False
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`step_actuated` for robots ``robots`` (indices into ``arrays``) in one compiled call: first each robot's
+    ``arrays.writes`` are set from its row of ``written`` (robots, write_size) and its bad-acceleration warning
+    count cleared, then its substeps run (the drive's parameter row per robot, or one shared), then its
+    ``arrays.reads`` are copied out. Returns the last substep's motor torques (robots, n_motors), the reads
+    (robots, read_size) and whether MuJoCo warned of a bad acceleration (it then reset that robot's state)."""
+    if n_substeps < 1:
+        raise ValueError(f"n_substeps must be >= 1, got {n_substeps}")
+    if written.shape != (len(robots), arrays.write_size):
+        raise ValueError(f"written has shape {written.shape}, expected {(len(robots), arrays.write_size)}")
+    shared = (arrays.sizes, len(arrays.writes), arrays.state_sizes, motors.qpos, motors.dof, motors.actuator,
+              drive.tables, drive.per_robot, drive.torque_on, drive.limit, drive.has_friction_excess, n_substeps,
+              sensors_last_only)
+    if HAVE_NUMBA and not _batch.signatures:  # compiled (or loaded) on no robot first, as `compile_substeps` does
+        none = np.zeros(0, dtype=np.int64)
+        compile_now(_batch, arrays.robots[none], arrays.addresses[none], arrays.flags[none], arrays.warnings[none],
+                    np.zeros((0, arrays.write_size)), np.zeros((0, len(motors.qpos))),
+                    np.zeros((0, arrays.read_size)), *shared)
+    reads = np.empty((len(robots), arrays.read_size))
+    torques, warned = _batch(arrays.robots[robots], arrays.addresses[robots], arrays.flags[robots],
+                             arrays.warnings[robots], np.ascontiguousarray(written, dtype=float),
+                             np.ascontiguousarray(targets, dtype=float), reads, *shared)
+    return torques, reads, warned
+
+
+@compiled
+def _batch(robots: np.ndarray, addresses: np.ndarray, flags: np.ndarray, warnings: np.ndarray, written: np.ndarray,
+           targets: np.ndarray, reads: np.ndarray, sizes: np.ndarray, n_writes: int, state_sizes: np.ndarray,
+           qadr: np.ndarray, dofs: np.ndarray, actuators: np.ndarray, tables: np.ndarray, per_robot: bool,
+           torque_on: np.ndarray, limit: np.ndarray, budget: bool, n_substeps: int, sensors_last_only: bool
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """`step_batch`'s loop over robots: writes, `_substeps`, reads, all in machine code without the GIL."""
+    n = len(robots)
+    torques = np.zeros((n, len(qadr)))
+    warned = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        at = 0
+        for k in range(n_writes):
+            doubles(addresses[i, k], sizes[k])[:] = written[i, at:at + sizes[k]]
+            at += sizes[k]
+        warning = ints(warnings[i], 1)
+        warning[0] = 0
+        model, data = robots[i, 0], robots[i, 1]
+        qpos, qvel = doubles(robots[i, 2], state_sizes[0]), doubles(robots[i, 3], state_sizes[1])
+        ctrl, frictionloss = doubles(robots[i, 4], state_sizes[2]), doubles(robots[i, 5], state_sizes[1])
+        own = frictionloss[dofs].copy()
+        table = tables[i if per_robot else 0]
+        if sensors_last_only and n_substeps > 1 and flags[i] != 0:
+            flag = ints(flags[i], 1)
+            flag[0] |= _NO_SENSOR
+            _substeps(model, data, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators, targets[i], table,
+                      torque_on, limit, budget, n_substeps - 1)
+            flag[0] &= ~_NO_SENSOR
+            torques[i] = _substeps(model, data, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators,
+                                   targets[i], table, torque_on, limit, budget, 1)
+        else:
+            torques[i] = _substeps(model, data, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators,
+                                   targets[i], table, torque_on, limit, budget, n_substeps)
+        if budget:
+            frictionloss[dofs] = own
+        warned[i] = warning[0] != 0
+        at = 0
+        for k in range(n_writes, len(sizes)):
+            reads[i, at:at + sizes[k]] = doubles(addresses[i, k], sizes[k])
+            at += sizes[k]
+    return torques, warned

@@ -88,6 +88,11 @@ class MotorDrive:
         self.limit = np.full(n, np.inf) if torque_limit is None else np.broadcast_to(
             np.asarray(torque_limit, dtype=float), n).copy()
 
+    @property
+    def tables(self) -> np.ndarray:
+        """Every robot's parameters, (robots, fields, n_motors) (one row when they are shared, `per_robot` False)."""
+        return self._tables
+
     def table(self, i: int) -> np.ndarray:
         """Robot ``i``'s parameters as one contiguous (fields, n_motors) array, in `ActuatorArrays` order."""
         return self._tables[i if self.per_robot else 0]

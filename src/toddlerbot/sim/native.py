@@ -14,6 +14,9 @@ caches); compiled with numba, the whole substep loop runs in machine code and ca
   which stays an ordinary Python function for everyone else. The model is elementwise, and compiled code
   evaluates it motor by motor on floats (no array temporaries: a quarter of the time), so numba is taught the
   float forms of ``np.clip`` and ``np.where`` it lacks (numpy's semantics, signed zeros included).
+* `address`, `doubles`, `ints`: an array's address, and in compiled code the float64 or int32 values at an address
+  as an array, so that one compiled call can read and write the MuJoCo arrays of many robots (their addresses are
+  fixed for the life of the model or data).
 * `mj_step`: ``mj_step(model_address, data_address)`` in the MuJoCo library the ``mujoco`` package loaded.
   Unlike ``mujoco.mj_step`` it turns no MuJoCo error into a Python exception (no exception can pass through
   compiled code, and MuJoCo cannot go on after an error): a fatal MuJoCo error (which a compiled, well-sized model
@@ -163,6 +166,50 @@ if HAVE_NUMBA:
         if isinstance(condition, types.Boolean) and _floats(x, y):
             return lambda condition, x, y: x if condition else y
         return None
+
+
+def address(array: np.ndarray) -> int:
+    """Where a C-contiguous array's data starts: compiled code reads and writes MuJoCo's arrays there (a model's or
+    data's arrays live, at the same address, as long as the model or data)."""
+    if not array.flags.c_contiguous:
+        raise ValueError("expected a C-contiguous array")
+    return int(array.__array_interface__["data"][0])
+
+
+if HAVE_NUMBA:
+    from numba.extending import intrinsic, register_jitable
+
+    def _pointer_to(element):
+        @intrinsic
+        def pointer(typingctx, at):
+            if not isinstance(at, types.Integer):
+                return None
+
+            def codegen(context, builder, signature, args):
+                return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+            return types.CPointer(element)(at), codegen
+        return pointer
+
+    _double_pointer = _pointer_to(types.float64)
+    _int_pointer = _pointer_to(types.int32)
+
+    @register_jitable
+    def doubles(at: int, n: int) -> np.ndarray:
+        """The ``n`` float64 values at address ``at`` as an array (no copy). Compiled code only."""
+        return numba.carray(_double_pointer(at), n)
+
+    @register_jitable
+    def ints(at: int, n: int) -> np.ndarray:
+        """The ``n`` int32 values at address ``at`` as an array (no copy). Compiled code only."""
+        return numba.carray(_int_pointer(at), n)
+else:
+    def doubles(at: int, n: int) -> np.ndarray:
+        """The ``n`` float64 values at address ``at`` as an array (no copy)."""
+        return np.ctypeslib.as_array((ctypes.c_double * int(n)).from_address(int(at)))
+
+    def ints(at: int, n: int) -> np.ndarray:
+        """The ``n`` int32 values at address ``at`` as an array (no copy)."""
+        return np.ctypeslib.as_array((ctypes.c_int32 * int(n)).from_address(int(at)))
 
 
 def _mujoco_library_path() -> str:
