@@ -30,9 +30,9 @@ import numpy as np
 from toddlerbot.dp import have_torch
 from toddlerbot.dp.shipped import check_named_checkpoint
 from toddlerbot.errors import ToddlerbotError, quoted
-from toddlerbot.locomotion.swing import min_jerk
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.robot.interface import Observation, Robot
+from toddlerbot.tasks.demonstrator import min_jerk
 from toddlerbot.tasks.ik import CORRECTION_GAIN, MAX_CORRECTION, ArmIK, GraspPointCorrection
 from toddlerbot.tasks.scenes import SIDES, grasp_site, rack_travel
 
