@@ -154,7 +154,7 @@ def test_metrics_keep_compile_time_apart_from_training_time(tmp_path):
     _, history = train.train(tmp_path / "run", EnvConfig(), CFG, env=_RunnableTargetEnv(), max_epochs=2,
                              imitation_cfg=ImitationConfig(iterations=0), dashboards=Dashboards(tensorboard=False))
     first, second = history
-    assert first["compile_s"] > 0.2 and second["compile_s"] < 0.1 * first["compile_s"]
+    assert first["compile_s"] > 0.2 and second["compile_s"] == 0.0  # not a single op compiled again
     assert first["epoch_seconds"] < 0.5 * first["compile_s"]  # one update of 16 envs: milliseconds
     assert first["walltime"] >= first["compile_s"] + first["epoch_seconds"]
     for record in history:

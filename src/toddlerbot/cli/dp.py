@@ -47,6 +47,8 @@ BinaryActionOption = Annotated[list[str] | None, typer.Option(
     "--binary-action", help="An action the demonstrations only open or close (a gripper motor, e.g. "
                             "left_gripper_drive; repeat for each): the policy commands one end of its demonstrated "
                             "range or the other, never a value between.")]
+TrainSeedOption = Annotated[int | None, seed_option(help="Training seed of a new run (network, batches, noise, "
+                                                        "validation episodes); default: the preset's (0).")]
 BatchSizeOption = Annotated[int | None, typer.Option(min=1, help="Global batch of a new run (under torchrun: all "
                                                                  "processes together, split evenly); default: the "
                                                                  "preset's.")]
@@ -67,8 +69,7 @@ def train(
     log_every: LogEveryOption = 50,
     batch_size: BatchSizeOption = None,
     binary_action: BinaryActionOption = None,
-    seed: Annotated[int | None, seed_option(help="Training seed of a new run (network, batches, noise, validation "
-                                                 "episodes); default: the preset's (0).")] = None,
+    seed: TrainSeedOption = None,
     tensorboard: TensorBoardOption = True,
     wandb: WandbOption = False,
     wandb_mode: WandbModeOption = None,

@@ -230,7 +230,8 @@ class PPO:
         # every call's arguments placed alike (replicated, or one shard per device), else each new placement
         # compiles the epoch again, and on several devices is refused
         n = self.n_devices
-        p_ts = _per_device(jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), _strip_weak_types(ts)))
+        # on the host: an eager jnp.broadcast_to compiled once more per leaf when its input's placement changed
+        p_ts = _per_device(jax.tree.map(lambda x: np.broadcast_to(np.asarray(x), (n, *np.shape(x))), ts))
         keys = _per_device(jax.random.split(key, jax.device_count())[self._mine])
         p_ts, env_state, metrics = self._p_epoch(p_ts, _strip_weak_types(env_state), keys)
         return jax.tree.map(_first_local, p_ts), env_state, {k: float(_first_local(v)) for k, v in metrics.items()}
