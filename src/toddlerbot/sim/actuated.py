@@ -57,27 +57,14 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
     no other thread steps)."""
     if n_substeps < 1:
         raise ValueError(f"n_substeps must be >= 1, got {n_substeps}")
-    if HAVE_NUMBA and not _substeps.signatures:  # first call in the process: compiled or loaded, a bad cache redone
+    if HAVE_NUMBA and not _robot.signatures:  # first call in the process: compiled or loaded, a bad cache redone
         compile_substeps(models[0], datas[0], motors, drive)
     targets = np.asarray(targets, dtype=float)
     torques = np.empty(targets.shape)
-    dofs = motors.dof
     for i, (m, d) in enumerate(zip(models, datas, strict=True)):
-        own = m.dof_frictionloss[dofs]  # a copy (fancy index), restored on return
-        loop = _loop_arguments(m, d, motors, np.ascontiguousarray(targets[i]), drive, i, own)
-        try:
-            if sensors_last_only and n_substeps > 1:
-                m.opt.disableflags |= _NO_SENSOR
-                _substeps(*loop, n_substeps - 1)
-                m.opt.disableflags &= ~_NO_SENSOR
-                torques[i] = _substeps(*loop, 1)
-            else:
-                torques[i] = _substeps(*loop, n_substeps)
-        finally:
-            if drive.has_friction_excess:
-                m.dof_frictionloss[dofs] = own
+        torques[i] = _robot(*_robot_arguments(m, d, motors, np.ascontiguousarray(targets[i]), drive, i), n_substeps,
+                            sensors_last_only)
     return torques
-
 
 RETRY_SOLVER_ITERATIONS = 100
 """Newton and line-search iterations of a control step taken again after MuJoCo found it diverging: the spec's few
@@ -128,16 +115,40 @@ def compile_substeps(model: mujoco.MjModel, data: mujoco.MjData, motors: MotorAd
     """Compile the substep loop for this robot, or load it from numba's disk cache, without stepping
     (`toddlerbot.sim.native.compile_now`): otherwise the first `step_actuated` does it (seconds the first time),
     which a wall-clock run must not spend mid-run."""
-    own = model.dof_frictionloss[motors.dof]
-    compile_now(_substeps, *_loop_arguments(model, data, motors, np.zeros(len(motors.qpos)), drive, 0, own), 0)
+    compile_now(_robot, *_robot_arguments(model, data, motors, np.zeros(len(motors.qpos)), drive, 0), 0, False)
 
 
-def _loop_arguments(m: mujoco.MjModel, d: mujoco.MjData, motors: MotorAddresses, targets: np.ndarray,
-                    drive: MotorDrive, i: int, own_frictionloss: np.ndarray) -> tuple:
-    """`_substeps`' arguments for robot ``i`` of a batch, less the substep count."""
-    return (m._address, d._address, d.qpos, d.qvel, d.ctrl, m.dof_frictionloss, own_frictionloss, motors.qpos,
+def _robot_arguments(m: mujoco.MjModel, d: mujoco.MjData, motors: MotorAddresses, targets: np.ndarray,
+                     drive: MotorDrive, i: int) -> tuple:
+    """`_robot`'s arguments for robot ``i`` of a batch, less the substep count and the sensors' setting."""
+    return (m._address, d._address, d.qpos, d.qvel, d.ctrl, m.dof_frictionloss, _flags_address(m), motors.qpos,
             motors.dof, motors.actuator, targets, drive.table(i), drive.torque_on, drive.limit,
             drive.has_friction_excess)
+
+
+@compiled
+def _robot(model_address: int, data_address: int, qpos: np.ndarray, qvel: np.ndarray, ctrl: np.ndarray,
+           frictionloss: np.ndarray, flags_address: int, qadr: np.ndarray, dofs: np.ndarray, actuators: np.ndarray,
+           targets: np.ndarray, table: np.ndarray, torque_on: np.ndarray, limit: np.ndarray, budget: bool,
+           n_substeps: int, sensors_last_only: bool) -> np.ndarray:
+    """One robot's control step: `_substeps` with the model's own frictionloss kept and restored, and with
+    ``sensors_last_only`` MuJoCo's sensors switched off but in the last substep (through the model's flags at
+    ``flags_address``; 0: unknown, left on). Returns the last substep's torques."""
+    own = frictionloss[dofs].copy()
+    if sensors_last_only and n_substeps > 1 and flags_address != 0:
+        flags = ints(flags_address, 1)
+        flags[0] |= _NO_SENSOR
+        _substeps(model_address, data_address, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators, targets,
+                  table, torque_on, limit, budget, n_substeps - 1)
+        flags[0] &= ~_NO_SENSOR
+        tau = _substeps(model_address, data_address, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators,
+                        targets, table, torque_on, limit, budget, 1)
+    else:
+        tau = _substeps(model_address, data_address, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators,
+                        targets, table, torque_on, limit, budget, n_substeps)
+    if budget:
+        frictionloss[dofs] = own
+    return tau
 
 
 @compiled
@@ -175,6 +186,11 @@ def _disableflags_offset() -> int | None:
 
 
 _FLAGS_OFFSET = _disableflags_offset()
+
+
+def _flags_address(model: mujoco.MjModel) -> int:
+    """Where the model's ``opt.disableflags`` lives (0: unknown)."""
+    return 0 if _FLAGS_OFFSET is None else model._address + _FLAGS_OFFSET
 
 
 @dataclass(frozen=True)
@@ -218,8 +234,7 @@ class BatchArrays:
                    np.array([[m._address, d._address, address(d.qpos), address(d.qvel), address(d.ctrl),
                               address(m.dof_frictionloss)] for m, d in zip(models, datas, strict=True)],
                             dtype=np.int64).reshape(len(models), 6),
-                   np.array([0 if _FLAGS_OFFSET is None else m._address + _FLAGS_OFFSET for m in models],
-                            dtype=np.int64),
+                   np.array([_flags_address(m) for m in models], dtype=np.int64),
                    np.array([address(d.warning.number[bad:bad + 1]) for d in datas], dtype=np.int64),
                    np.array([models[0].nq, models[0].nv, models[0].nu], dtype=np.int64))
 
@@ -265,7 +280,7 @@ def _batch(robots: np.ndarray, addresses: np.ndarray, flags: np.ndarray, warning
            qadr: np.ndarray, dofs: np.ndarray, actuators: np.ndarray, tables: np.ndarray, per_robot: bool,
            torque_on: np.ndarray, limit: np.ndarray, budget: bool, n_substeps: int, sensors_last_only: bool
            ) -> tuple[np.ndarray, np.ndarray]:
-    """`step_batch`'s loop over robots: writes, `_substeps`, reads, all in machine code without the GIL."""
+    """`step_batch`'s loop over robots: writes, `_robot`, reads, all in machine code without the GIL."""
     n = len(robots)
     torques = np.zeros((n, len(qadr)))
     warned = np.zeros(n, dtype=np.bool_)
@@ -276,24 +291,11 @@ def _batch(robots: np.ndarray, addresses: np.ndarray, flags: np.ndarray, warning
             at += sizes[k]
         warning = ints(warnings[i], 1)
         warning[0] = 0
-        model, data = robots[i, 0], robots[i, 1]
         qpos, qvel = doubles(robots[i, 2], state_sizes[0]), doubles(robots[i, 3], state_sizes[1])
         ctrl, frictionloss = doubles(robots[i, 4], state_sizes[2]), doubles(robots[i, 5], state_sizes[1])
-        own = frictionloss[dofs].copy()
-        table = tables[i if per_robot else 0]
-        if sensors_last_only and n_substeps > 1 and flags[i] != 0:
-            flag = ints(flags[i], 1)
-            flag[0] |= _NO_SENSOR
-            _substeps(model, data, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators, targets[i], table,
-                      torque_on, limit, budget, n_substeps - 1)
-            flag[0] &= ~_NO_SENSOR
-            torques[i] = _substeps(model, data, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators,
-                                   targets[i], table, torque_on, limit, budget, 1)
-        else:
-            torques[i] = _substeps(model, data, qpos, qvel, ctrl, frictionloss, own, qadr, dofs, actuators,
-                                   targets[i], table, torque_on, limit, budget, n_substeps)
-        if budget:
-            frictionloss[dofs] = own
+        torques[i] = _robot(robots[i, 0], robots[i, 1], qpos, qvel, ctrl, frictionloss, flags[i], qadr, dofs,
+                            actuators, targets[i], tables[i if per_robot else 0], torque_on, limit, budget,
+                            n_substeps, sensors_last_only)
         warned[i] = warning[0] != 0
         at = 0
         for k in range(n_writes, len(sizes)):
