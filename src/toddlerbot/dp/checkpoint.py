@@ -99,8 +99,7 @@ def _read(path: Path) -> dict[str, Any]:
 
 
 def _network(path: Path, body: dict[str, Any], key: str) -> DiffusionPolicy:
-    config = DPConfig.from_json(body["config"], source=f"{path} config")
-    return _weights(path, body, key, config)
+    return _weights(path, body, key, _config(path, body, None))
 
 
 def _weights(path: Path, body: dict[str, Any], key: str, config: DPConfig) -> DiffusionPolicy:
@@ -118,10 +117,12 @@ def load_policy(path: str | Path, use_ema: bool = True, binary_actions: tuple[st
     (names) replaces the config's (`DPConfig.binary_actions`: how the sampled actions are read, not the weights)."""
     path = Path(path)
     body = _read(path)
+    return _weights(path, body, "ema" if use_ema else "model", _config(path, body, binary_actions)).eval()
+
+
+def _config(path: Path, body: dict[str, Any], binary_actions: tuple[str, ...] | None) -> DPConfig:
     config = DPConfig.from_json(body["config"], source=f"{path} config")
-    if binary_actions is not None:
-        config = replace(config, binary_actions=tuple(binary_actions))
-    return _weights(path, body, "ema" if use_ema else "model", config).eval()
+    return config if binary_actions is None else replace(config, binary_actions=tuple(binary_actions))
 
 
 def export_policy(checkpoint: str | Path, out: str | Path, binary_actions: tuple[str, ...] | None = None) -> Path:
@@ -130,7 +131,8 @@ def export_policy(checkpoint: str | Path, out: str | Path, binary_actions: tuple
     `checkpoint_summary` read it; it cannot resume training."""
     checkpoint = Path(checkpoint)
     body = _read(checkpoint)
-    config = load_policy(checkpoint, binary_actions=binary_actions).config  # the weights fit the config
+    config = _config(checkpoint, body, binary_actions)
+    _weights(checkpoint, body, "ema", config)  # the weights fit the config
     policy_only = {key: body[key] for key in ("format", "ema", "step", "history")} | {"config": config.to_json()}
     return atomic_write(out, lambda tmp: torch.save(policy_only, tmp))
 
