@@ -97,11 +97,15 @@ def test_the_shipped_wagon_policy_commands_its_grippers_open_or_at_the_chains_cl
     passes the chain's check (0.78 of the range), never 0.77 (a third of the failures before they were)."""
     from toddlerbot.dp.checkpoint import load_policy
     from toddlerbot.robot.description import RobotDescription
+    from toddlerbot.skills.spec import load_chain
 
     policy = load_policy(shipped.shipped_checkpoint("wagon"))
     names = ("left_gripper_drive", "right_gripper_drive")
     assert policy.config.binary_actions == names
     description = RobotDescription.load(variant="gripper")
+    grasp = load_chain("wagon", tuple(description.groups)).skills[0]
+    closed = grasp.until.params.closed_fraction  # the chain's check (0.78), which its demonstrations close to
+    assert grasp.params.grip_fraction == closed
     generator = torch.Generator().manual_seed(0)
     state = policy.state_norm.unnormalize(torch.rand(32, 2, policy.config.state_dim, generator=generator) * 2 - 1)
     images = torch.randint(0, 256, (32, 2, 3, 96, 96), dtype=torch.uint8, generator=generator)
@@ -110,10 +114,10 @@ def test_the_shipped_wagon_policy_commands_its_grippers_open_or_at_the_chains_cl
     for name in names:
         lo, hi = description.motor_range[description.motor_names.index(name)]
         fraction = (chunk[..., policy.config.action_names.index(name)].double() - lo) / (hi - lo)
-        ends = torch.where(fraction > 0.5, fraction - 0.78, fraction)
-        assert float(ends.abs().max()) < 1e-6  # open (0) or the chain's closed_fraction 0.78, nothing between
+        ends = torch.where(fraction > 0.5, fraction - closed, fraction)
+        assert float(ends.abs().max()) < 1e-6  # open (0) or the chain's closed_fraction, nothing between
         seen |= {round(float(f), 2) for f in fraction.flatten()}
-    assert seen == {0.0, 0.78}  # random inputs give both
+    assert seen == {0.0, round(closed, 2)}  # random inputs give both
 
 
 @pytest.mark.parametrize("command", [["manip", "demo", "-o", "unused"], ["manip", "demo-rate"], ["dp", "eval"]])

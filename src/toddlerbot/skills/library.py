@@ -59,8 +59,9 @@ class GraspParams:
     """Pre-grasp point this far behind the grasp point along the fingers, m."""
     in_place: bool = False
     """Grasp without backing out first when the bar is already between the open fingers (a re-grasp in the wagon
-    task's demonstrations, where backing out drags the bar along). Off in the chain: after a hand slipped there it
-    made the re-grasp miss (seed 0 of the recover test)."""
+    task's demonstrations, where backing out drags the bar along). Off in the chain: after the slip test's slip
+    neither way re-grasps reliably (in place 2 of seeds 0-7, backing out 1: seed 0, the test's;
+    docs/manipulation.md)."""
     grip_fraction: float = 0.85
     """Closed gripper target as a fraction of the drive's range from open."""
     arm_kp_scale: float = 1.0
