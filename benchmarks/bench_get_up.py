@@ -4,8 +4,9 @@ Each seed walks the nominal robot with walk-rl at a seeded command within its re
 seeded) towards its back or its front, lets it settle 1.5 s with the targets held, then hands it to the get-up
 policy for 10 s. Success: the torso at >= 90 % of its standing height with uprightness >= 0.9 for 0.5 s (the
 simulator's ground truth judges; the policy reads only the IMU). Printed per side: successes out of the seeds that
-fell, time to stand (median, max), attempts used, the longest time any motor stayed above its stall torque, the
-control steps with the fall guard's lowered gains, how the robots lay, and the machine.
+fell, time to stand (median, max), how many then walked 5 s with walk-rl without a fall, attempts used, the
+longest time any motor stayed above its stall torque, the control steps with the fall guard's lowered gains, how
+the robots lay, and the machine.
 
 Run: PYTHONPATH=src python benchmarks/bench_get_up.py [--seeds 20] [--first-seed 0] [--sides front]
      [--tracker get_up_front=POLICY.npz | --open-loop]  (default: the shipped trackers, if any)
@@ -21,7 +22,7 @@ import time
 
 import numpy as np
 
-from toddlerbot.policies.get_up_trials import fallen_robot, get_up_trial
+from toddlerbot.policies.get_up_trials import WALK_ON_S, fallen_robot, get_up_trial
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.mujoco_robot import SimulationError
 
@@ -62,6 +63,8 @@ def side_figures(description: RobotDescription, side: str, seeds: range,
     failed = ", ".join([str(t.seed) for t in trials if not t.stood] + [f"{s} (diverged)" for s in diverged]) or "none"
     lines = [f"{side}: {len(stood)}/{len(trials) + len(diverged)} stood within 10 s "
              f"(seeds {seeds.start}-{seeds.stop - 1}; failed: {failed}); {timing}",
+             f"  then walked {WALK_ON_S:g} s with walk-rl without a fall: "
+             f"{sum(bool(t.walked_on) for t in stood)} of {len(stood)}",
              f"  attempts used: {dict(sorted(attempts.items()))}; first lying: {dict(lying)}",
              f"  longest time a motor stayed above its stall torque: "
              f"{max((t.longest_over_stall for t in trials), default=0.0):.2f} s; steps with lowered fall-guard "

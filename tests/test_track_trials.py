@@ -45,13 +45,14 @@ def constant_policy(path, trials: MotionTrials, action: float):
 def test_a_zero_residual_tracker_plays_what_replay_plays_and_the_front_get_up_completes(trials, tmp_path):
     """The `track` policy commands the reference's targets step for step (zero actions: the open-loop motion), so
     the two players' trials agree (to the replay's own rounding of its clock, amplified by the contacts); the
-    nominal robot lying on its front gets up, within 0.01 rad of the reference's joints and 0.02 rad of its torso's
-    tilt on average, its heading within 0.05 rad at the end."""
+    nominal robot lying on its front gets up, within 0.01 rad of the reference's joints and 0.03 rad of its torso's
+    tilt on average, its heading within 0.1 rad at the end (0.006, 0.019 and 0.075 measured: the 5.9 s motion is
+    quicker than the 8.6 s one before it, and two simulations of it part a little more)."""
     zero = constant_policy(tmp_path / "zero.npz", trials, 0.0)
     replay = trials.trial("replay", NOMINAL, 0)
     tracked = trials.trial("track", NOMINAL, 0, zero)
     assert replay.completed and replay.stood and replay.left_at is None
-    assert replay.motor_rmse < 0.01 and replay.tilt_error < 0.02 and abs(replay.heading_error) < 0.05
+    assert replay.motor_rmse < 0.01 and replay.tilt_error < 0.03 and abs(replay.heading_error) < 0.1
     assert tracked.completed and abs(tracked.motor_rmse - replay.motor_rmse) < 1e-3
     assert abs(tracked.tilt_error - replay.tilt_error) < 5e-3
 
@@ -83,9 +84,9 @@ def test_get_up_plays_the_front_motion_with_its_tracker_and_refuses_a_tracker_of
     fallen = fallen_robot(trials.description, 0, "front")
     trial = get_up_trial(fallen, {"get_up_front": zero})
     assert trial.stood and trial.attempts == 1 and trial.lying == ("front",) and trial.longest_over_stall < 1.0
-    with pytest.raises(ToddlerbotError, match=r"zero.npz: a tracker for 'get_up_back' must be a tracking policy of "
-                                              r"that motion, one of get_up_back, get_up_front, roll_to_front$"):
-        GetUpPolicy(MuJoCoRobot(trials.description), {"get_up_back": zero})
+    with pytest.raises(ToddlerbotError, match=r"zero.npz: a tracker for 'roll_from_back' must be a tracking policy of "
+                                              r"that motion, one of get_up_front, roll_from_back, roll_to_front$"):
+        GetUpPolicy(MuJoCoRobot(trials.description), {"roll_from_back": zero})
 
 
 def test_a_tracker_of_a_built_in_motion_ships_beside_the_walking_policies(tmp_path):

@@ -32,16 +32,23 @@ MAX_ATTEMPTS = 3
 STOOD_UPRIGHTNESS = 0.9
 """The IMU's uprightness that counts as standing at the end of an attempt."""
 CHECK_S = 0.5
-"""s of holding the home pose after a motion before checking that the robot stands."""
+"""s of holding the home pose after a motion before checking that the robot stands..."""
+STANDING_STILL_RAD_S = 0.15
+"""...and until the gyro reads less than this (rad/s) for `STILL_S`, at most `WAIT_MAX_S` more: a robot still swaying
+from the motion is not handed to a walking policy."""
 STILL_RAD_S = 0.5
 """The torso is still when the gyro reads less than this (rad/s)..."""
 STILL_S = 0.2
 """...for this long (s); the policy waits for it, at most `WAIT_MAX_S`, before reading how the robot lies."""
 WAIT_MAX_S = 1.5
-BLEND_S = 0.8
-"""s to move the joints from where they are to a motion's first keyframe."""
-MOTIONS = {"back": "get_up_back", "front": "get_up_front", "right side": "roll_to_front"}
-"""The motion each lying state plays; lying on the left side plays ``roll_to_front`` mirrored."""
+BLEND_RAD_S = 2.5
+"""Mean joint speed, rad/s, of the move from where the joints are to a motion's first keyframe: the joint furthest
+from it sets the move's time..."""
+BLEND_S = (0.2, 0.8)
+"""...within these bounds, s (a roll that ends where the next motion starts is followed at once)."""
+MOTIONS = {"back": "roll_from_back", "front": "get_up_front", "right side": "roll_to_front"}
+"""The motion each lying state plays; lying on the left side plays ``roll_to_front`` mirrored. Every motion but
+the front's is a roll, after which the policy reads how the robot lies again."""
 
 
 def shipped_trackers() -> dict[str, Path]:
@@ -146,17 +153,24 @@ class GetUpPolicy(Policy):
         self._still_since: float | None = None
         self._hold = self.joint_action(obs.joint_pos)
 
-    def _waiting(self, obs: Observation, elapsed: float) -> Action:
-        still = float(np.linalg.norm(obs.imu_ang_vel)) < STILL_RAD_S
+    def _check(self, obs: Observation) -> None:
+        self._enter("check", obs)
+        self._still_since = None
+
+    def _settled(self, obs: Observation, below_rad_s: float) -> bool:
+        """Whether the gyro has read less than ``below_rad_s`` for the last `STILL_S`."""
+        still = float(np.linalg.norm(obs.imu_ang_vel)) < below_rad_s
         self._still_since = (self._still_since if self._still_since is not None else obs.time) if still else None
-        settled = self._still_since is not None and obs.time - self._still_since >= STILL_S
-        if not (settled or elapsed >= WAIT_MAX_S):
+        return self._still_since is not None and obs.time - self._still_since >= STILL_S
+
+    def _waiting(self, obs: Observation, elapsed: float) -> Action:
+        if not (self._settled(obs, STILL_RAD_S) or elapsed >= WAIT_MAX_S):
             return self._hold
         lying = lying_on(obs.imu_quat, STOOD_UPRIGHTNESS)
         if lying == "upright":
-            self._enter("check", obs)
+            self._check(obs)
             return self._home
-        if not (self._after_roll and not lying.endswith("side")):  # a roll and the get-up after it: one attempt
+        if not (self._after_roll and lying == "front"):  # a roll and the get-up after it: one attempt
             if self._attempts >= MAX_ATTEMPTS:
                 self._enter("gave up", obs)
                 return self._hold
@@ -171,21 +185,23 @@ class GetUpPolicy(Policy):
         tracker = self._trackers.get(self._motion.name) if lying != "left side" else None
         self._tracking = None if tracker is None else TrackController(tracker)
         self._from = obs.joint_pos.copy()
-        self._enter("roll" if lying.endswith("side") else "get-up", obs)
+        distance = float(np.max(np.abs(full_pose(self._motion, self.robot.description) - self._from)))
+        self._blend_s = float(np.clip(distance / BLEND_RAD_S, *BLEND_S))
+        self._enter("get-up" if lying == "front" else "roll", obs)
 
     def _playing(self, obs: Observation, elapsed: float) -> Action:
         motion = self._motion
-        if elapsed < BLEND_S:
-            s = elapsed / BLEND_S
+        if elapsed < self._blend_s:
+            s = elapsed / self._blend_s
             start = full_pose(motion, self.robot.description)
             return self.joint_action(self._from + s * s * (3 - 2 * s) * (start - self._from))
-        t = elapsed - BLEND_S
+        t = elapsed - self._blend_s
         if t > motion.duration:
             if self._phase == "roll":
                 self._after_roll = True
                 self._wait(obs)
                 return self._hold
-            self._enter("check", obs)
+            self._check(obs)
             return self._home
         if self._tracking is not None:
             targets = self._tracking.step(obs.motor_pos, obs.motor_vel, obs.imu_ang_vel, obs.imu_quat)
@@ -193,7 +209,7 @@ class GetUpPolicy(Policy):
         return self.joint_action(full_pose(motion, self.robot.description, t))
 
     def _checking(self, obs: Observation, elapsed: float) -> Action:
-        if elapsed < CHECK_S:
+        if elapsed < CHECK_S or not (self._settled(obs, STANDING_STILL_RAD_S) or elapsed >= CHECK_S + WAIT_MAX_S):
             return self._home
         if uprightness(obs.imu_quat) >= STOOD_UPRIGHTNESS:
             self._stood_at = obs.time - self._start

@@ -4,7 +4,8 @@ A fallen state: the nominal robot walks with `walk-rl` at a seeded command withi
 kick of 1-2 m/s towards its back or its front knocks it over, and it is left `SETTLE_S` with torque on and the last
 targets held. A trial then hands it to the `get-up` policy: it succeeded when, within `LIMIT_S`, the torso stays at
 least `HEIGHT_FRACTION` of its standing height with uprightness at least `UPRIGHTNESS` for `STABLE_S` (the
-simulator's ground truth judges; the policy itself reads only the IMU).
+simulator's ground truth judges; the policy itself reads only the IMU). A robot that stood is then handed to
+`walk-rl`, which walks `WALK_ON_S` at the seed's command from the get-up's final pose without falling, or not.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from toddlerbot.locomotion.config import WALK_REACH
 from toddlerbot.policies import make_policy
 from toddlerbot.policies.get_up import GetUpPolicy
 from toddlerbot.robot.description import RobotDescription
+from toddlerbot.robot.interface import Observation
 from toddlerbot.runtime.robustness import DirectedKick
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -37,6 +39,7 @@ LIMIT_S = 10.0
 HEIGHT_FRACTION = 0.9
 UPRIGHTNESS = 0.9
 STABLE_S = 0.5
+WALK_ON_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -65,6 +68,8 @@ class Trial:
     lowered_gain_steps: int
     """Control steps in which the shared layer's fall guard lowered the gains (it took a get-up move for a fall)."""
     lying: tuple[str, ...]
+    walked_on: bool | None = None
+    """Whether walk-rl then walked `WALK_ON_S` from the get-up's final pose without a fall; None: it did not stand."""
 
 
 def fallen_robot(description: RobotDescription, seed: int, side: Side) -> Fallen | None:
@@ -107,5 +112,25 @@ def get_up_trial(fallen: Fallen, trackers: Mapping[str, str | Path] | None = Non
         standing_since = (obs.time if standing_since is None else standing_since) if standing else None
         if standing_since is not None and obs.time - standing_since >= STABLE_S:
             return Trial(fallen.seed, fallen.side, True, standing_since - start, policy.attempts, longest, lowered,
-                         policy.status.lying)
+                         policy.status.lying, walks_on(robot, policy, obs, fallen.command))
     return Trial(fallen.seed, fallen.side, False, None, policy.attempts, longest, lowered, policy.status.lying)
+
+
+def walks_on(robot: MuJoCoRobot, get_up: GetUpPolicy, obs: Observation, command: np.ndarray) -> bool:
+    """Whether `walk-rl`, handed the robot once ``get_up`` (standing at ``obs``) is done, as the run loop does, walks
+    `WALK_ON_S` at ``command`` without a fall."""
+    for _ in range(round(LIMIT_S / robot.control_dt)):  # its check: at most a few s more
+        if get_up.done:
+            break
+        action = get_up.act(obs, np.zeros(3))
+        obs = robot.step(action.motor_targets, action.kp, action.kd)
+    if not get_up.succeeded:
+        return False
+    walk = make_policy("walk-rl", robot)
+    walk.reset(obs)
+    for _ in range(round(WALK_ON_S / robot.control_dt)):
+        action = walk.act(obs, command)
+        obs = robot.step(action.motor_targets, action.kp, action.kd)
+        if robot.fallen:
+            return False
+    return True
