@@ -1,14 +1,14 @@
 """`get-up`: stand a fallen robot up with keyframed motions, knowing which way is down from the IMU alone (so it
 works on the real robot as in the simulator).
 
-An attempt: wait until the torso is still, read how it lies (`policies.lying`); from a side, roll towards the
-front first (``roll_to_front``, mirrored for the other side) and read again; then play ``get_up_back`` or
-``get_up_front`` (blended in from where the joints are) and hold the home pose for `CHECK_S`. A motion with a
-tracking policy (`rl train --env track`, exported; `trackers`) is played by it after the blend, closed-loop: the
-policy corrects the motion's targets from what the robot senses (`policies.track`); the others open-loop. The
-robot stood up when the IMU's uprightness is at least `STOOD_UPRIGHTNESS` then; otherwise it tries again,
-`MAX_ATTEMPTS` in all, and gives up holding the joints where they are. Its last targets after a success are the
-home pose, so a walking policy can take over.
+An attempt: wait until the torso is still, read how it lies (`policies.lying`); from the back or a side, roll onto
+the front first (``roll_from_back``; ``roll_to_front``, mirrored for the left side) and read again; then play
+``get_up_front``, each motion blended in from where the joints are, and hold the home pose for `CHECK_S` and until
+the robot is still. A motion with a tracking policy (`rl train --env track`, exported; `trackers`) is played by it
+after the blend, closed-loop: the policy corrects the motion's targets from what the robot senses
+(`policies.track`); the others open-loop. The robot stood up when the IMU's uprightness is at least
+`STOOD_UPRIGHTNESS` then; otherwise it tries again, `MAX_ATTEMPTS` in all, and gives up holding the joints where
+they are. Its last targets after a success are the home pose, so a walking policy can take over.
 """
 
 from __future__ import annotations
