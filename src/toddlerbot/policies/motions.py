@@ -17,7 +17,7 @@ range in the spec. Joint names are the output joints of `RobotDescription.joint_
 A keyframe may also say where the torso is, ``base: {roll: deg, pitch: deg, z: m}`` (each optional, roll and
 pitch 0 by default): tilted by the IMU's roll and pitch (pitch > 0 leans forward: lying on the back is pitch -90,
 on the front +90), its frame ``z`` m above the floor or, without ``z``, resting on the floor. The first keyframe's
-base is where the motion starts (a get-up motion starts lying: ``get_up_back.yaml``); the others say how the
+base is where the motion starts (a get-up motion starts lying: ``roll_from_back.yaml``); the others say how the
 editor draws the keyframe. A keyframe without one stands upright on the floor, as every motion did before.
 """
 
