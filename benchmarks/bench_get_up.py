@@ -1,14 +1,14 @@
 """Getting up after a fall: the `get-up` policy on robots knocked over while walking (`policies.get_up_trials`).
 
 Each seed walks the nominal robot with walk-rl at a seeded command within its reach, kicks it once (1-2 m/s,
-seeded) towards its back or its front, lets it settle 1.5 s with the targets held, then hands it to the get-up
-policy for 10 s. Success: the torso at >= 90 % of its standing height with uprightness >= 0.9 for 0.5 s (the
-simulator's ground truth judges; the policy reads only the IMU). Printed per side: successes out of the seeds that
-fell, time to stand (median, max), how many then walked 5 s with walk-rl without a fall, attempts used, the
-longest time any motor stayed above its stall torque, the control steps with the fall guard's lowered gains, how
-the robots lay, and the machine.
+seeded) towards its back or its front (or a side: `--sides left right`), lets it settle 1.5 s with the targets
+held, then hands it to the get-up policy for 10 s. Success: the torso at >= 90 % of its standing height with
+uprightness >= 0.9 for 0.5 s (the simulator's ground truth judges; the policy reads only the IMU). Printed per side:
+successes out of the seeds that fell, time to stand (median, max), how many then walked 5 s with walk-rl without a
+fall, attempts used, the longest time any motor stayed above its stall torque, the control steps with the fall
+guard's lowered gains, how the robots lay, and the machine.
 
-Run: PYTHONPATH=src python benchmarks/bench_get_up.py [--seeds 20] [--first-seed 0] [--sides front]
+Run: PYTHONPATH=src python benchmarks/bench_get_up.py [--seeds 20] [--first-seed 0] [--sides front left]
      [--tracker get_up_front=POLICY.npz | --open-loop]  (default: the shipped trackers, if any)
 """
 
@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from toddlerbot.policies.get_up_trials import WALK_ON_S, fallen_robot, get_up_trial
+from toddlerbot.policies.get_up_trials import KICK_DIRECTION, WALK_ON_S, fallen_robot, get_up_trial
 from toddlerbot.robot.description import RobotDescription
 from toddlerbot.sim.mujoco_robot import SimulationError
 
@@ -77,7 +77,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument("--sides", nargs="+", choices=("back", "front"), default=("back", "front"))
+    parser.add_argument("--sides", nargs="+", choices=tuple(KICK_DIRECTION), default=("back", "front"),
+                        help="the sides kicked towards (left and right: sideways kicks)")
     parser.add_argument("--tracker", action="append", default=[], metavar="MOTION=POLICY",
                         help="play MOTION with this exported tracking policy (repeatable)")
     parser.add_argument("--open-loop", action="store_true", help="play every motion open-loop (no shipped tracker)")

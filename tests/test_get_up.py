@@ -12,7 +12,7 @@ from toddlerbot.motion_editor.playback import simulate
 from toddlerbot.policies import make_policy, policy_names
 from toddlerbot.policies.get_up_trials import LIMIT_S, STABLE_S, fallen_robot, get_up_trial
 from toddlerbot.policies.lying import lying_on, up_in_torso, uprightness
-from toddlerbot.policies.motions import MotionError, builtin_motions, load_motion, mirrored, parse_motion
+from toddlerbot.policies.motions import MotionError, builtin_motions, full_pose, load_motion, mirrored, parse_motion
 from toddlerbot.policies.replay import ReplayPolicy
 from toddlerbot.robot.fall import FALL_KP_FRACTION, FallGuard
 from toddlerbot.robot.floor_pose import place_on_floor, tilt_quat
@@ -34,7 +34,7 @@ def test_a_keyframe_may_give_a_base_pose_and_the_old_motions_give_none(descripti
     assert motion.bases[2] is None
     for name in ("squat", "wave", "look_around"):
         assert load_motion(name, description).bases == ()  # unchanged: they start standing
-    assert {"roll_from_back", "get_up_front", "roll_to_front"} <= set(builtin_motions())
+    assert {"roll_from_back", "get_up_front"} <= set(builtin_motions())
 
 
 @pytest.mark.parametrize(("base", "expected"), [
@@ -63,11 +63,15 @@ def test_a_bad_motion_file_is_one_line(description, tmp_path):
 
 
 def test_mirroring_a_motion_twice_gives_it_back_and_flips_the_roll(description):
-    roll = load_motion("roll_to_front", description)
+    roll = load_motion("roll_from_back", description)
     once, twice = mirrored(roll, description), mirrored(mirrored(roll, description), description)
-    assert once.start_base.roll == pytest.approx(-roll.start_base.roll)
+    on_a_side = parse_motion(_motion([{"t": 0, "base": {"roll": 90}, "left_knee": -30}, {"t": 1, "left_knee": 0}]),
+                             description, "m.yaml")
+    assert mirrored(on_a_side, description).start_base.roll == pytest.approx(-np.pi / 2)
+    waist = roll.at(1.0)[roll.joints.index("waist_yaw")]
+    assert once.at(1.0)[once.joints.index("waist_yaw")] == pytest.approx(-waist) and abs(waist) > 1.0  # turns back
     for t in (0.0, 0.7, roll.duration):
-        np.testing.assert_allclose(twice.at(t), roll.at(t), atol=1e-12)
+        np.testing.assert_allclose(full_pose(twice, description, t), full_pose(roll, description, t), atol=1e-12)
     left, right = once.joints.index("right_hip_pitch"), roll.joints.index("left_hip_pitch")
     assert once.at(1.0)[left] == pytest.approx(-roll.at(1.0)[right])  # hip pitches mirror with opposite signs
 
@@ -140,7 +144,8 @@ def test_the_back_motion_rolls_the_robot_from_its_back_onto_its_front(descriptio
     np.testing.assert_allclose(obs.joint_pos, description.home_joint_pos, atol=0.3)
 
 
-@pytest.mark.parametrize(("seed", "side", "lying"), [(0, "front", ("front",)), (1, "back", ("back", "front"))])
+@pytest.mark.parametrize(("seed", "side", "lying"), [(0, "front", ("front",)), (1, "back", ("back", "front")),
+                                                     (2, "right", ("right side", "front"))])
 def test_a_robot_knocked_over_while_walking_stands_within_ten_seconds_and_walks_on(description, seed, side, lying):
     fallen = fallen_robot(description, seed, side)
     assert fallen is not None and uprightness(fallen.robot.observe().imu_quat) < 0.3

@@ -2,7 +2,7 @@
 works on the real robot as in the simulator).
 
 An attempt: wait until the torso is still, read how it lies (`policies.lying`); from the back or a side, roll onto
-the front first (``roll_from_back``; ``roll_to_front``, mirrored for the left side) and read again; then play
+the front first (``roll_from_back``, mirrored for the right side) and read again; then play
 ``get_up_front``, each motion blended in from where the joints are, and hold the home pose for `CHECK_S` and until
 the robot is still. A motion with a tracking policy (`rl train --env track`, exported; `trackers`) is played by it
 after the blend, closed-loop: the policy corrects the motion's targets from what the robot senses
@@ -46,9 +46,10 @@ BLEND_RAD_S = 2.5
 from it sets the move's time..."""
 BLEND_S = (0.2, 0.8)
 """...within these bounds, s (a roll that ends where the next motion starts is followed at once)."""
-MOTIONS = {"back": "roll_from_back", "front": "get_up_front", "right side": "roll_to_front"}
-"""The motion each lying state plays; lying on the left side plays ``roll_to_front`` mirrored. Every motion but
-the front's is a roll, after which the policy reads how the robot lies again."""
+MOTIONS = {"back": "roll_from_back", "front": "get_up_front", "left side": "roll_from_back"}
+"""The motion each lying state plays; lying on the right side plays ``roll_from_back`` mirrored (from a side it
+first lies back, then rolls over the side it came from). Every motion but the front's is a roll, after which the
+policy reads how the robot lies again."""
 
 
 def shipped_trackers() -> dict[str, Path]:
@@ -94,14 +95,14 @@ class GetUpPolicy(Policy):
         super().__init__(robot)
         description = robot.description
         self._motions: dict[Lying, Motion] = {lying: load_motion(name, description) for lying, name in MOTIONS.items()}
-        self._motions["left side"] = mirrored(self._motions["right side"], description)
+        self._motions["right side"] = mirrored(self._motions["left side"], description)
         self._trackers = {}
         for name, path in (shipped_trackers() if trackers is None else trackers).items():
             tracker = RLPolicyFile(path)
             tracker.for_robot(robot.motor_names, robot.control_dt, TRACK_ENVIRONMENT, self.name)
             if name not in MOTIONS.values() or tracker.motion is None or tracker.motion.name != name:
                 raise ToddlerbotError(f"{path}: a tracker for {name!r} must be a tracking policy of that motion, "
-                                      f"one of {', '.join(sorted(MOTIONS.values()))}")
+                                      f"one of {', '.join(sorted(set(MOTIONS.values())))}")
             self._trackers[name] = tracker
         self._home = self.joint_action(self.home_joint_pos)
         # nothing is read from the robot before `reset` (the hand-over): it may not be running yet
@@ -182,7 +183,7 @@ class GetUpPolicy(Policy):
     def _play(self, lying: Lying, obs: Observation) -> None:
         self._lying.append(lying)
         self._motion = self._motions[lying]
-        tracker = self._trackers.get(self._motion.name) if lying != "left side" else None
+        tracker = self._trackers.get(self._motion.name) if lying != "right side" else None
         self._tracking = None if tracker is None else TrackController(tracker)
         self._from = obs.joint_pos.copy()
         distance = float(np.max(np.abs(full_pose(self._motion, self.robot.description) - self._from)))

@@ -26,9 +26,10 @@ from toddlerbot.runtime.robustness import DirectedKick
 from toddlerbot.runtime.runner import run_policy
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 
-Side = Literal["back", "front"]
-KICK_DIRECTION = {"back": np.pi, "front": 0.0}
-"""Kick direction from the heading, rad: towards the back knocks the robot onto its back."""
+Side = Literal["back", "front", "left", "right"]
+KICK_DIRECTION = {"back": np.pi, "front": 0.0, "left": np.pi / 2, "right": -np.pi / 2}
+"""Kick direction from the heading, rad, per side kicked towards: towards the back knocks the robot onto its back;
+kicked sideways it lands on its back or on that side."""
 KICK_SPEED = (1.0, 2.0)
 KICK_TIME = (1.5, 2.5)
 """s of walking before the kick, drawn per seed (a different phase of the gait each time)."""
@@ -74,7 +75,7 @@ class Trial:
 
 def fallen_robot(description: RobotDescription, seed: int, side: Side) -> Fallen | None:
     """The robot of ``seed`` knocked onto its ``side``, settled; None if the kick did not knock it over."""
-    rng = np.random.default_rng([seed, 0 if side == "back" else 1])
+    rng = np.random.default_rng([seed, list(KICK_DIRECTION).index(side)])
     command = rng.uniform(WALK_REACH.low, WALK_REACH.high)
     speed, kick_time = rng.uniform(*KICK_SPEED), rng.uniform(*KICK_TIME)
     robot = MuJoCoRobot(description)
