@@ -97,3 +97,12 @@ def test_a_tracker_of_a_built_in_motion_ships_beside_the_walking_policies(tmp_pa
     with pytest.raises(ToddlerbotError, match=r"^--ship: only trackers of a built-in motion on the packaged robot "
                                               r"ship \(this run: motion '/x/my.yaml', variant None\)$"):
         TrackEnv.shipped_export(TrackConfig(motion="/x/my.yaml"))
+
+
+def test_a_roll_completes_where_its_reference_ends_lying_and_a_get_up_where_it_stands(trials):
+    """A motion that does not end upright (the back's roll onto the front) is judged by where it ends, not by standing:
+    replayed on the nominal robot it completes without standing; the front get-up must stand to complete."""
+    roll = MotionTrials(trials.description, "roll_from_back")
+    assert trials.ends_standing and not roll.ends_standing
+    replay = roll.trial("replay", NOMINAL, 0)
+    assert replay.completed and not replay.stood and replay.left_at is None

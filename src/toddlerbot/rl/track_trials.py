@@ -6,8 +6,9 @@ A trial starts the (perturbed) simulated robot where the motion starts (lying on
 steps as the reference has rows, and compares every step with the reference row of that time (the motion played on
 the training model, `rl.motion_reference`). It **completed** when the robot never left the reference by the
 tracking environment's termination thresholds (`TrackConfig`: torso orientation, height, horizontal drift) and ends
-standing (torso at least `HEIGHT_FRACTION` of the standing height, uprightness at least `UPRIGHTNESS`: the get-up
-benchmark's bar, `policies.get_up_trials`).
+as the reference ends: standing where it ends upright (torso at least `HEIGHT_FRACTION` of the standing height,
+uprightness at least `UPRIGHTNESS`: the get-up benchmark's bar, `policies.get_up_trials`), else with the torso's up
+axis within `END_TILT_RAD` of the reference's last (a roll ends lying on the front).
 """
 
 from __future__ import annotations
@@ -74,6 +75,10 @@ class MotionTrial:
     """The torso's heading at the end against the reference's (standing), rad, in [-pi, pi]."""
 
 
+END_TILT_RAD = 0.5
+"""How far the torso's up axis may end from the reference's last, rad, for a motion that does not end standing."""
+
+
 class MotionTrials:
     """The motion's reference (built once) and trials of players on it."""
 
@@ -87,6 +92,8 @@ class MotionTrials:
         self.reference: MotionReference = build_reference(self.motion, description, model, cfg.ctrl_dt,
                                                           cfg.n_substeps, cfg.hold_s)
         self._ref_motor_pos = self.reference.qpos[:, MotorAddresses.of(model, description.motor_names).qpos]
+        self.ends_standing = bool(up_axis(self.reference.torso_quat[-1])[2] >= UPRIGHTNESS)
+        """Whether the reference ends upright (then a trial must end standing)."""
 
     def trial(self, player: str, condition: Condition, seed: int, weights: str | Path | None = None) -> MotionTrial:
         """Play the motion with ``player`` (``replay``, or ``track`` with ``weights``) on the robot perturbed by
@@ -121,8 +128,9 @@ class MotionTrials:
                 left_at = row * cfg.ctrl_dt
         stood = (robot.torso_height() >= HEIGHT_FRACTION * robot.standing_height
                  and robot.torso_uprightness() >= UPRIGHTNESS)
+        ended = stood if self.ends_standing else tilted[-1] <= END_TILT_RAD
         heading = attitude(robot.base_quat)[2] - attitude(ref.torso_quat[-1])[2]
-        return MotionTrial(player, condition.name, seed, left_at is None and stood, left_at, stood,
+        return MotionTrial(player, condition.name, seed, left_at is None and ended, left_at, stood,
                            float(np.sqrt(np.mean(squared))), float(np.mean(tilted)),
                            float(np.angle(np.exp(1j * heading))))
 
