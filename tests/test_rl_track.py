@@ -205,6 +205,7 @@ def test_track_is_registered_and_trains_one_smoke_epoch_on_the_cpu_backend(tmp_p
     assert len(records) == 1 and records[0]["env_steps"] == config.SMOKE.env_steps_per_update
     assert -0.5 < records[0]["step_reward"] <= 16.0 * env_cfg.ctrl_dt + 1e-6
     assert 0 <= records[0]["motor_pos_error"] < 0.3 and 0 <= records[0]["end_effector_error"] < 0.2
+    assert {key for key, _ in TrackEnv.curves} <= set(records[0])  # its training_curve.png panels are recorded
     recorded = np.load(run / "action_space.npz")
     assert str(recorded["motion"]) == "squat" and recorded["motor_targets"].shape == (351 + 25, 30)
     assert (run / "reference.txt").read_text() == "motion squat\n"

@@ -175,9 +175,11 @@ def _report(run_dir: Path, history: list[dict]) -> None:
     if not is_main():
         console.print(f"done: {history[-1]['env_steps']:,} env steps; process 0 wrote {run_dir}")
         return
+    from toddlerbot.rl.environments import environment_class
     from toddlerbot.rl.plot import write_run_curve
+    from toddlerbot.rl.train import load_config
 
-    png = write_run_curve(run_dir, history)
+    png = write_run_curve(run_dir, history, environment_class(load_config(run_dir)[0].environment).curves)
     last = history[-1]
     compiling = sum(record.get("compile_s", 0.0) for record in history)  # runs before issue 45 recorded none
     console.print(f"done: {last['env_steps']:,} env steps in {last['walltime']:.0f} s ({compiling:.0f} s of it "

@@ -55,6 +55,8 @@ class RLEnvironment(Env):
     runtime_policy: ClassVar[str | None] = None
     """The registered runtime policy that plays its exports (`rl export`, then `sim run --policy NAME --weights
     FILE`); None: its runs are not exported."""
+    curves: ClassVar[tuple[tuple[str, str], ...] | None] = None
+    """The (epoch-record key, title) panels of its runs' ``training_curve.png`` (`rl.plot`); None: walking's."""
 
     cfg: EnvConfig
     mj_model: mujoco.MjModel

@@ -25,12 +25,6 @@ def run_records(run_dir: Path) -> tuple[list[dict], list[dict]]:
             read_json_lines(Path(run_dir) / METRICS_RECORD, "metrics record"))
 
 
-TRACK_CURVES = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
-                ("motor_pos_error", "motor angle error, RMS (rad)"),
-                ("orientation_error", "torso orientation error (rad)"), ("fall_rate", "episode ends per env step"))
-"""The same for a motion-tracking run (`--env track`)."""
-
-
 def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path,
                     curves: tuple[tuple[str, str], ...] = CURVES) -> Path:
     """Each run's PPO metrics (``curves``) against environment steps (warm start included) and against wall time;
@@ -56,11 +50,14 @@ def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path,
     return save_figure(fig, path, dpi=110)
 
 
-def training_curve(history: list[dict], path: Path, warm: list[dict] | None = None) -> Path:
+def training_curve(history: list[dict], path: Path, warm: list[dict] | None = None,
+                   curves: tuple[tuple[str, str], ...] = CURVES) -> Path:
     """One run's learning curves (`learning_curves`)."""
-    return learning_curves({"this run": (warm or [], history)}, path)
+    return learning_curves({"this run": (warm or [], history)}, path, curves)
 
 
-def write_run_curve(run_dir: Path, history: list[dict]) -> Path:
-    """``RUN/training_curve.png``: `history` (PPO epochs) after the run's DAgger warm start, if it has one."""
-    return training_curve(history, run_dir / "training_curve.png", warm=run_records(run_dir)[0])
+def write_run_curve(run_dir: Path, history: list[dict], curves: tuple[tuple[str, str], ...] | None = None) -> Path:
+    """``RUN/training_curve.png``: `history` (PPO epochs) after the run's DAgger warm start, if it has one, in the
+    panels ``curves`` (None: walking's, `CURVES`)."""
+    return training_curve(history, run_dir / "training_curve.png", warm=run_records(run_dir)[0],
+                          curves=curves or CURVES)

@@ -82,6 +82,9 @@ class TrackEnv(RLEnvironment):
     step_metrics = ("motor_pos_error", "orientation_error", "end_effector_error")
     """RMS motor angle error (rad), torso orientation error (rad) and mean end-effector distance (m, torso frame)
     against the reference."""
+    curves = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
+              ("motor_pos_error", "motor angle error, RMS (rad)"),
+              ("orientation_error", "torso orientation error (rad)"), ("fall_rate", "episode ends per env step"))
 
     @classmethod
     def default_config(cls, smoke: bool = False) -> TrackConfig:
