@@ -18,17 +18,19 @@ from PIL import Image
 from toddlerbot.policies.get_up_trials import KICK_DIRECTION
 from toddlerbot.runtime.robustness import DirectedKick
 from toddlerbot.sessions.sim import sim_session
+from toddlerbot.sim.render import write_png
 
 
 def frame_strip(video: Path, times: list[float], out: Path) -> None:
-    """The video's frames nearest ``times`` (s) side by side, at half size, in one PNG."""
+    """The video's first frames at or after ``times`` (s) side by side, at half size, in one PNG."""
     picked: dict[float, np.ndarray] = {}
     with av.open(str(video)) as container:
         for frame in container.decode(video=0):
             for t in times:
                 if t not in picked and frame.time >= t:
                     picked[t] = frame.to_ndarray(format="rgb24")
-    Image.fromarray(np.concatenate([picked[t] for t in times if t in picked], axis=1)).reduce(2).save(out)
+    strip = np.concatenate([picked[t] for t in times if t in picked], axis=1)
+    write_png(out, np.asarray(Image.fromarray(strip).reduce(2)))
 
 
 def main() -> None:

@@ -183,19 +183,18 @@ class GetUpPolicy(Policy):
     def _play(self, lying: Lying, obs: Observation) -> None:
         self._lying.append(lying)
         self._motion = self._motions[lying]
-        tracker = self._trackers.get(self._motion.name) if lying != "right side" else None
+        tracker = self._trackers.get(self._motion.name)  # none for a mirrored motion ("... (mirrored)")
         self._tracking = None if tracker is None else TrackController(tracker)
         self._from = obs.joint_pos.copy()
-        distance = float(np.max(np.abs(full_pose(self._motion, self.robot.description) - self._from)))
-        self._blend_s = float(np.clip(distance / BLEND_RAD_S, *BLEND_S))
+        self._move = full_pose(self._motion, self.robot.description) - self._from  # to the first keyframe
+        self._blend_s = float(np.clip(np.max(np.abs(self._move)) / BLEND_RAD_S, *BLEND_S))
         self._enter("get-up" if lying == "front" else "roll", obs)
 
     def _playing(self, obs: Observation, elapsed: float) -> Action:
         motion = self._motion
         if elapsed < self._blend_s:
             s = elapsed / self._blend_s
-            start = full_pose(motion, self.robot.description)
-            return self.joint_action(self._from + s * s * (3 - 2 * s) * (start - self._from))
+            return self.joint_action(self._from + s * s * (3 - 2 * s) * self._move)
         t = elapsed - self._blend_s
         if t > motion.duration:
             if self._phase == "roll":

@@ -66,6 +66,7 @@ def step_actuated(models: Sequence[mujoco.MjModel], datas: Sequence[mujoco.MjDat
                             sensors_last_only)
     return torques
 
+
 RETRY_SOLVER_ITERATIONS = 100
 """Newton and line-search iterations of a control step taken again after MuJoCo found it diverging: the spec's few
 iterations (4/8) suit walking, and a hard impact of the whole body (a fall) can need many more (docs/simulation.md,
