@@ -71,3 +71,34 @@ def test_a_blown_up_joint_counts_as_diverged(robot):
     robot.data.qvel[10] = np.nan
     assert actuated.diverged(robot.data)
     robot.reset()
+
+
+def test_a_step_that_throws_the_robot_with_more_energy_than_its_motors_give_is_taken_again(robot, monkeypatch):
+    robot.reset()
+    targets = robot.description.home_motor_pos
+    calls = []
+    clean = actuated.step_actuated
+
+    def throwing_once(models, datas, *args, **kwargs):
+        calls.append(models[0].opt.iterations)
+        torque = clean(models, datas, *args, **kwargs)
+        if len(calls) == 1:  # 3.4 kg thrown up at 4 m/s: 27 J in 20 ms, every joint well under DIVERGED_SPEED
+            datas[0].qvel[2] = 4.0
+        return torque
+
+    monkeypatch.setattr(actuated, "step_actuated", throwing_once)
+    _, retried = actuated.step_one_robot(robot.model, robot.data, robot._motors, targets, robot._drive, 20)
+    assert retried and calls == [4, actuated.RETRY_SOLVER_ITERATIONS]
+    assert abs(robot.data.qvel[2]) < 0.5
+    robot.reset()
+
+
+def test_a_hard_landing_no_longer_launches_the_fallen_robot():
+    """Walk-rl kicked onto its back (get-up trials, seed 62): at the landing four Newton iterations left the torso
+    and an elbow 12 mm in the floor and the next step threw the robot 3 m up with every joint under 50 rad/s."""
+    from toddlerbot.policies.get_up_trials import fallen_robot
+
+    fallen = fallen_robot(RobotDescription.load(), 62, "back")
+    assert fallen.robot.retried_steps >= 1
+    assert fallen.robot.torso_height() < 0.15  # lying, settled (it was at 1.08 m, in the air)
+    assert np.abs(fallen.robot.base_lin_vel).max() < 0.2

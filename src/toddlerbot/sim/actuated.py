@@ -81,6 +81,22 @@ UNSTABLE_SPEED = 200.0
 `DIVERGED_SPEED` and this a retried step goes on (a hard pinch of the grippers can spin a finger that fast)."""
 
 
+MAX_POWER_W = 500.0
+ENERGY_SLACK_J = 2.0
+"""A step whose robot gained more mechanical energy than `MAX_POWER_W` x the step's time plus this (J) was thrown by
+the contact solver, not by its motors: all 30 motors at once give under 150 W. A hard landing that four Newton
+iterations did not resolve launched a fallen robot 3 m into the air with every joint under `DIVERGED_SPEED`
+(121 J in one 20 ms step; docs/simulation.md "Falls that diverged")."""
+
+
+def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Potential (gravity, springs) plus kinetic energy, J, of everything in the model, from the state's last
+    dynamics (the mass matrix of its last substep)."""
+    mujoco.mj_energyPos(model, data)
+    mujoco.mj_energyVel(model, data)
+    return float(data.energy.sum())
+
+
 def diverged(data: mujoco.MjData) -> bool:
     """MuJoCo reset the state after a bad acceleration, the state is non-finite, or a velocity is beyond
     `DIVERGED_SPEED`."""
@@ -94,13 +110,15 @@ def diverged(data: mujoco.MjData) -> bool:
 def step_one_robot(model: mujoco.MjModel, data: mujoco.MjData, motors: MotorAddresses, targets: np.ndarray,
                    drive: MotorDrive, n_substeps: int, sensors_last_only: bool = False) -> tuple[np.ndarray, bool]:
     """`step_actuated` for one robot, taken again from its start with `RETRY_SOLVER_ITERATIONS` when it diverged:
-    MuJoCo found a huge or non-finite acceleration (and reset the state), or a joint ends faster than
-    `DIVERGED_SPEED`. A step that diverges even then is left so, for the caller to report. Returns the motor torques
+    MuJoCo found a huge or non-finite acceleration (and reset the state), a joint ends faster than
+    `DIVERGED_SPEED`, or the robot gained more energy than its motors can give (`MAX_POWER_W`). A step that diverges even then is left so, for the caller to report. Returns the motor torques
     (n_motors,) and whether the step was taken again. A step that does not diverge is exactly `step_actuated`'s."""
     start = np.empty(mujoco.mj_stateSize(model, _STATE))
     mujoco.mj_getState(model, data, start, _STATE)
+    energy = mechanical_energy(model, data)
     torque = step_actuated([model], [data], motors, targets[None], drive, n_substeps, sensors_last_only)[0]
-    if not diverged(data):
+    gained = mechanical_energy(model, data) - energy
+    if not diverged(data) and gained <= MAX_POWER_W * n_substeps * model.opt.timestep + ENERGY_SLACK_J:
         return torque, False
     mujoco.mj_setState(model, data, start, _STATE)
     data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 0
