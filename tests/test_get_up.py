@@ -10,10 +10,13 @@ import yaml
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.motion_editor.playback import simulate
 from toddlerbot.policies import make_policy, policy_names
+from toddlerbot.policies.get_up import shipped_trackers
 from toddlerbot.policies.get_up_trials import LIMIT_S, STABLE_S, fallen_robot, get_up_trial
 from toddlerbot.policies.lying import lying_on, up_in_torso, uprightness
-from toddlerbot.policies.motions import MotionError, builtin_motions, full_pose, load_motion, mirrored, parse_motion
+from toddlerbot.policies.motions import (MotionError, builtin_motions, full_pose, load_motion, mirrored, motion_path,
+                                         parse_motion)
 from toddlerbot.policies.replay import ReplayPolicy
+from toddlerbot.policies.rl_inference import RLPolicyFile
 from toddlerbot.robot.fall import FALL_KP_FRACTION, FallGuard
 from toddlerbot.robot.floor_pose import place_on_floor, tilt_quat
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
@@ -142,6 +145,15 @@ def test_the_back_motion_rolls_the_robot_from_its_back_onto_its_front(descriptio
     assert lying_on(obs.imu_quat, 0.9) == "front" and np.degrees(abs(np.arctan2(up[1], up[0]))) > 160
     # at home, where get_up_front starts, but for the arms the floor presses (a shoulder roll 0.22 rad off)
     np.testing.assert_allclose(obs.joint_pos, description.home_joint_pos, atol=0.3)
+
+
+def test_the_shipped_front_tracker_was_trained_on_the_front_motion_as_it_is_now():
+    """A motion re-paced after its tracker was trained would be played at the tracker's old pace: retrain, then
+    `rl export --ship` (docs/rl.md "Trackers of `get_up_front`")."""
+    trackers = shipped_trackers()
+    assert "get_up_front" in trackers
+    for name, path in trackers.items():
+        assert RLPolicyFile(path).meta["motion_yaml"] == motion_path(name).read_text(), name
 
 
 @pytest.mark.parametrize(("seed", "side", "lying"), [(0, "front", ("front",)), (1, "back", ("back", "front")),
