@@ -147,11 +147,11 @@ def test_the_back_motion_rolls_the_robot_from_its_back_onto_its_front(descriptio
     np.testing.assert_allclose(obs.joint_pos, description.home_joint_pos, atol=0.3)
 
 
-def test_the_shipped_front_tracker_was_trained_on_the_front_motion_as_it_is_now():
+def test_the_shipped_trackers_were_trained_on_the_get_up_motions_as_they_are_now():
     """A motion re-paced after its tracker was trained would be played at the tracker's old pace: retrain, then
     `rl export --ship` (docs/rl.md "Trackers of `get_up_front`")."""
     trackers = shipped_trackers()
-    assert "get_up_front" in trackers
+    assert set(trackers) == {"get_up_front", "roll_from_back"}
     for name, path in trackers.items():
         assert RLPolicyFile(path).meta["motion_yaml"] == motion_path(name).read_text(), name
 
