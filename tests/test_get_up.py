@@ -13,8 +13,15 @@ from toddlerbot.policies import make_policy, policy_names
 from toddlerbot.policies.get_up import shipped_trackers
 from toddlerbot.policies.get_up_trials import LIMIT_S, STABLE_S, fallen_robot, get_up_trial
 from toddlerbot.policies.lying import lying_on, up_in_torso, uprightness
-from toddlerbot.policies.motions import (MotionError, builtin_motions, full_pose, load_motion, mirrored, motion_path,
-                                         parse_motion)
+from toddlerbot.policies.motions import (
+    MotionError,
+    builtin_motions,
+    full_pose,
+    load_motion,
+    mirrored,
+    motion_path,
+    parse_motion,
+)
 from toddlerbot.policies.replay import ReplayPolicy
 from toddlerbot.policies.rl_inference import RLPolicyFile
 from toddlerbot.robot.fall import FALL_KP_FRACTION, FallGuard

@@ -111,8 +111,9 @@ def step_one_robot(model: mujoco.MjModel, data: mujoco.MjData, motors: MotorAddr
                    drive: MotorDrive, n_substeps: int, sensors_last_only: bool = False) -> tuple[np.ndarray, bool]:
     """`step_actuated` for one robot, taken again from its start with `RETRY_SOLVER_ITERATIONS` when it diverged:
     MuJoCo found a huge or non-finite acceleration (and reset the state), a joint ends faster than
-    `DIVERGED_SPEED`, or the robot gained more energy than its motors can give (`MAX_POWER_W`). A step that diverges even then is left so, for the caller to report. Returns the motor torques
-    (n_motors,) and whether the step was taken again. A step that does not diverge is exactly `step_actuated`'s."""
+    `DIVERGED_SPEED`, or the robot gained more energy than its motors can give (`MAX_POWER_W`). A step that diverges
+    even then is left so, for the caller to report. Returns the motor torques (n_motors,) and whether the step was
+    taken again. A step that does not diverge is exactly `step_actuated`'s."""
     start = np.empty(mujoco.mj_stateSize(model, _STATE))
     mujoco.mj_getState(model, data, start, _STATE)
     energy = mechanical_energy(model, data)
