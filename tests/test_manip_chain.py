@@ -688,14 +688,15 @@ def test_a_hand_that_lets_go_of_the_handle_mid_push_is_noticed_and_the_chain_gra
     chain = load_chain("wagon", GROUPS).with_scripted_grasps()
     slip = _Slip(at=7.0)  # 2.5 s into the push
     out = run_in_sim(chain, 0, description=DESCRIPTION, disturbances=[slip]).as_json()
-    # Measured (seed 0): the left hand let go at once; the chain noticed from its gripper's torque at 7.18 s, stood,
+    # Measured (seed 0): the left hand let go at once; the chain noticed from its gripper's torque at 7.18 s (7.58 s
+    # on a fresh install of 2026-11-29, the same code: the chain is chaotic, so the bound is 1 s), stood,
     # opened, grasped again (the first re-grasp closed on nothing, its retry closed on the handle) and pushed on:
     # wagon moved 0.656 m, both hands on it at the end; 11 s wall. The script's re-grasp is not robust: seed 0 is the
     # one of seeds 0-7 whose push resumes (2 of 8 in the wide variation; docs/manipulation.md, "The wagon scene's
     # declared ranges"), so this checks the declared path, not a rate.
     recover = out["recoveries"][0]
     assert recover["kind"] == "recover" and recover["skill"] == "push" and recover["resume"] == "grasp"
-    assert 7.0 < recover["time_s"] < 7.5
+    assert 7.0 < recover["time_s"] < 8.0
     pads, torque = slip.noticed
     assert pads.min() < 1.0 and torque[0] < 0.15 <= torque[1]  # the left hand no longer pinched, the right still held
     names = [(s["from"], s["to"]) for s in out["switches"]]
