@@ -84,9 +84,9 @@ UNSTABLE_SPEED = 200.0
 MAX_POWER_W = 500.0
 ENERGY_SLACK_J = 2.0
 """A step whose robot gained more mechanical energy than `MAX_POWER_W` x the step's time plus this (J) was thrown by
-the contact solver, not by its motors: all 30 motors at once give under 150 W. A hard landing that four Newton
-iterations did not resolve launched a fallen robot 3 m into the air with every joint under `DIVERGED_SPEED`
-(121 J in one 20 ms step; docs/simulation.md "Falls that diverged")."""
+the contact solver, not by its motors: their torque-speed envelopes allow 73 W for all 30 at once. A hard landing
+that four Newton iterations did not resolve launched a fallen robot 3 m into the air with every joint under
+`DIVERGED_SPEED` (121 J in one 20 ms step; docs/simulation.md "Falls that diverged")."""
 
 
 def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
