@@ -211,6 +211,7 @@ def bench_tracking(policies: list[str], weights: str | None, plot_dir: str | Non
 def curves(runs: list[str], path: str) -> None:
     """Learning curves of training runs (``label=run_dir``) in one figure, and each run's key numbers."""
     from toddlerbot.rl.plot import learning_curves, run_records
+    from toddlerbot.rl.walk_env import WalkEnv
 
     records = {}
     for item in runs:
@@ -224,7 +225,7 @@ def curves(runs: list[str], path: str) -> None:
                       f"{last['walltime'] / 60:.1f} min; " + ", ".join(
                           f"{k} {last[k]:.4g}" for k in ("bc_loss", "fall_rate", "episode_reward", "episode_length",
                                                          "lin_vel_error", "ang_vel_error", "sps") if k in last))
-    print(f"curves: {learning_curves(records, Path(path))}")
+    print(f"curves: {learning_curves(records, Path(path), WalkEnv.curves)}")
 
 
 SETTINGS = (  # (contacts, Newton iterations, line-search iterations, Jacobian, linkage weld loops)

@@ -55,8 +55,11 @@ class RLEnvironment(Env):
     runtime_policy: ClassVar[str | None] = None
     """The registered runtime policy that plays its exports (`rl export`, then `sim run --policy NAME --weights
     FILE`); None: its runs are not exported."""
-    curves: ClassVar[tuple[tuple[str, str], ...] | None] = None
-    """The (epoch-record key, title) panels of its runs' ``training_curve.png`` (`rl.plot`); None: walking's."""
+    curves: ClassVar[tuple[tuple[str, str], ...]] = (
+        ("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
+        ("fall_rate", "episode ends per env step"))
+    """The (epoch-record key, title) panels of its runs' ``training_curve.png`` (`rl.plot`): PPO's own records here;
+    an environment adds its ``step_metrics``."""
 
     cfg: EnvConfig
     mj_model: mujoco.MjModel

@@ -12,12 +12,6 @@ import matplotlib.pyplot as plt
 from toddlerbot.files import save_figure
 from toddlerbot.rl.run_files import IMITATION_RECORD, METRICS_RECORD, read_json_lines
 
-CURVES = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
-          ("lin_vel_error", "|v_xy - command| (m/s)"), ("ang_vel_error", "|yaw rate - command| (rad/s)"),
-          ("fall_rate", "falls per env step"))
-"""PPO metrics plotted (episode means of the training episodes that ended in the epoch; falls per step also for
-the warm start's iterations, dashed)."""
-
 
 def run_records(run_dir: Path) -> tuple[list[dict], list[dict]]:
     """(warm-start records, PPO epoch records) of a run directory."""
@@ -26,9 +20,10 @@ def run_records(run_dir: Path) -> tuple[list[dict], list[dict]]:
 
 
 def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path,
-                    curves: tuple[tuple[str, str], ...] = CURVES) -> Path:
-    """Each run's PPO metrics (``curves``) against environment steps (warm start included) and against wall time;
-    a dotted line marks where a run's warm start ended."""
+                    curves: tuple[tuple[str, str], ...]) -> Path:
+    """Each run's PPO metrics (``curves``: (record key, title), an environment's `curves`; episode means of the
+    training episodes that ended in the epoch) against environment steps (warm start included, dashed where the
+    warm start recorded the key) and against wall time; a dotted line marks where a run's warm start ended."""
     fig, axes = plt.subplots(2, len(curves), figsize=(4.2 * len(curves), 7), squeeze=False)
     for i, (label, (warm, history)) in enumerate(runs.items()):
         offset = warm[-1]["env_steps"] if warm else 0
@@ -50,14 +45,7 @@ def learning_curves(runs: dict[str, tuple[list[dict], list[dict]]], path: Path,
     return save_figure(fig, path, dpi=110)
 
 
-def training_curve(history: list[dict], path: Path, warm: list[dict] | None = None,
-                   curves: tuple[tuple[str, str], ...] = CURVES) -> Path:
-    """One run's learning curves (`learning_curves`)."""
-    return learning_curves({"this run": (warm or [], history)}, path, curves)
-
-
-def write_run_curve(run_dir: Path, history: list[dict], curves: tuple[tuple[str, str], ...] | None = None) -> Path:
+def write_run_curve(run_dir: Path, history: list[dict], curves: tuple[tuple[str, str], ...]) -> Path:
     """``RUN/training_curve.png``: `history` (PPO epochs) after the run's DAgger warm start, if it has one, in the
-    panels ``curves`` (None: walking's, `CURVES`)."""
-    return training_curve(history, run_dir / "training_curve.png", warm=run_records(run_dir)[0],
-                          curves=curves or CURVES)
+    panels ``curves`` (its environment's `curves`)."""
+    return learning_curves({"this run": (run_records(run_dir)[0], history)}, run_dir / "training_curve.png", curves)

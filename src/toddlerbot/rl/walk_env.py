@@ -80,6 +80,9 @@ class WalkEnv(RLEnvironment):
     step_metrics = ("lin_vel_error", "ang_vel_error")
     """|achieved - commanded| horizontal velocity (m/s, yaw frame) and yaw rate (rad/s), instantaneous (the
     tracking evaluation averages over a gait cycle)."""
+    curves = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
+              ("lin_vel_error", "|v_xy - command| (m/s)"), ("ang_vel_error", "|yaw rate - command| (rad/s)"),
+              ("fall_rate", "falls per env step"))
 
     @classmethod
     def default_config(cls, smoke: bool = False) -> EnvConfig:
