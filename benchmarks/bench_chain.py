@@ -9,9 +9,10 @@ task's wide ranges (handle height, arm start pose, light; docs/manipulation.md).
 
 Run: PYTHONPATH=src python benchmarks/bench_chain.py [--seeds 20] [--first-seed 0] [--pose-offset 0.01]
                                                     [--wagon-shift 0.01,0] [--variation wide]
-                                                    [--scripted-grasp]
+                                                    [--scripted-grasp] [--chain FILE]
 The grasp is the chain's: the shipped wagon diffusion policy (`dp/checkpoints/wagon.pt`, torch: the [dp] extra; its
-sampling noise seeded by the run's seed), or with `--scripted-grasp` the script.
+sampling noise seeded by the run's seed), or with `--scripted-grasp` the script. `--chain FILE` runs a chain file in
+place of the shipped wagon chain (e.g. a copy whose grasp names another checkpoint: `checkpoint: run/checkpoint.pt`).
 """
 
 from __future__ import annotations
@@ -35,14 +36,15 @@ def main() -> None:
     parser.add_argument("--wagon-shift", default="0,0", help="x,y m, added to the seed's wagon shift")
     parser.add_argument("--scripted-grasp", action="store_true", help="grasp by script, not with the chain's policy")
     parser.add_argument("--variation", default="default", help="the wagon scene's variation the seeds draw from")
+    parser.add_argument("--chain", default="wagon", help="a chain file of the wagon scene (default: the shipped one)")
     args = parser.parse_args()
     shift = tuple(float(v) for v in args.wagon_shift.split(","))
     perturbation = StartPerturbation(args.pose_offset, (shift[0], shift[1]))
     description = RobotDescription.load(variant="gripper")
-    chain = load_chain("wagon", tuple(description.groups))
+    chain = load_chain(args.chain, tuple(description.groups))
     if args.scripted_grasp:
         chain = chain.with_scripted_grasps()
-    print(f"wagon chain, {perturbation}, scene variation {args.variation}")
+    print(f"{chain.name} chain ({args.chain}), {perturbation}, scene variation {args.variation}")
     print("seed  outcome                  moved m  switch s  grip N (L/R)   slide mm (L/R)  to end mm (L/R)  wall s  "
           "retries, re-grasps (s)")
     results = []
