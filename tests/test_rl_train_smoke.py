@@ -127,6 +127,7 @@ def test_export_of_the_smoke_run_matches_jax_policy(smoke_run, tmp_path):
     half = config.SMOKE.env_steps_per_update
     assert policy.meta["push_velocity"] == band and policy.meta["push_stages"] == [[0, *band], [half, *band]]
     assert policy.meta["mirror_loss"] == ppo_cfg.mirror_loss == 0.0  # the smoke run trains without it
+    assert policy.meta["seed"] == ppo_cfg.seed  # the training seed: a recipe's spread is over seeds
     assert policy.meta["push_interval_s"] == list(env_cfg.randomization.push_interval_s) == [2.0, 5.0]
     assert policy.meta["reward_weights"] == env_cfg.reward.weights and policy.meta["reward_weights"]["path_xy"] == 0
     first = RLPolicyFile(export.export_run(run, tmp_path / "first.npz", checkpoint=f"step_{half:012d}.msgpack"))

@@ -114,7 +114,7 @@ def export_run(run_dir: Path, out: Path, description: RobotDescription | None = 
             "step_reward": last.get("step_reward"), "sps": last.get("sps"), "device": last.get("device"),
             "backend": env_cfg.backend, "residual": env_cfg.residual, "teacher_gains": env_cfg.teacher_gains,
             "imitation_iterations": len(warm), "policy_hidden": list(ppo_cfg.policy_hidden),
-            "num_envs": ppo_cfg.num_envs, "mirror_loss": ppo_cfg.mirror_loss,
+            "num_envs": ppo_cfg.num_envs, "mirror_loss": ppo_cfg.mirror_loss, "seed": ppo_cfg.seed,
             "upper_body_pose": env_cfg.randomization.upper_body_pose,
             "hand_force": env_cfg.randomization.hand_force,
             "push_velocity": stages[-1]["push_velocity"],
