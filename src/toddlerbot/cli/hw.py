@@ -156,7 +156,7 @@ HwCommandOpt = Annotated[str, typer.Option("--command", help="Velocity schedule 
 MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")]
 WeightsOpt = Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz "
                                                  "or .onnx from `toddlerbot rl export`), or a shipped one by name: "
-                                                 "walk_rl (default) or walk_rl_gpu.")]
+                                                 "walk_rl (default), walk_rl_gpu or walk_rl_terrain.")]
 CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
                                                     "`dp train` or `dp export`.")]
 CameraOpt = Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "

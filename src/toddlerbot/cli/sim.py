@@ -50,7 +50,8 @@ MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy re
                                                "motion YAML file.")]
 WeightsOpt = Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz, or "
                                                  ".onnx run by onnxruntime), or a shipped one by name: walk_rl "
-                                                 "(default, CPU-trained) or walk_rl_gpu.")]
+                                                 "(default, CPU-trained), walk_rl_gpu or walk_rl_terrain (trained on "
+                                                 "1 cm tiles).")]
 SecondsOpt = Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")]
 RealtimeOpt = Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")]
 VideoOpt = Annotated[Path | None, typer.Option("--video", help="Write an MP4 from the tracking camera.")]

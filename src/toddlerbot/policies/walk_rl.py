@@ -26,7 +26,8 @@ from toddlerbot.robot.mirror import robot_mirror
 
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights"
 DEFAULT_WEIGHTS = SHIPPED_WEIGHTS / "walk_rl.npz"
-"""The CPU recipe's policy (docs/rl.md); ``walk_rl_gpu.npz`` beside it is the GPU run's."""
+"""The CPU recipe's policy (docs/rl.md); beside it ``walk_rl_gpu.npz`` is the GPU run's and ``walk_rl_terrain.npz``
+the one continued on 1 cm tiles (docs/rl.md "Walking on terrain")."""
 WALK_ENVIRONMENT = "walk"
 """The training environment whose exports this policy plays."""
 
