@@ -8,7 +8,7 @@ import pytest
 
 from toddlerbot.policies import make_policy
 from toddlerbot.policies.rl_inference import RLPolicyFile
-from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, resolve_weights
+from toddlerbot.policies.walk_rl import DEFAULT_WEIGHTS, resolve_weights, shipped_names
 from toddlerbot.runtime.robustness import conditions, reach_commands, run_trial
 from toddlerbot.sim.mujoco_robot import MuJoCoRobot
 from toddlerbot.sim.terrain import parse_terrain
@@ -21,6 +21,7 @@ SEED = 103
 def test_the_terrain_policy_ships_by_name_with_its_recipe_in_its_metadata():
     path = resolve_weights("walk_rl_terrain")
     assert path == DEFAULT_WEIGHTS.parent / "walk_rl_terrain.npz"
+    assert {"walk_rl", "walk_rl_gpu", "walk_rl_terrain"} <= set(shipped_names())  # what --weights' help lists
     meta = RLPolicyFile(path).meta
     assert meta["terrain_stages"] == [[0, "rough:height=0.01,cell=0.1", 1]]
     assert meta["terrain_start_stages"] == [[0, 0.08]]

@@ -14,6 +14,7 @@ from toddlerbot.cli.options import (
     StepInPlaceOption,
     TerrainOption,
     TerrainSeedOption,
+    WeightsOption,
     duration,
     stand_option,
     symmetric_option,
@@ -45,9 +46,7 @@ def tracking(
              "evaluation schedule).")] = None,
     seconds: Annotated[float | None, typer.Option(help="Duration, s (default 26 s, or 5 s past the last command "
                                                          "of --commands).")] = None,
-    weights: Annotated[Path | None, typer.Option(help="Exported RL policy (.npz or .onnx) for walk-rl, or a shipped "
-                                                      "one by name: walk_rl (default), walk_rl_gpu or "
-                                                      "walk_rl_terrain.")] = None,
+    weights: WeightsOption = None,
     plot: Annotated[Path | None, typer.Option(help="Where to save the commanded-vs-achieved velocity plot.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as JSON only.")] = False,
     motor_params: MotorParamsOption = None,

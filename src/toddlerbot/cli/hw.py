@@ -25,6 +25,7 @@ from toddlerbot.cli.options import (
     TerrainOption,
     TerrainSeedOption,
     VariantOption,
+    WeightsOption,
     check_run_policy,
     duration,
     seed_option,
@@ -154,9 +155,6 @@ HwPolicyOpt = Annotated[str, typer.Option("--policy", help=f"One of: {', '.join(
                                           "diffusion policy: --checkpoint, --camera, --variant gripper).")]
 HwCommandOpt = Annotated[str, typer.Option("--command", help="Velocity schedule 'time: vx,vy,yaw_rate; ...'.")]
 MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy replay: a motion name or file.")]
-WeightsOpt = Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz "
-                                                 "or .onnx from `toddlerbot rl export`), or a shipped one by name: "
-                                                 "walk_rl (default), walk_rl_gpu or walk_rl_terrain.")]
 CheckpointOpt = Annotated[Path | None, typer.Option("--checkpoint", help="For --policy dp: a checkpoint from "
                                                     "`dp train` or `dp export`.")]
 CameraOpt = Annotated[str | None, typer.Option("--camera", help="For --policy dp: the head camera, a V4L2 device "
@@ -171,7 +169,7 @@ LogOpt = Annotated[Path | None, typer.Option("--log", help="Save the run log (.n
 
 @app.command()
 def run(port: PortOption, calibration: CalibrationOpt, policy: HwPolicyOpt = "stand", command: HwCommandOpt = "0:0,0,0",
-        motion: MotionOpt = None, weights: WeightsOpt = None, checkpoint: CheckpointOpt = None,
+        motion: MotionOpt = None, weights: WeightsOption = None, checkpoint: CheckpointOpt = None,
         camera: CameraOpt = None, threads: ThreadsOpt = None, seconds: SecondsOpt = 5.0,
         control_hz: ControlHzOption = None, control_dt: DtOpt = None,
         log: LogOpt = None, imu: ImuOption = "bno08x", baud: BaudOption = 2_000_000, latency_ms: LatencyOption = 16.0,

@@ -13,6 +13,7 @@ import typer
 
 from toddlerbot.errors import ToddlerbotError
 from toddlerbot.policies import accepts_option, policy_names
+from toddlerbot.policies.walk_rl import shipped_names
 from toddlerbot.robot.builder import Base
 from toddlerbot.robot.description import RobotDescription, load_variant, variant_names
 from toddlerbot.robot.interface import CONTROL_HZ
@@ -82,6 +83,12 @@ TerrainOption = Annotated[str | None, typer.Option("--terrain", help=f"The groun
                                                    "the flat floor.")]
 TerrainSeedOption = Annotated[int, seed_option(help="For --terrain: the seed its ground is drawn from.",
                                                flag="--terrain-seed")]
+
+
+WeightsOption = Annotated[Path | None, typer.Option(
+    "--weights", help="For --policy walk-rl: an exported policy (.npz, or .onnx run by onnxruntime, from `toddlerbot "
+    f"rl export`), or one shipped in the package by name: {', '.join(shipped_names())} (default: walk_rl, or the "
+    "variant's; docs/rl.md).")]
 
 
 ControlHzOption = Annotated[float | None, typer.Option(

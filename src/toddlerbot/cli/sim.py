@@ -18,6 +18,7 @@ from toddlerbot.cli.options import (
     TerrainOption,
     TerrainSeedOption,
     VariantOption,
+    WeightsOption,
     check_run_policy,
     duration,
     positive,
@@ -48,10 +49,6 @@ CommandFileOpt = Annotated[Path | None, typer.Option("--command-file", help="Sch
                                                      "overrides --command.")]
 MotionOpt = Annotated[str | None, typer.Option("--motion", help="For --policy replay: squat, wave, look_around or a "
                                                "motion YAML file.")]
-WeightsOpt = Annotated[Path | None, typer.Option("--weights", help="For --policy walk-rl: an exported policy (.npz, or "
-                                                 ".onnx run by onnxruntime), or a shipped one by name: walk_rl "
-                                                 "(default, CPU-trained), walk_rl_gpu or walk_rl_terrain (trained on "
-                                                 "1 cm tiles).")]
 SecondsOpt = Annotated[float, typer.Option("--seconds", help="Duration, s (replay stops at the motion's end).")]
 RealtimeOpt = Annotated[bool, typer.Option("--realtime", help="Lock the loop to wall-clock time.")]
 VideoOpt = Annotated[Path | None, typer.Option("--video", help="Write an MP4 from the tracking camera.")]
@@ -72,7 +69,7 @@ ThreadsOpt = Annotated[int | None, typer.Option("--threads", min=1, help="For --
 
 @app.command()
 def run(policy: PolicyOpt = "walk-zmp", command: CommandOpt = None, command_file: CommandFileOpt = None,
-        motion: MotionOpt = None, weights: WeightsOpt = None, seconds: SecondsOpt = 10.0,
+        motion: MotionOpt = None, weights: WeightsOption = None, seconds: SecondsOpt = 10.0,
         control_hz: ControlHzOption = CONTROL_HZ, realtime: RealtimeOpt = False, video: VideoOpt = None,
         snapshot: SnapshotOpt = None, camera: CameraOpt = "perspective", viewer: ViewerOpt = False,
         log: LogOpt = None, summary_json: SummaryOpt = None, task: TaskOpt = None,

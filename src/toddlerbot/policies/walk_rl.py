@@ -38,6 +38,11 @@ def default_weights(variant: str | None) -> Path:
     return DEFAULT_WEIGHTS if variant is None else SHIPPED_WEIGHTS / f"walk_rl_{variant}.npz"
 
 
+def shipped_names() -> tuple[str, ...]:
+    """The walk-rl policies shipped in the package, by the name `resolve_weights` (``--weights NAME``) takes."""
+    return tuple(sorted(path.stem for path in SHIPPED_WEIGHTS.glob("walk_rl*.npz")))
+
+
 def resolve_weights(weights: str | Path) -> Path:
     """A policy file: a path, or the name of one shipped in the package (``walk_rl_gpu`` or ``walk_rl_gpu.npz``)
     when no such file exists here."""

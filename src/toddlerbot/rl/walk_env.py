@@ -80,9 +80,9 @@ class WalkEnv(RLEnvironment):
     step_metrics = ("lin_vel_error", "ang_vel_error")
     """|achieved - commanded| horizontal velocity (m/s, yaw frame) and yaw rate (rad/s), instantaneous (the
     tracking evaluation averages over a gait cycle)."""
-    curves = (("episode_reward", "episode return"), ("episode_length", "episode length (steps)"),
-              ("lin_vel_error", "|v_xy - command| (m/s)"), ("ang_vel_error", "|yaw rate - command| (rad/s)"),
-              ("fall_rate", "falls per env step"))
+    curves = (*RLEnvironment.curves[:2], ("lin_vel_error", "|v_xy - command| (m/s)"),
+              ("ang_vel_error", "|yaw rate - command| (rad/s)"), ("fall_rate", "falls per env step"))
+    """PPO's return and episode length, its `step_metrics`, and its episode ends, which are falls."""
 
     @classmethod
     def default_config(cls, smoke: bool = False) -> EnvConfig:
